@@ -1,0 +1,230 @@
+"""Camera models: the equirectangular panorama (paper eqs. 11-16, 21) and an OpenCV pinhole.
+
+Both models share one interface (:class:`CameraModel`) so the GMM cost is written once:
+- ``project(points_cam)`` -> ``uv`` (N,2) px, ``valid`` (N,) bool;
+- ``project_jacobian(points_cam)`` -> ``d uv / d p_cam`` (N,2,3) px/m;
+- ``back_project(uv)`` -> unit rays (N,3) in the camera frame;
+- ``displacement(uv_pixels, uv_centres)`` -> (N,2) px, the shortest route (paper 5.2); its derivative
+  with respect to the centre is always ``-I`` so gradients need no special cases;
+- ``pixel_area_ratio(uv)`` -> ``S_x / S(uv)`` of paper eq. 23 (see docs/method.md for the pinhole form);
+- ``pixels_per_radian``: the scale that turns an angle at 1 m (sigma_in) into pixels.
+
+Pixel centres are at integer coordinates: pixel (row i, column j) is ``(u, v) = (j, i)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.errors import GeometryError
+
+F64 = NDArray[np.float64]
+Mask = NDArray[np.bool_]
+
+_MIN_DEPTH_M = 1e-6
+
+
+class CameraModel(Protocol):
+    width: int
+    height: int
+
+    @property
+    def pixels_per_radian(self) -> float: ...
+
+    def project(self, points_cam: F64) -> tuple[F64, Mask]: ...
+
+    def project_jacobian(self, points_cam: F64) -> F64: ...
+
+    def back_project(self, uv: F64) -> F64: ...
+
+    def displacement(self, uv_pixels: F64, uv_centres: F64) -> F64: ...
+
+    def pixel_area_ratio(self, uv: F64) -> F64: ...
+
+
+@dataclass(frozen=True)
+class Equirectangular:
+    """Spherical panorama, camera frame x forward, y left, z up (paper Fig. 5).
+
+    ``u = w (pi - theta) / (2 pi)``, ``v = h phi / pi`` with ``theta = atan2(y, x)``, ``phi = acos(z / r)``.
+    """
+
+    width: int
+    height: int
+
+    def __post_init__(self) -> None:
+        if self.width <= 0 or self.height <= 0:
+            raise GeometryError(f"panorama size must be positive, got {self.width}x{self.height}")
+
+    @property
+    def pixels_per_radian(self) -> float:
+        return self.width / (2.0 * np.pi)
+
+    def project(self, points_cam: F64) -> tuple[F64, Mask]:
+        p = np.asarray(points_cam, dtype=np.float64)
+        r = np.linalg.norm(p, axis=1)
+        valid = r > _MIN_DEPTH_M
+        theta = np.arctan2(p[:, 1], p[:, 0])  # eq. 12
+        phi = np.arccos(np.clip(p[:, 2] / np.where(valid, r, 1.0), -1.0, 1.0))  # eq. 13
+        u = self.width * (np.pi - theta) / (2.0 * np.pi)  # eq. 15
+        v = self.height * phi / np.pi  # eq. 16
+        return np.stack([np.mod(u, self.width), v], axis=1), valid
+
+    def project_jacobian(self, points_cam: F64) -> F64:
+        """d(u, v)/d(x, y, z) from eqs. 12-16 (paper eq. 29), (N,2,3) px/m."""
+        p = np.asarray(points_cam, dtype=np.float64)
+        x, y, z = p[:, 0], p[:, 1], p[:, 2]
+        rho2 = np.maximum(x * x + y * y, 1e-18)
+        rho = np.sqrt(rho2)
+        r2 = rho2 + z * z
+        jac = np.zeros((len(p), 2, 3))
+        ku = -self.width / (2.0 * np.pi)
+        jac[:, 0, 0] = ku * (-y / rho2)
+        jac[:, 0, 1] = ku * (x / rho2)
+        kv = self.height / np.pi
+        jac[:, 1, 0] = kv * x * z / (r2 * rho)
+        jac[:, 1, 1] = kv * y * z / (r2 * rho)
+        jac[:, 1, 2] = kv * (-rho / r2)
+        return jac
+
+    def back_project(self, uv: F64) -> F64:
+        uv = np.asarray(uv, dtype=np.float64)
+        theta = np.pi - 2.0 * np.pi * uv[:, 0] / self.width
+        phi = np.pi * uv[:, 1] / self.height
+        return np.stack([np.sin(phi) * np.cos(theta), np.sin(phi) * np.sin(theta), np.cos(phi)], axis=1)
+
+    def displacement(self, uv_pixels: F64, uv_centres: F64) -> F64:
+        """Shortest of the routes of paper 5.2 (Fig. 6) from each centre to its pixel, (N,2) px.
+
+        Horizontal routes: direct or across the u = 0/w seam. Vertical routes: direct, or over the north
+        or south pole, which arrives half a turn (w/2) away in azimuth. The vertical component's sign is
+        chosen so that d(displacement)/d(centre) = -I on every route.
+        """
+        w, h = float(self.width), float(self.height)
+        du = uv_pixels[:, 0] - uv_centres[:, 0]
+        vp, vc = uv_pixels[:, 1], uv_centres[:, 1]
+        du_direct = du - w * np.round(du / w)
+        du_pole = du - w / 2.0
+        du_pole = du_pole - w * np.round(du_pole / w)
+        routes_u = np.stack([du_direct, du_pole, du_pole])
+        routes_v = np.stack([vp - vc, -(vp + vc), 2.0 * h - vp - vc])
+        best = np.argmin(routes_u**2 + routes_v**2, axis=0)
+        cols = np.arange(len(du))
+        return np.stack([routes_u[best, cols], routes_v[best, cols]], axis=1)
+
+    def pixel_area_ratio(self, uv: F64) -> F64:
+        """``S_x / S(v)`` of eqs. 18-23: the pixel at v covers a solid angle prop. to sin(pi v / h).
+
+        Eq. 21 gives ``S(v) = (2 pi / w) * 2 sin(pi v / h) sin(pi / 2h)``; at ``p_x = [1, 0, 0]``
+        (``v = h/2``) the sine is 1, so the ratio is ``1 / sin(pi v / h)``. It is clamped near the poles
+        where the pixel area vanishes.
+        """
+        s = np.sin(np.pi * np.asarray(uv, dtype=np.float64)[:, 1] / self.height)
+        return 1.0 / np.maximum(s, 0.05)
+
+
+@dataclass(frozen=True)
+class Pinhole:
+    """OpenCV pinhole with distortion ``D`` = (k1, k2, p1, p2[, k3]); optical frame z fwd, x right, y down.
+
+    ``K`` (3,3) px. Points project onto the raw (distorted) image, like ``cv2.projectPoints``.
+    """
+
+    K: F64
+    D: F64
+    width: int
+    height: int
+    _max_r2: float = field(init=False, repr=False, default=0.0)
+
+    def __post_init__(self) -> None:
+        k = np.asarray(self.K, dtype=np.float64)
+        d = np.zeros(5)
+        d_in = np.asarray(self.D, dtype=np.float64).reshape(-1)
+        if k.shape != (3, 3) or d_in.size not in (0, 4, 5) or self.width <= 0 or self.height <= 0:
+            raise GeometryError("pinhole needs K (3x3), D with 0, 4 or 5 numbers and a positive size")
+        d[: d_in.size] = d_in
+        object.__setattr__(self, "K", k)
+        object.__setattr__(self, "D", d)
+        object.__setattr__(self, "_max_r2", self._field_of_view_r2())
+
+    def _field_of_view_r2(self) -> float:
+        """Largest squared normalised radius that maps into the image (1.2x margin over the corners).
+
+        Beyond it the polynomial distortion can fold back and put far-off-axis points inside the image.
+        """
+        w, h = self.width - 1.0, self.height - 1.0
+        border = np.array([[0, 0], [w, 0], [0, h], [w, h], [w / 2, 0], [0, h / 2], [w, h / 2], [w / 2, h]])
+        und = cv2.undistortPoints(border.reshape(-1, 1, 2), self.K, self.D).reshape(-1, 2)
+        return float(1.2 * np.max(np.sum(und**2, axis=1)))
+
+    @property
+    def pixels_per_radian(self) -> float:
+        return float(np.sqrt(self.K[0, 0] * self.K[1, 1]))
+
+    def _normalised(self, points_cam: F64) -> tuple[F64, F64, F64, Mask]:
+        p = np.asarray(points_cam, dtype=np.float64)
+        z = p[:, 2]
+        front = z > _MIN_DEPTH_M
+        zs = np.where(front, z, 1.0)
+        x, y = p[:, 0] / zs, p[:, 1] / zs
+        return x, y, zs, front & (x * x + y * y < self._max_r2)
+
+    def project(self, points_cam: F64) -> tuple[F64, Mask]:
+        x, y, _, valid = self._normalised(points_cam)
+        k1, k2, p1, p2, k3 = self.D
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+        u = self.K[0, 0] * xd + self.K[0, 1] * yd + self.K[0, 2]
+        v = self.K[1, 1] * yd + self.K[1, 2]
+        return np.stack([u, v], axis=1), valid
+
+    def project_jacobian(self, points_cam: F64) -> F64:
+        x, y, zs, _ = self._normalised(points_cam)
+        k1, k2, p1, p2, k3 = self.D
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        d_radial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2)  # d radial / d r2
+        # d(xd, yd)/d(x, y)
+        dxd_dx = radial + 2.0 * x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x
+        dxd_dy = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y
+        dyd_dx = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y
+        dyd_dy = radial + 2.0 * y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x
+        d_norm = np.zeros((len(x), 2, 2))
+        d_norm[:, 0, 0] = self.K[0, 0] * dxd_dx + self.K[0, 1] * dyd_dx
+        d_norm[:, 0, 1] = self.K[0, 0] * dxd_dy + self.K[0, 1] * dyd_dy
+        d_norm[:, 1, 0] = self.K[1, 1] * dyd_dx
+        d_norm[:, 1, 1] = self.K[1, 1] * dyd_dy
+        # d(x, y)/d(p) for x = X/Z, y = Y/Z
+        d_xy = np.zeros((len(x), 2, 3))
+        d_xy[:, 0, 0] = 1.0 / zs
+        d_xy[:, 0, 2] = -x / zs
+        d_xy[:, 1, 1] = 1.0 / zs
+        d_xy[:, 1, 2] = -y / zs
+        return np.einsum("nij,njk->nik", d_norm, d_xy)
+
+    def back_project(self, uv: F64) -> F64:
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 1, 2)
+        xy = cv2.undistortPoints(uv, self.K, self.D).reshape(-1, 2)
+        rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
+        return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+    def displacement(self, uv_pixels: F64, uv_centres: F64) -> F64:
+        return np.asarray(uv_pixels, dtype=np.float64) - np.asarray(uv_centres, dtype=np.float64)
+
+    def pixel_area_ratio(self, uv: F64) -> F64:
+        """``S_x / S(uv)`` for a pinhole: a pixel's solid angle is ``cos^3(alpha) / (fx fy)``.
+
+        ``alpha`` is the angle between the pixel's ray and the optical axis (a pixel of area dA on the
+        image plane at distance f, seen at incidence alpha from a distance f / cos(alpha)). The reference
+        ``S_x`` is the principal point's, so the ratio is ``1 / cos^3(alpha)`` (lens distortion is folded in
+        through the undistorted ray; its own area change is a second-order effect we leave out).
+        """
+        rays = self.back_project(uv)
+        return 1.0 / np.maximum(rays[:, 2], 0.2) ** 3

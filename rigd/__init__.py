@@ -1,0 +1,1 @@
+"""rigd package."""

@@ -1,0 +1,5 @@
+import sys
+
+from rigd.cli import main
+
+sys.exit(main())

@@ -1,0 +1,43 @@
+"""The ``rigd`` command line: one module per subcommand, each with ``register(subparsers)``."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from calib.errors import CalibError
+from drivers.errors import DriverError
+from rigd.errors import RigdError
+
+# Each module defines register(subparsers) and sets a handler with parser.set_defaults(func=...).
+COMMAND_MODULES = ("simulate", "demo")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="rigd",
+        description="Targetless camera-LiDAR calibration for a Ladybug5 + VLP-16 rig (Kang & Doh 2020).",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"rigd.cli.{name}").register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (RigdError, DriverError, CalibError) as exc:
+        print(f"rigd: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("rigd: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,149 @@
+"""Read and write a dataset directory (layout in docs/dataset.md).
+
+Pairs are written atomically: into ``pairs/.NNNN.tmp`` first, renamed to ``pairs/NNNN`` when complete,
+so a reader never sees half a pair and an interrupted writer loses nothing already written.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from calib.geometry import Transform
+from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
+from rigd.dataset.records import RigConfig, transform_from_yaml, transform_to_yaml
+from rigd.errors import DatasetError
+
+IMAGE_NAMES = ("image.png", "image.jpg", "image.jpeg")
+
+
+@dataclass(frozen=True)
+class Pair:
+    """One synchronised capture: ``image`` (H,W) or (H,W,3) uint8 (BGR), its cloud and ``meta``."""
+
+    index: int
+    image: NDArray[np.uint8]
+    cloud: Cloud
+    meta: dict[str, Any]
+
+
+def read_yaml(path: Path) -> Any:
+    if not path.is_file():
+        raise DatasetError(f"{path}: file is missing")
+    try:
+        with path.open() as fh:
+            return yaml.safe_load(fh)
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise DatasetError(f"{path}: not valid YAML ({exc})") from exc
+
+
+def write_yaml(path: Path, data: Any) -> None:
+    """Write YAML through a temporary file and a rename, so the file is never half written."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    with tmp.open("w") as fh:
+        yaml.safe_dump(data, fh, sort_keys=False)
+        fh.flush()
+        os.fsync(fh.fileno())
+    tmp.replace(path)
+
+
+def read_image(path: Path) -> NDArray[np.uint8]:
+    if not path.is_file():
+        raise DatasetError(f"{path}: image file is missing")
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None or image.size == 0:
+        raise DatasetError(f"{path}: not a readable PNG/JPEG image")
+    if image.dtype != np.uint8:
+        image = cv2.convertScaleAbs(image, alpha=255.0 / max(float(image.max()), 1.0))
+    return np.asarray(image, dtype=np.uint8)
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """An opened dataset; pairs are loaded lazily (a 12-pair set does not have to fit in memory)."""
+
+    root: Path
+    rig: RigConfig
+    pair_dirs: tuple[Path, ...]
+    ground_truth: Transform | None
+
+    def __len__(self) -> int:
+        return len(self.pair_dirs)
+
+    def load_pair(self, i: int) -> Pair:
+        folder = self.pair_dirs[i]
+        image_path = next((folder / n for n in IMAGE_NAMES if (folder / n).is_file()), folder / IMAGE_NAMES[0])
+        image = read_image(image_path)
+        expected = (self.rig.camera.height, self.rig.camera.width)
+        if image.shape[:2] != expected:
+            raise DatasetError(f"{image_path}: image is {image.shape[1]}x{image.shape[0]}, rig.yaml says "
+                               f"{expected[1]}x{expected[0]}")
+        cloud = read_pcd(folder / "cloud.pcd")
+        meta_path = folder / "meta.yaml"
+        meta = read_yaml(meta_path) if meta_path.is_file() else {}
+        return Pair(int(folder.name), image, cloud, meta or {})
+
+    def pairs(self) -> Iterator[Pair]:
+        for i in range(len(self)):
+            yield self.load_pair(i)
+
+
+def open_dataset(root: Path) -> Dataset:
+    """Open ``root``; raises :class:`DatasetError` naming the missing or corrupt file."""
+    root = Path(root)
+    if not root.is_dir():
+        raise DatasetError(f"{root}: dataset directory does not exist")
+    rig = RigConfig.from_yaml(read_yaml(root / "rig.yaml"), str(root / "rig.yaml"))
+    pairs_dir = root / "pairs"
+    dirs = sorted(p for p in pairs_dir.iterdir() if p.is_dir() and p.name.isdigit()) if pairs_dir.is_dir() else []
+    gt_path = root / "ground_truth.yaml"
+    gt = None
+    if gt_path.is_file():
+        data = read_yaml(gt_path)
+        gt = transform_from_yaml((data or {}).get("T_camera_lidar", {}), str(gt_path))
+    return Dataset(root, rig, tuple(dirs), gt)
+
+
+def write_rig(root: Path, rig: RigConfig) -> None:
+    Path(root).mkdir(parents=True, exist_ok=True)
+    write_yaml(Path(root) / "rig.yaml", rig.to_yaml())
+
+
+def write_ground_truth(root: Path, transform: Transform) -> None:
+    write_yaml(Path(root) / "ground_truth.yaml", {"T_camera_lidar": transform_to_yaml(transform)})
+
+
+def next_pair_index(root: Path) -> int:
+    pairs_dir = Path(root) / "pairs"
+    if not pairs_dir.is_dir():
+        return 0
+    done = [int(p.name) for p in pairs_dir.iterdir() if p.is_dir() and p.name.isdigit()]
+    return max(done, default=-1) + 1
+
+
+def write_pair(root: Path, index: int, image: NDArray[np.uint8], cloud: Cloud, meta: dict[str, Any]) -> Path:
+    """Write pair ``index`` atomically and return its folder; an existing pair is never overwritten."""
+    pairs_dir = Path(root) / "pairs"
+    pairs_dir.mkdir(parents=True, exist_ok=True)
+    final = pairs_dir / f"{index:04d}"
+    if final.exists():
+        raise DatasetError(f"{final}: pair already exists; refusing to overwrite it")
+    tmp = pairs_dir / f".{index:04d}.tmp"
+    if tmp.exists():
+        shutil.rmtree(tmp)  # leftover of an interrupted write: never a complete pair
+    tmp.mkdir()
+    if not cv2.imwrite(str(tmp / "image.png"), image):
+        raise DatasetError(f"{tmp / 'image.png'}: could not write image")
+    write_pcd(tmp / "cloud.pcd", cloud)
+    write_yaml(tmp / "meta.yaml", meta)
+    tmp.rename(final)
+    return final
