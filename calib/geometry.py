@@ -9,6 +9,7 @@ Conventions fixed for the whole project:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,26 +35,28 @@ def so3_exp(omega: F64) -> F64:
     k = skew(omega)
     if angle < _SMALL_ANGLE:
         return np.eye(3) + k + 0.5 * k @ k
-    return np.eye(3) + (np.sin(angle) / angle) * k + ((1.0 - np.cos(angle)) / angle**2) * k @ k
+    return np.eye(3) + (math.sin(angle) / angle) * k + ((1.0 - math.cos(angle)) / angle**2) * k @ k
 
 
 def so3_log(rotation: F64) -> F64:
     """Rotation vector ``omega`` (3,) rad with ``so3_exp(omega) == rotation``; angle in [0, pi]."""
     r = check_rotation(rotation)
-    cos_angle = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
-    angle = float(np.arccos(cos_angle))
     vee = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    sin_angle = float(np.linalg.norm(vee)) / 2.0
+    cos_angle = (float(np.trace(r)) - 1.0) / 2.0
+    # atan2 keeps the angle accurate near 0 and pi, where arccos and arcsin lose half the digits.
+    angle = math.atan2(sin_angle, cos_angle)
     if angle < 1e-6:
         return 0.5 * vee
-    if np.pi - angle > 1e-4:
-        return angle / (2.0 * np.sin(angle)) * vee
-    # Near pi the antisymmetric part vanishes: take the axis from the symmetric part.
-    sym = (r + np.eye(3)) / 2.0
-    col = int(np.argmax(np.diag(sym)))
-    axis = sym[:, col] / np.sqrt(sym[col, col])
+    if np.pi - angle > 1e-3:
+        return (angle / (2.0 * sin_angle)) * vee
+    # Near pi the antisymmetric part vanishes: the symmetric part is cos I + (1 - cos) a a^T.
+    outer = (r + r.T) / 2.0 - cos_angle * np.eye(3)
+    col = int(np.argmax(np.diag(outer)))
+    axis = outer[:, col] / np.linalg.norm(outer[:, col])
     if np.dot(axis, vee) < 0:
         axis = -axis
-    return angle * axis / np.linalg.norm(axis)
+    return angle * axis
 
 
 def left_jacobian(omega: F64) -> F64:
@@ -63,8 +66,8 @@ def left_jacobian(omega: F64) -> F64:
     if angle < 1e-6:
         return np.eye(3) + 0.5 * skew(omega)
     a = omega / angle
-    s = np.sin(angle) / angle
-    return s * np.eye(3) + (1.0 - s) * np.outer(a, a) + ((1.0 - np.cos(angle)) / angle) * skew(a)
+    s = math.sin(angle) / angle
+    return s * np.eye(3) + (1.0 - s) * np.outer(a, a) + ((1.0 - math.cos(angle)) / angle) * skew(a)
 
 
 def check_rotation(rotation: F64, tol: float = 1e-6) -> F64:
@@ -101,14 +104,15 @@ def rpy_deg_to_matrix(rpy_deg: F64) -> F64:
 def matrix_to_rpy_deg(rotation: F64) -> F64:
     """(roll, pitch, yaw) in degrees with pitch in [-90, 90]; inverse of :func:`rpy_deg_to_matrix`."""
     r = check_rotation(rotation)
-    pitch = np.arcsin(np.clip(-r[2, 0], -1.0, 1.0))
-    if abs(np.cos(pitch)) < 1e-9:  # gimbal lock: put everything in yaw
+    # atan2 rather than arcsin(-r[2, 0]), which loses half the digits near the gimbal lock.
+    pitch = math.atan2(-r[2, 0], math.hypot(r[0, 0], r[1, 0]))
+    if abs(math.cos(pitch)) < 1e-12:  # gimbal lock: put everything in yaw
         roll = 0.0
-        yaw = np.arctan2(-r[0, 1], r[1, 1])
+        yaw = math.atan2(-r[0, 1], r[1, 1])
     else:
-        roll = np.arctan2(r[2, 1], r[2, 2])
-        yaw = np.arctan2(r[1, 0], r[0, 0])
-    return np.degrees(np.array([roll, pitch, yaw]))
+        roll = math.atan2(r[2, 1], r[2, 2])
+        yaw = math.atan2(r[1, 0], r[0, 0])
+    return np.array([math.degrees(roll), math.degrees(pitch), math.degrees(yaw)])
 
 
 def matrix_to_quaternion_xyzw(rotation: F64) -> F64:
@@ -213,7 +217,8 @@ class Transform:
 
     def compose(self, other: Transform) -> Transform:
         """``self @ other``: first ``other``, then ``self``."""
-        return Transform(self.rotation @ other.rotation, self.rotation @ other.translation_m + self.translation_m)
+        rotation = self.rotation @ other.rotation
+        return Transform(rotation, self.rotation @ other.translation_m + self.translation_m)
 
 
 def rotation_angle_deg(a: F64, b: F64) -> float:
