@@ -1,0 +1,146 @@
+"""Rig camera file and stitching geometry (the scene-based stitching test is test_ladybug5_sim.py)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from calib.camera import Equirectangular
+from calib.geometry import matrix_to_quaternion_xyzw, matrix_to_rpy_deg, rpy_deg_to_matrix
+from drivers.ladybug5 import rotation
+from drivers.ladybug5.errors import Ladybug5Error, RigFileError
+from drivers.ladybug5.rig import (
+    RigCamera,
+    RigCameras,
+    default_ladybug5_rig,
+    load_rig,
+    rig_from_yaml,
+    rig_to_yaml,
+    save_rig,
+)
+from drivers.ladybug5.stitch import PanoramaSpec, Stitcher, panorama_rays
+
+DEFAULT_RIG_FILE = Path(__file__).resolve().parents[3] / "drivers" / "ladybug5" / "ladybug5_rig.yaml"
+
+
+def scaled_rig(rig: RigCameras, scale: float) -> RigCameras:
+    """The same head with images ``scale`` times the size (K scaled about the pixel-centre convention)."""
+    cameras = []
+    for c in rig.cameras:
+        k = c.K.copy()
+        k[:2] *= scale
+        k[0, 2] = (c.K[0, 2] + 0.5) * scale - 0.5
+        k[1, 2] = (c.K[1, 2] + 0.5) * scale - 0.5
+        w, h = round(c.width * scale), round(c.height * scale)
+        cameras.append(RigCamera(c.name, w, h, k, c.D, c.R_head_camera, c.t_head_camera_m))
+    return RigCameras(rig.model, tuple(cameras))
+
+
+def pixel_rays_head(camera: RigCamera) -> np.ndarray:
+    """Head-frame unit rays (H*W,3) of every pixel, by OpenCV's own (iterative) undistortion."""
+    u, v = np.meshgrid(np.arange(camera.width, dtype=float), np.arange(camera.height, dtype=float))
+    uv = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+    xy = cv2.undistortPoints(uv, camera.K, camera.D, None, None, None, criteria).reshape(-1, 2)
+    rays = np.column_stack([xy, np.ones(len(xy))])
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    return rays @ camera.R_head_camera.T
+
+
+def smooth_field(rays: np.ndarray) -> np.ndarray:
+    """A smooth brightness as a function of direction only (so any correct stitch reproduces it)."""
+    return 127.0 + 60.0 * np.sin(3.0 * rays[..., 0]) + 50.0 * np.cos(2.0 * rays[..., 1] + rays[..., 2])
+
+
+def test_local_rotation_helpers_match_calib():
+    rng = np.random.default_rng(1)
+    for rpy in rng.uniform([-180, -89, -180], [180, 89, 180], size=(200, 3)):
+        m = rpy_deg_to_matrix(rpy)
+        np.testing.assert_allclose(rotation.rpy_deg_to_matrix(rpy), m, atol=1e-12)
+        np.testing.assert_allclose(rotation.matrix_to_rpy_deg(m), matrix_to_rpy_deg(m), atol=1e-7)
+        np.testing.assert_allclose(rotation.matrix_to_quaternion_xyzw(m), matrix_to_quaternion_xyzw(m), atol=1e-9)
+
+
+def test_default_rig_geometry_is_a_ladybug5_like_head():
+    rig = default_ladybug5_rig()
+    assert len(rig.cameras) == 6
+    axes = np.array([c.R_head_camera[:, 2] for c in rig.cameras])
+    yaw = np.degrees(np.arctan2(axes[:5, 1], axes[:5, 0]))
+    np.testing.assert_allclose(np.diff(np.unwrap(np.radians(yaw))), np.radians(72.0), atol=1e-12)
+    np.testing.assert_allclose(axes[5], [0, 0, 1], atol=1e-12)
+    for c in rig.cameras:
+        assert np.linalg.det(c.R_head_camera) == pytest.approx(1.0)
+        assert np.linalg.norm(c.t_head_camera_m) == pytest.approx(0.045)
+        assert c.K[0, 0] == pytest.approx(4.4e-3 / 3.45e-6)  # 4.4 mm lens on 3.45 um pixels
+
+
+def test_rig_file_round_trip_and_shipped_default(tmp_path):
+    rig = default_ladybug5_rig()
+    save_rig(rig, tmp_path / "rig.yaml")
+    back = load_rig(tmp_path / "rig.yaml")
+    shipped = load_rig(DEFAULT_RIG_FILE)
+    for a, b, c in zip(rig.cameras, back.cameras, shipped.cameras, strict=True):
+        for other in (b, c):
+            np.testing.assert_allclose(other.K, a.K)
+            np.testing.assert_allclose(other.D, a.D)
+            np.testing.assert_allclose(other.R_head_camera, a.R_head_camera, atol=1e-12)
+            np.testing.assert_allclose(other.t_head_camera_m, a.t_head_camera_m, atol=1e-12)
+
+
+def test_rig_file_accepts_rpy_and_rejects_bad_entries():
+    data = rig_to_yaml(default_ladybug5_rig())
+    entry = data["cameras"][1]["T_head_camera"]
+    del entry["matrix"]
+    expected = default_ladybug5_rig().cameras[1].R_head_camera
+    np.testing.assert_allclose(rig_from_yaml(data, "x").cameras[1].R_head_camera, expected, atol=1e-9)
+    data["cameras"][2]["K"] = [[1, 0], [0, 1]]
+    with pytest.raises(RigFileError, match=r"cameras\[2\]"):
+        rig_from_yaml(data, "rig.yaml")
+    with pytest.raises(RigFileError, match="cameras"):
+        rig_from_yaml({"model": "x"}, "rig.yaml")
+
+
+def test_projection_matches_opencv():
+    camera = default_ladybug5_rig().cameras[2]
+    rng = np.random.default_rng(3)
+    points = rng.uniform([-1, -1, 0.5], [1, 1, 2], size=(500, 3))
+    uv, valid = camera.project(points)
+    expected, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), camera.K, camera.D)
+    np.testing.assert_allclose(uv, expected.reshape(-1, 2), atol=1e-6)
+    assert valid.any() and not valid.all()
+
+
+def test_panorama_rays_follow_the_project_convention():
+    w, h = 64, 32
+    rays = panorama_rays(w, h).reshape(-1, 3)
+    jj, ii = np.meshgrid(np.arange(w), np.arange(h))
+    expected = Equirectangular(w, h).back_project(np.stack([jj.ravel(), ii.ravel()], axis=1).astype(float))
+    np.testing.assert_allclose(rays, expected, atol=1e-12)
+
+
+def test_direction_only_stitch_reproduces_a_field_of_directions():
+    rig = scaled_rig(default_ladybug5_rig(), 1 / 8)
+    stitcher = Stitcher(rig, PanoramaSpec(256, 128, math.inf))
+    images = [smooth_field(pixel_rays_head(c)).reshape(c.height, c.width).astype(np.float32) for c in rig.cameras]
+    pano = stitcher.stitch(images)
+    expected = smooth_field(panorama_rays(256, 128))
+    assert np.abs(pano - expected)[stitcher.coverage].max() < 0.5  # of a 0..255 range
+    # Everything above 45 deg below the horizon is seen; the nadir under the head is not.
+    rows = np.arange(128)
+    assert stitcher.coverage[rows < 96].all()
+    assert not stitcher.coverage[-1].any()
+
+
+def test_stitch_keeps_dtype_and_checks_image_sizes():
+    rig = scaled_rig(default_ladybug5_rig(), 1 / 16)
+    stitcher = Stitcher(rig, PanoramaSpec(128, 64))
+    images = [np.full((c.height, c.width, 3), 200, np.uint8) for c in rig.cameras]
+    pano = stitcher.stitch(images)
+    assert pano.dtype == np.uint8 and pano.shape == (64, 128, 3)
+    assert np.all(pano[stitcher.coverage] == 200)  # weights sum to one wherever a camera sees
+    with pytest.raises(Ladybug5Error, match="cam0"):
+        stitcher.stitch([np.zeros((5, 5, 3), np.uint8)] * 6)
