@@ -207,13 +207,15 @@ class Pinhole:
         d_xy[:, 0, 2] = -x / zs
         d_xy[:, 1, 1] = 1.0 / zs
         d_xy[:, 1, 2] = -y / zs
-        return np.einsum("nij,njk->nik", d_norm, d_xy)
+        jac: F64 = np.einsum("nij,njk->nik", d_norm, d_xy)
+        return jac
 
     def back_project(self, uv: F64) -> F64:
         uv = np.asarray(uv, dtype=np.float64).reshape(-1, 1, 2)
         xy = cv2.undistortPoints(uv, self.K, self.D).reshape(-1, 2)
         rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
-        return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+        unit_rays: F64 = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+        return unit_rays
 
     def displacement(self, uv_pixels: F64, uv_centres: F64) -> F64:
         return np.asarray(uv_pixels, dtype=np.float64) - np.asarray(uv_centres, dtype=np.float64)
