@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,9 +36,13 @@ def read_pcd(path: Path) -> Cloud:
     if not path.is_file():
         raise DatasetError(f"{path}: point cloud file is missing")
     try:
-        data = PointCloud.from_path(path).pc_data
-    except (ValueError, KeyError, IndexError, OSError, UnicodeDecodeError, TypeError) as exc:
+        cloud = PointCloud.from_path(path)
+    # pypcd4 reports a short or corrupt body as struct.error (no size words) or RuntimeError (LZF size).
+    except (ValueError, KeyError, IndexError, OSError, TypeError, struct.error, RuntimeError) as exc:
         raise DatasetError(f"{path}: not a readable PCD file ({exc})") from exc
+    data = cloud.pc_data
+    if len(data) != cloud.metadata.points:  # pypcd4 silently returns fewer points from a truncated body
+        raise DatasetError(f"{path}: truncated PCD: {len(data)} of {cloud.metadata.points} points")
     names = data.dtype.names or ()
     if not {"x", "y", "z"} <= set(names):
         raise DatasetError(f"{path}: PCD has no x/y/z fields (fields: {', '.join(names)})")

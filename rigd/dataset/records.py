@@ -105,6 +105,8 @@ class RigConfig:
             raise DatasetError(f"{where}: rig file needs a 'camera' section")
         camera = CameraConfig.from_yaml(data["camera"], where)
         lidar = data.get("lidar") or {}
+        if not isinstance(lidar, dict):
+            raise DatasetError(f"{where}: 'lidar' must be a mapping with a 'model' key, got {lidar!r}")
         guess = data.get("initial_guess")
         initial = transform_from_yaml(guess, where) if guess else None
         return cls(camera, str(lidar.get("model", "VLP-16")), initial)

@@ -46,6 +46,16 @@ def read_yaml(path: Path) -> Any:
         raise DatasetError(f"{path}: not valid YAML ({exc})") from exc
 
 
+def read_yaml_mapping(path: Path) -> dict[str, Any]:
+    """Read a YAML file that must hold a mapping (an empty file gives an empty one)."""
+    data = read_yaml(path)
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise DatasetError(f"{path}: expected a YAML mapping, got {type(data).__name__}")
+    return data
+
+
 def write_yaml(path: Path, data: Any) -> None:
     """Write YAML through a temporary file and a rename, so the file is never half written."""
     tmp = path.with_name(f".{path.name}.tmp")
@@ -81,7 +91,8 @@ class Dataset:
 
     def load_pair(self, i: int) -> Pair:
         folder = self.pair_dirs[i]
-        image_path = next((folder / n for n in IMAGE_NAMES if (folder / n).is_file()), folder / IMAGE_NAMES[0])
+        found = (folder / n for n in IMAGE_NAMES if (folder / n).is_file())
+        image_path = next(found, folder / IMAGE_NAMES[0])
         image = read_image(image_path)
         expected = (self.rig.camera.height, self.rig.camera.width)
         if image.shape[:2] != expected:
@@ -89,8 +100,8 @@ class Dataset:
                                f"{expected[1]}x{expected[0]}")
         cloud = read_pcd(folder / "cloud.pcd")
         meta_path = folder / "meta.yaml"
-        meta = read_yaml(meta_path) if meta_path.is_file() else {}
-        return Pair(int(folder.name), image, cloud, meta or {})
+        meta = read_yaml_mapping(meta_path) if meta_path.is_file() else {}
+        return Pair(int(folder.name), image, cloud, meta)
 
     def pairs(self) -> Iterator[Pair]:
         for i in range(len(self)):
@@ -104,12 +115,12 @@ def open_dataset(root: Path) -> Dataset:
         raise DatasetError(f"{root}: dataset directory does not exist")
     rig = RigConfig.from_yaml(read_yaml(root / "rig.yaml"), str(root / "rig.yaml"))
     pairs_dir = root / "pairs"
-    dirs = sorted(p for p in pairs_dir.iterdir() if p.is_dir() and p.name.isdigit()) if pairs_dir.is_dir() else []
+    entries = list(pairs_dir.iterdir()) if pairs_dir.is_dir() else []
+    dirs = sorted(p for p in entries if p.is_dir() and p.name.isdigit())  # .NNNN.tmp: unfinished pairs
     gt_path = root / "ground_truth.yaml"
     gt = None
     if gt_path.is_file():
-        data = read_yaml(gt_path)
-        gt = transform_from_yaml((data or {}).get("T_camera_lidar", {}), str(gt_path))
+        gt = transform_from_yaml(read_yaml_mapping(gt_path).get("T_camera_lidar", {}), str(gt_path))
     return Dataset(root, rig, tuple(dirs), gt)
 
 

@@ -1,0 +1,239 @@
+"""Dataset directories (rigd/dataset/store.py, records.py): layout, atomic pairs, clear errors."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from calib.camera import Equirectangular, Pinhole
+from calib.geometry import Transform
+from rigd.dataset import (
+    CameraConfig,
+    CameraKind,
+    Cloud,
+    RigConfig,
+    open_dataset,
+    write_ground_truth,
+    write_pair,
+    write_rig,
+)
+from rigd.dataset.store import next_pair_index
+from rigd.errors import DatasetError
+
+REPO = Path(__file__).resolve().parents[3]
+SAMPLE = REPO / ".." / "shared" / "data" / "pinhole_sample"
+
+PANO_RIG = RigConfig(
+    CameraConfig(CameraKind.EQUIRECTANGULAR, 64, 32),
+    "VLP-16",
+    Transform.from_rpy_xyz(np.array([1.0, -2.0, 90.0]), np.array([0.1, 0.0, -0.2])),
+)
+
+
+def small_pair(seed: int) -> tuple[np.ndarray, Cloud, dict]:
+    rng = np.random.default_rng(seed)
+    image = rng.integers(0, 256, size=(32, 64, 3), dtype=np.uint8)
+    # Quarter-metre steps are exact in float32, so the cloud survives the PCD round trip bit for bit.
+    points = rng.integers(-40, 40, size=(50, 3)) / 4.0
+    intensity, ring = rng.integers(0, 255, 50).astype(np.float32), rng.integers(0, 16, 50).astype(np.int16)
+    cloud = Cloud(points, intensity, ring)
+    return image, cloud, {"capture_time_s": 1700000000.5 + seed, "stationary": True}
+
+
+@pytest.fixture
+def dataset_root(tmp_path: Path) -> Path:
+    root = tmp_path / "ds"
+    write_rig(root, PANO_RIG)
+    for i in range(2):
+        write_pair(root, i, *small_pair(i))
+    return root
+
+
+def test_pairs_round_trip(dataset_root: Path) -> None:
+    dataset = open_dataset(dataset_root)
+    assert len(dataset) == 2
+    assert [p.name for p in dataset.pair_dirs] == ["0000", "0001"]
+    for i, pair in enumerate(dataset.pairs()):
+        image, cloud, meta = small_pair(i)
+        assert pair.index == i
+        np.testing.assert_array_equal(pair.image, image)  # PNG is lossless
+        np.testing.assert_array_equal(pair.cloud.points_lidar, cloud.points_lidar)
+        np.testing.assert_array_equal(pair.cloud.intensity, cloud.intensity)
+        np.testing.assert_array_equal(pair.cloud.ring, cloud.ring)
+        assert pair.meta == meta
+    assert sorted(p.name for p in (dataset_root / "pairs" / "0000").iterdir()) == [
+        "cloud.pcd",
+        "image.png",
+        "meta.yaml",
+    ]
+
+
+def test_rig_round_trip(dataset_root: Path) -> None:
+    rig = open_dataset(dataset_root).rig
+    assert rig.camera.kind is CameraKind.EQUIRECTANGULAR
+    assert (rig.camera.width, rig.camera.height) == (64, 32)
+    assert isinstance(rig.camera.model(), Equirectangular)
+    assert rig.lidar_model == "VLP-16"
+    assert rig.initial_guess is not None and PANO_RIG.initial_guess is not None
+    np.testing.assert_allclose(rig.initial_guess.matrix, PANO_RIG.initial_guess.matrix, atol=1e-12)
+
+
+def test_ground_truth_round_trip(dataset_root: Path) -> None:
+    assert open_dataset(dataset_root).ground_truth is None
+    truth = Transform.from_rpy_xyz(np.array([-90.0, 0.5, -90.0]), np.array([0.0, -0.08, -0.1]))
+    write_ground_truth(dataset_root, truth)
+    data = yaml.safe_load((dataset_root / "ground_truth.yaml").read_text())["T_camera_lidar"]
+    assert set(data) == {"matrix", "quaternion_xyzw", "rpy_deg", "xyz_m"}
+    loaded = open_dataset(dataset_root).ground_truth
+    assert loaded is not None
+    np.testing.assert_allclose(loaded.matrix, truth.matrix, atol=1e-12)
+
+
+# --- atomic writes and resumption --------------------------------------------------------------------
+
+
+def test_leftover_tmp_is_not_a_pair(dataset_root: Path) -> None:
+    # An interrupted writer leaves pairs/.0002.tmp with whatever it got to write.
+    leftover = dataset_root / "pairs" / ".0002.tmp"
+    shutil.copytree(dataset_root / "pairs" / "0001", leftover)
+    assert len(open_dataset(dataset_root)) == 2
+    assert next_pair_index(dataset_root) == 2
+    # Resuming writes pair 2 over the leftover, which then is gone.
+    write_pair(dataset_root, 2, *small_pair(2))
+    assert not leftover.exists()
+    dataset = open_dataset(dataset_root)
+    assert len(dataset) == 3
+    assert dataset.load_pair(2).meta == small_pair(2)[2]
+
+
+def test_existing_pair_is_not_overwritten(dataset_root: Path) -> None:
+    before = (dataset_root / "pairs" / "0001" / "cloud.pcd").read_bytes()
+    with pytest.raises(DatasetError, match="0001.*already exists"):
+        write_pair(dataset_root, 1, *small_pair(7))
+    assert (dataset_root / "pairs" / "0001" / "cloud.pcd").read_bytes() == before
+    assert not (dataset_root / "pairs" / ".0001.tmp").exists()
+
+
+def test_next_pair_index_on_a_new_dataset(tmp_path: Path) -> None:
+    assert next_pair_index(tmp_path / "new") == 0
+
+
+# --- broken files --------------------------------------------------------------------------------------
+
+
+def test_corrupt_png_names_the_file(dataset_root: Path) -> None:
+    image = dataset_root / "pairs" / "0001" / "image.png"
+    image.write_bytes(image.read_bytes()[:200])  # truncated PNG
+    dataset = open_dataset(dataset_root)
+    with pytest.raises(DatasetError, match=r"0001/image\.png"):
+        dataset.load_pair(1)
+    image.write_bytes(b"\x89PNG\r\n\x1a\n" + b"garbage" * 20)
+    with pytest.raises(DatasetError, match=r"0001/image\.png"):
+        dataset.load_pair(1)
+
+
+def test_missing_and_broken_cloud_name_the_file(dataset_root: Path) -> None:
+    cloud = dataset_root / "pairs" / "0000" / "cloud.pcd"
+    cloud.write_bytes(cloud.read_bytes()[:-40])
+    with pytest.raises(DatasetError, match=r"0000/cloud\.pcd"):
+        open_dataset(dataset_root).load_pair(0)
+    cloud.unlink()
+    with pytest.raises(DatasetError, match=r"0000/cloud\.pcd.*missing"):
+        open_dataset(dataset_root).load_pair(0)
+
+
+def test_image_size_must_match_rig(dataset_root: Path) -> None:
+    cv2.imwrite(str(dataset_root / "pairs" / "0000" / "image.png"), np.zeros((10, 20), np.uint8))
+    with pytest.raises(DatasetError, match=r"image\.png.*20x10.*64x32"):
+        open_dataset(dataset_root).load_pair(0)
+
+
+def test_meta_must_be_a_mapping(dataset_root: Path) -> None:
+    (dataset_root / "pairs" / "0000" / "meta.yaml").write_text("- just\n- a list\n")
+    with pytest.raises(DatasetError, match=r"meta\.yaml"):
+        open_dataset(dataset_root).load_pair(0)
+
+
+PANO_CAMERA = "camera: {model: equirectangular, width: 64, height: 32}\n"
+PINHOLE_K = "K: [[50, 0, 32], [0, 50, 16], [0, 0, 1]]"
+SCALED = "[[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]"
+BAD_RIGS = {
+    "not yaml": "camera: [unclosed\n",
+    "a list": "- camera\n",
+    "empty": "",
+    "no camera": "lidar: {model: VLP-16}\n",
+    "unknown model": "camera: {model: fisheye, width: 64, height: 32}\n",
+    "no size": "camera: {model: equirectangular}\n",
+    "negative size": "camera: {model: equirectangular, width: -64, height: 32}\n",
+    "text size": "camera: {model: equirectangular, width: wide, height: 32}\n",
+    "pinhole without K": "camera: {model: pinhole, width: 64, height: 32}\n",
+    "K not 3x3": "camera: {model: pinhole, width: 64, height: 32, K: [[1, 0], [0, 1]], D: []}\n",
+    "D of 3": "camera: {model: pinhole, width: 64, height: 32, " + PINHOLE_K + ", D: [0, 0, 0]}\n",
+    "lidar not a mapping": PANO_CAMERA + "lidar: VLP-16\n",
+    "guess without xyz": PANO_CAMERA + "initial_guess: {rpy_deg: [0, 0, 0]}\n",
+    "guess not a rotation": PANO_CAMERA + "initial_guess: {matrix: " + SCALED + "}\n",
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_RIGS))
+def test_bad_rig_yaml_names_the_file(dataset_root: Path, name: str) -> None:
+    (dataset_root / "rig.yaml").write_text(BAD_RIGS[name])
+    with pytest.raises(DatasetError, match=r"ds/rig\.yaml"):
+        open_dataset(dataset_root)
+
+
+def test_missing_rig_and_missing_dataset(tmp_path: Path) -> None:
+    with pytest.raises(DatasetError, match="nothing.*does not exist"):
+        open_dataset(tmp_path / "nothing")
+    with pytest.raises(DatasetError, match=r"rig\.yaml.*missing"):
+        open_dataset(tmp_path)
+
+
+def test_bad_ground_truth_names_the_file(dataset_root: Path) -> None:
+    (dataset_root / "ground_truth.yaml").write_text("- not\n- a mapping\n")
+    with pytest.raises(DatasetError, match=r"ground_truth\.yaml"):
+        open_dataset(dataset_root)
+    (dataset_root / "ground_truth.yaml").write_text("T_camera_lidar: {xyz_m: [0, 0, 0]}\n")
+    with pytest.raises(DatasetError, match=r"ground_truth\.yaml"):
+        open_dataset(dataset_root)
+
+
+# --- the real pinhole sample in the dataset layout ------------------------------------------------------
+
+
+def test_pinhole_sample_as_a_dataset(tmp_path: Path) -> None:
+    """ours_3 converted by hand: rig.yaml from calibration.yaml's camera block, image.png, the LZF cloud."""
+    source = SAMPLE / "ours_3"
+    calibration = yaml.safe_load((source / "calibration.yaml").read_text())
+    root = tmp_path / "ours_3"
+    (root / "pairs" / "0000").mkdir(parents=True)
+    rig = {"camera": calibration["camera"], "lidar": {"model": "64-ring"}}
+    (root / "rig.yaml").write_text(yaml.safe_dump(rig))
+    (root / "ground_truth.yaml").write_text(yaml.safe_dump({"T_camera_lidar": calibration["T_camera_lidar"]}))
+    shutil.copy(source / "image.png", root / "pairs" / "0000" / "image.png")
+    shutil.copy(source / "calib.pcd", root / "pairs" / "0000" / "cloud.pcd")
+
+    dataset = open_dataset(root)
+    assert len(dataset) == 1
+    camera = dataset.rig.camera
+    assert camera.kind is CameraKind.PINHOLE and (camera.width, camera.height) == (1920, 1200)
+    np.testing.assert_array_equal(camera.K, calibration["camera"]["K"])
+    np.testing.assert_array_equal(camera.D, calibration["camera"]["D"])
+    assert isinstance(camera.model(), Pinhole)
+    assert dataset.rig.lidar_model == "64-ring"
+    pair = dataset.load_pair(0)
+    assert pair.image.shape == (1200, 1920, 3) and pair.image.dtype == np.uint8
+    assert len(pair.cloud) == 85546  # POINTS in the header of the original calib.pcd
+    assert pair.meta == {}
+    truth = dataset.ground_truth
+    assert truth is not None
+    np.testing.assert_allclose(truth.matrix, calibration["T_camera_lidar"]["matrix"], atol=1e-12)
+    # The sample's README: about 10.5-12.7 thousand points of each cloud fall inside the image.
+    uv, valid = camera.model().project(truth.apply(pair.cloud.points_lidar))
+    inside = valid & (uv[:, 0] >= 0) & (uv[:, 0] < 1920) & (uv[:, 1] >= 0) & (uv[:, 1] < 1200)
+    assert 10_000 < inside.sum() < 13_000
