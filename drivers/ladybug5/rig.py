@@ -195,9 +195,7 @@ def _side_rotation(yaw_rad: float) -> F64:
 def default_ladybug5_rig(size_px: tuple[int, int] = LADYBUG5_SIZE_PX) -> RigCameras:
     """A Ladybug5-like head: cameras 0-4 at 72 deg yaw steps (camera 0 looks along +x), camera 5 up."""
     width, height = size_px
-    k = np.array(
-        [[LADYBUG5_FOCAL_PX, 0.0, (width - 1) / 2.0], [0.0, LADYBUG5_FOCAL_PX, (height - 1) / 2.0], [0, 0, 1]]
-    )
+    k = np.array([[LADYBUG5_FOCAL_PX, 0.0, (width - 1) / 2.0], [0.0, LADYBUG5_FOCAL_PX, (height - 1) / 2.0], [0, 0, 1]])
     d = np.array(LADYBUG5_DISTORTION)
     cameras = []
     for i in range(5):

@@ -87,9 +87,7 @@ class Stitcher:
         total = np.sum(weights, axis=0)
         self.coverage = (total > 0).reshape(spec.height, spec.width)
         normalised = [w / np.where(total > 0, total, 1.0) for w in weights]
-        self._tiles = [
-            tile for i in range(len(rig.cameras)) for tile in self._tiles_for(i, maps[i], normalised[i])
-        ]
+        self._tiles = [tile for i in range(len(rig.cameras)) for tile in self._tiles_for(i, maps[i], normalised[i])]
 
     def _camera_map(self, camera: RigCamera, points_head: F64) -> tuple[F64, F64]:
         """Raw-image uv (N,2) of every panorama pixel and its feather weight (N,) (0 where not seen)."""

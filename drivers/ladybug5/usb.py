@@ -132,18 +132,14 @@ def _vendor_devices(match: UsbMatch, backend: Any) -> list[Any]:
         raise UsbBackendError(f"USB enumeration failed: {exc}") from exc
 
 
-def find_cameras(
-    match: UsbMatch = UsbMatch(), backend: Any = None
-) -> tuple[list[UsbCamera], list[UsbCamera]]:
+def find_cameras(match: UsbMatch = UsbMatch(), backend: Any = None) -> tuple[list[UsbCamera], list[UsbCamera]]:
     """Matching cameras, and same-vendor devices whose strings could not be read (maybe a Ladybug).
 
     ``backend`` is a pyusb backend (``usb.backend.IBackend``); ``None`` lets pyusb pick libusb.
     """
     described = [_describe(d) for d in _vendor_devices(match, backend)]
     cameras = [c for c in described if _matches(c, match)]
-    unidentified = [
-        c for c in described if c not in cameras and c.product is None and match.serial is None
-    ]
+    unidentified = [c for c in described if c not in cameras and c.product is None and match.serial is None]
     return cameras, unidentified
 
 
@@ -176,9 +172,7 @@ def health_warnings(cameras: Sequence[UsbCamera], usbfs_memory_mb: int | None) -
     return warnings
 
 
-def usb_report(
-    match: UsbMatch = UsbMatch(), backend: Any = None, usbfs_path: Path = USBFS_MEMORY_PATH
-) -> UsbReport:
+def usb_report(match: UsbMatch = UsbMatch(), backend: Any = None, usbfs_path: Path = USBFS_MEMORY_PATH) -> UsbReport:
     cameras, unidentified = find_cameras(match, backend)
     usbfs = read_usbfs_memory_mb(usbfs_path)
     return UsbReport(tuple(cameras), tuple(unidentified), usbfs, tuple(health_warnings(cameras, usbfs)))
@@ -214,9 +208,7 @@ def reset_camera(match: UsbMatch = UsbMatch(), backend: Any = None) -> UsbCamera
     try:
         devices[0].reset()
     except usb.core.USBError as exc:
-        raise UsbBackendError(
-            f"USB reset of camera {camera.serial or '?'} at {camera.location} failed: {exc}"
-        ) from exc
+        raise UsbBackendError(f"USB reset of camera {camera.serial or '?'} at {camera.location} failed: {exc}") from exc
     finally:
         usb.util.dispose_resources(devices[0])
     return camera

@@ -30,11 +30,24 @@ class FakeDevice:
     def descriptor(self) -> SimpleNamespace:
         self.strings = {i: s for i, s in ((2, self.product), (3, self.serial)) if s is not None}
         return SimpleNamespace(
-            bLength=18, bDescriptorType=1, bcdUSB=0x0300, bDeviceClass=0, bDeviceSubClass=0,
-            bDeviceProtocol=0, bMaxPacketSize0=9, idVendor=self.vendor_id, idProduct=self.product_id,
-            bcdDevice=0x0100, iManufacturer=0, iProduct=2 if self.product else 0,
-            iSerialNumber=3 if self.serial else 0, bNumConfigurations=1, address=self.address,
-            bus=self.bus, port_number=self.port_numbers[-1], port_numbers=self.port_numbers,
+            bLength=18,
+            bDescriptorType=1,
+            bcdUSB=0x0300,
+            bDeviceClass=0,
+            bDeviceSubClass=0,
+            bDeviceProtocol=0,
+            bMaxPacketSize0=9,
+            idVendor=self.vendor_id,
+            idProduct=self.product_id,
+            bcdDevice=0x0100,
+            iManufacturer=0,
+            iProduct=2 if self.product else 0,
+            iSerialNumber=3 if self.serial else 0,
+            bNumConfigurations=1,
+            address=self.address,
+            bus=self.bus,
+            port_number=self.port_numbers[-1],
+            port_numbers=self.port_numbers,
             speed=self.speed,
         )
 

@@ -1,0 +1,173 @@
+"""Replay frame sources: a directory of panoramas or of six camera images per frame, and .pgr streams.
+
+Directory layout (docs/ladybug5.md, "Replay")::
+
+    DIR/timestamps.csv     image,device_time_s,host_time_s,sequence_id[,shutter_s,gain_db]
+    DIR/<image>            a panorama (PNG/JPEG, 2:1), or a directory holding cam0..cam5.(png|jpg)
+                           (raw orientation; 1-channel images are Bayer mosaics when a pattern is given)
+
+``host_time_s``, ``sequence_id``, ``shutter_s`` and ``gain_db`` may be empty; the sequence id then is the
+row number. Six-image frames are stitched with the rig camera file's :class:`Stitcher`.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.ladybug5.clock import unwrap_times
+from drivers.ladybug5.errors import CorruptFrameError, StreamFormatError
+from drivers.ladybug5.frames import Exposure, PanoramaFrame, SkipCounter, TimeBase
+from drivers.ladybug5.pgr import BAYER_TO_BGR, DEFAULT_LAYOUT, PgrLayout, PgrStream
+from drivers.ladybug5.stitch import Stitcher
+
+TIMESTAMPS_FILE = "timestamps.csv"
+CAMERA_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+
+@dataclass(frozen=True)
+class _Row:
+    line: int
+    image: Path
+    device_time_s: float
+    host_time_s: float | None
+    sequence_id: int
+    exposure: Exposure
+
+
+def _optional_float(value: str | None) -> float | None:
+    return float(value) if value not in (None, "") else None
+
+
+def read_timestamps(directory: Path) -> list[_Row]:
+    """Parse ``DIR/timestamps.csv``; errors name the file and line."""
+    path = Path(directory) / TIMESTAMPS_FILE
+    try:
+        with open(path, newline="") as f:
+            reader = csv.DictReader(f)
+            missing = {"image", "device_time_s"} - set(reader.fieldnames or ())
+            if missing:
+                raise StreamFormatError(f"{path}: missing column(s) {sorted(missing)}")
+            rows = []
+            for i, rec in enumerate(reader):
+                try:
+                    seq = rec.get("sequence_id")
+                    rows.append(
+                        _Row(
+                            reader.line_num,
+                            Path(directory) / rec["image"],
+                            float(rec["device_time_s"]),
+                            _optional_float(rec.get("host_time_s")),
+                            int(seq) if seq not in (None, "") else i,
+                            Exposure(_optional_float(rec.get("shutter_s")), _optional_float(rec.get("gain_db"))),
+                        )
+                    )
+                except (TypeError, ValueError) as exc:
+                    raise StreamFormatError(f"{path}: line {reader.line_num}: {exc}") from exc
+    except OSError as exc:
+        raise StreamFormatError(f"cannot read {path}: {exc}") from exc
+    return rows
+
+
+def _to_bgr8(image: NDArray, bayer_pattern: str | None, where: str) -> NDArray[np.uint8]:
+    if image.dtype == np.uint16:
+        image = (image >> 8).astype(np.uint8)
+    if image.dtype != np.uint8:
+        raise CorruptFrameError(f"{where}: unsupported pixel type {image.dtype}")
+    if image.ndim == 2:
+        return cv2.cvtColor(image, BAYER_TO_BGR[bayer_pattern] if bayer_pattern else cv2.COLOR_GRAY2BGR)
+    if image.ndim == 3 and image.shape[2] == 3:
+        return image
+    raise CorruptFrameError(f"{where}: expected a 1- or 3-channel image, got shape {image.shape}")
+
+
+def _read_image(path: Path, flags: int) -> NDArray:
+    image = cv2.imread(str(path), flags)
+    if image is None:
+        raise CorruptFrameError(f"{path}: missing, unreadable or corrupt image")
+    return image
+
+
+class DirectoryFrameSource:
+    """Frames from a replay directory (see the module docstring)."""
+
+    def __init__(self, directory: Path, stitcher: Stitcher | None = None, bayer_pattern: str | None = None) -> None:
+        self.directory = Path(directory)
+        self.stitcher = stitcher
+        self.bayer_pattern = bayer_pattern
+        self.rows = read_timestamps(self.directory)
+        self.skipped = SkipCounter()
+
+    def _panorama(self, row: _Row) -> NDArray[np.uint8]:
+        if not row.image.is_dir():
+            image = _read_image(row.image, cv2.IMREAD_COLOR)
+            if image.shape[1] != 2 * image.shape[0]:
+                raise CorruptFrameError(f"{row.image}: a panorama must be 2:1, got {image.shape[1]}x{image.shape[0]}")
+            return image
+        if self.stitcher is None:
+            raise StreamFormatError(f"{row.image}: six-camera frames need a rig camera file to stitch them")
+        images = [self._camera_image(row.image, c) for c in range(len(self.stitcher.rig.cameras))]
+        return self.stitcher.stitch(images)
+
+    def _camera_image(self, frame_dir: Path, camera: int) -> NDArray[np.uint8]:
+        for suffix in CAMERA_IMAGE_SUFFIXES:
+            path = frame_dir / f"cam{camera}{suffix}"
+            if path.exists():
+                return _to_bgr8(_read_image(path, cv2.IMREAD_UNCHANGED), self.bayer_pattern, str(path))
+        raise CorruptFrameError(f"{frame_dir}: no cam{camera} image ({'/'.join(CAMERA_IMAGE_SUFFIXES)})")
+
+    def frames(self) -> Iterator[PanoramaFrame]:
+        for row in self.rows:
+            try:
+                image = self._panorama(row)
+            except CorruptFrameError as exc:
+                self.skipped.record(exc)
+                continue
+            yield PanoramaFrame(image, row.device_time_s, row.host_time_s, row.sequence_id, row.exposure)
+
+    def close(self) -> None:
+        """Nothing is held open between frames."""
+
+
+class PgrFrameSource:
+    """Frames of a .pgr stream, stitched; device time from the frame headers, host time unknown (None).
+
+    ``wrap_period_s`` unwraps a device clock that wraps (e.g. 128 s cycle time); ``time_base`` says
+    whether the camera was PPS-locked (GPS time) when the stream was recorded.
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        stitcher: Stitcher,
+        layout: PgrLayout = DEFAULT_LAYOUT,
+        wrap_period_s: float | None = None,
+        time_base: TimeBase = TimeBase.CAMERA,
+    ) -> None:
+        self.stream = PgrStream(path, layout)
+        self.stitcher = stitcher
+        self.time_base = time_base
+        raw = np.array([e.device_time_s for e in self.stream.index])
+        self.device_times_s = unwrap_times(raw, wrap_period_s) if wrap_period_s else raw
+        self.skipped = SkipCounter()
+
+    def frames(self) -> Iterator[PanoramaFrame]:
+        for damage in self.stream.damaged:
+            self.skipped.record(CorruptFrameError(damage))
+        for entry, device_s in zip(self.stream.index, self.device_times_s, strict=True):
+            try:
+                images = self.stream.camera_images(entry.index)
+            except CorruptFrameError as exc:
+                self.skipped.record(exc)
+                continue
+            pano = self.stitcher.stitch(images)
+            yield PanoramaFrame(pano, float(device_s), None, entry.sequence_id, entry.exposure, self.time_base)
+
+    def close(self) -> None:
+        self.stream.close()
