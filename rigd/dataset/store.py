@@ -151,10 +151,28 @@ def write_pair(root: Path, index: int, image: NDArray[np.uint8], cloud: Cloud, m
     tmp = pairs_dir / f".{index:04d}.tmp"
     if tmp.exists():
         shutil.rmtree(tmp)  # leftover of an interrupted write: never a complete pair
-    tmp.mkdir()
-    if not cv2.imwrite(str(tmp / "image.png"), image):
-        raise DatasetError(f"{tmp / 'image.png'}: could not write image")
-    write_pcd(tmp / "cloud.pcd", cloud)
-    write_yaml(tmp / "meta.yaml", meta)
-    tmp.rename(final)
+    try:
+        tmp.mkdir()
+        if not cv2.imwrite(str(tmp / "image.png"), image):
+            raise DatasetError(f"{tmp / 'image.png'}: could not write image")
+        write_pcd(tmp / "cloud.pcd", cloud)
+        write_yaml(tmp / "meta.yaml", meta)
+        # Data on disk before the rename makes the pair visible, and the rename itself on disk after:
+        # a power cut then leaves either no pair or a complete one (the rig runs on batteries).
+        for name in ("image.png", "cloud.pcd"):
+            _fsync(tmp / name)
+        _fsync(tmp)
+        tmp.rename(final)
+        _fsync(pairs_dir)
+    except OSError as exc:  # disk full, permissions, ...
+        raise DatasetError(f"{tmp}: could not write pair {index:04d} ({exc})") from exc
     return final
+
+
+def _fsync(path: Path) -> None:
+    """Flush a file's or a directory's data and metadata to disk."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

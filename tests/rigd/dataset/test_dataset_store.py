@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import shutil
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from rigd.dataset import (
     Cloud,
     RigConfig,
     open_dataset,
+    store,
     write_ground_truth,
     write_pair,
     write_rig,
@@ -117,6 +119,21 @@ def test_existing_pair_is_not_overwritten(dataset_root: Path) -> None:
         write_pair(dataset_root, 1, *small_pair(7))
     assert (dataset_root / "pairs" / "0001" / "cloud.pcd").read_bytes() == before
     assert not (dataset_root / "pairs" / ".0001.tmp").exists()
+
+
+def test_disk_full_is_a_dataset_error_and_leaves_no_pair(
+    dataset_root: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def no_space(path: Path, cloud: Cloud, compressed: bool = True) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(store, "write_pcd", no_space)
+    with pytest.raises(DatasetError, match=r"\.0002\.tmp.*pair 0002.*No space left"):
+        write_pair(dataset_root, 2, *small_pair(2))
+    assert len(open_dataset(dataset_root)) == 2
+    monkeypatch.undo()
+    write_pair(dataset_root, 2, *small_pair(2))  # space freed: the same index is written
+    assert len(open_dataset(dataset_root)) == 3
 
 
 def test_next_pair_index_on_a_new_dataset(tmp_path: Path) -> None:
