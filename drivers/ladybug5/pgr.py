@@ -192,28 +192,36 @@ class PgrStream:
     def jpegs(self, index: int) -> list[list[bytes]]:
         """The 6 x 4 JPEG channel images of frame ``index``; raises CorruptFrameError on a bad table entry."""
         entry = self.index[index]
-        table = self.layout.jpeg_table
-        out = []
-        for cam in range(NUM_CAMERAS):
-            row = []
-            for slot in range(JPEGS_PER_CAMERA):
-                at, size = struct.unpack_from(">2I", self._buf, entry.offset + table + cam * 32 + slot * 8)
-                data = bytes(self._buf[entry.offset + at : entry.offset + at + size])
-                if at + size > entry.size or not (data.startswith(_JPEG_SOI) and data.endswith(_JPEG_EOI)):
-                    raise CorruptFrameError(
-                        f"{self.path}: frame {index} (sequence {entry.sequence_id}) camera {cam} channel {slot}: "
-                        f"no JPEG at offset {at} size {size}"
-                    )
-                row.append(data)
-            out.append(row)
-        return out
+        where = f"{self.path}: frame {index} (sequence {entry.sequence_id})"
+        return frame_jpegs(self._buf, entry.offset, entry.size, self.layout, where)
 
     def camera_images(self, index: int) -> list[NDArray[np.uint8]]:
         """The six demosaiced BGR images (raw sensor orientation) of frame ``index``."""
         where = f"{self.path}: frame {index}"
-        return [
-            assemble_bayer(planes, self.layout, f"{where} camera {c}") for c, planes in enumerate(self.jpegs(index))
-        ]
+        return [assemble_bayer(p, self.layout, f"{where} camera {c}") for c, p in enumerate(self.jpegs(index))]
+
+
+def frame_jpegs(buf: bytes | mmap.mmap, offset: int, size: int, layout: PgrLayout, where: str) -> list[list[bytes]]:
+    """The 6 x 4 JPEG channel images of the frame block at ``buf[offset : offset + size]``."""
+    if size < layout.frame_header_size or _u32be(buf, offset + layout.fingerprint) != FINGERPRINT:
+        raise CorruptFrameError(f"{where}: not a frame block (size {size}, no 0xCAFEBABE fingerprint)")
+    out = []
+    for cam in range(NUM_CAMERAS):
+        row = []
+        for slot in range(JPEGS_PER_CAMERA):
+            at, length = struct.unpack_from(">2I", buf, offset + layout.jpeg_table + cam * 32 + slot * 8)
+            data = bytes(buf[offset + at : offset + at + length])
+            if at + length > size or not (data.startswith(_JPEG_SOI) and data.endswith(_JPEG_EOI)):
+                raise CorruptFrameError(f"{where} camera {cam} channel {slot}: no JPEG at offset {at} size {length}")
+            row.append(data)
+        out.append(row)
+    return out
+
+
+def frame_block_images(block: bytes, layout: PgrLayout, where: str) -> list[NDArray[np.uint8]]:
+    """Six demosaiced BGR images from one frame block (a .pgr frame, or an SDK COLOR_SEP_JPEG8 buffer)."""
+    jpegs = frame_jpegs(block, 0, len(block), layout, where)
+    return [assemble_bayer(p, layout, f"{where} camera {c}") for c, p in enumerate(jpegs)]
 
 
 def assemble_bayer(planes: Sequence[bytes], layout: PgrLayout, where: str) -> NDArray[np.uint8]:
