@@ -8,7 +8,7 @@ serial, bus/port, negotiated speed and the kernel's usbfs buffer limit. Streamin
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import IntEnum
 from pathlib import Path
 from typing import Any
@@ -78,16 +78,6 @@ class UsbCamera:
     def location(self) -> str:
         port = ".".join(str(p) for p in self.port_numbers) or "?"
         return f"bus {self.bus if self.bus is not None else '?'} port {port} address {self.address}"
-
-
-@dataclass(frozen=True)
-class UsbReport:
-    """Everything ``rigd camera info`` says about USB: cameras, unreadable candidates, kernel limit."""
-
-    cameras: tuple[UsbCamera, ...]
-    unidentified: tuple[UsbCamera, ...]
-    usbfs_memory_mb: int | None
-    warnings: tuple[str, ...] = field(default=())
 
 
 def _read_string(device: Any, attribute: str) -> str | None:
@@ -170,12 +160,6 @@ def health_warnings(cameras: Sequence[UsbCamera], usbfs_memory_mb: int | None) -
             f"write it to {USBFS_MEMORY_PATH})"
         )
     return warnings
-
-
-def usb_report(match: UsbMatch = UsbMatch(), backend: Any = None, usbfs_path: Path = USBFS_MEMORY_PATH) -> UsbReport:
-    cameras, unidentified = find_cameras(match, backend)
-    usbfs = read_usbfs_memory_mb(usbfs_path)
-    return UsbReport(tuple(cameras), tuple(unidentified), usbfs, tuple(health_warnings(cameras, usbfs)))
 
 
 def require_camera(match: UsbMatch = UsbMatch(), backend: Any = None) -> UsbCamera:

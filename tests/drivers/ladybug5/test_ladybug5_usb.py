@@ -50,8 +50,10 @@ def test_serial_selects_one_camera():
 
 def test_high_speed_link_warns_and_is_refused_by_require_camera():
     backend = FakeUsbBackend([ladybug(speed=3)])
-    report = lb_usb.usb_report(backend=backend, usbfs_path=_missing_path())
-    assert any("USB 2 high speed" in w for w in report.warnings)
+    cameras, _ = lb_usb.find_cameras(backend=backend)
+    warnings = lb_usb.health_warnings(cameras, lb_usb.read_usbfs_memory_mb(Path("/nonexistent/usbfs_memory_mb")))
+    assert any("USB 2 high speed" in w for w in warnings)
+    assert any("cannot read" in w for w in warnings)
     with pytest.raises(InterfaceSpeedError, match="SuperSpeed"):
         lb_usb.require_camera(backend=backend)
 
@@ -66,9 +68,9 @@ def test_absent_camera_is_a_named_driver_error():
 def test_usbfs_memory_check(tmp_path, value, warns):
     path = tmp_path / "usbfs_memory_mb"
     path.write_text(value)
-    report = lb_usb.usb_report(backend=FakeUsbBackend([ladybug()]), usbfs_path=path)
-    assert report.usbfs_memory_mb == int(value)
-    assert any("usbfs_memory_mb" in w for w in report.warnings) == warns
+    usbfs = lb_usb.read_usbfs_memory_mb(path)
+    assert usbfs == int(value)
+    assert any("usbfs_memory_mb" in w for w in lb_usb.health_warnings([], usbfs)) == warns
 
 
 def test_reset_goes_through_the_backend():
@@ -82,7 +84,3 @@ def test_missing_libusb_is_a_clear_error(monkeypatch):
         monkeypatch.setattr(module, "get_backend", lambda *args, **kwargs: None)
     with pytest.raises(UsbBackendError, match="libusb"):
         lb_usb.find_cameras()
-
-
-def _missing_path():
-    return Path("/nonexistent/usbfs_memory_mb")
