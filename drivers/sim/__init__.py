@@ -1,0 +1,47 @@
+"""The simulated rig: box scenes, a ray caster, a Ladybug5-like panorama camera and a VLP-16 (docs/simulator.md).
+
+Everything here is numpy arrays; writing datasets is rigd's job (rigd/simulate.py).
+"""
+
+from drivers.sim.camera import ROTATION_PANORAMA_OPTICAL, render_panorama, render_pinhole, render_rays
+from drivers.sim.errors import SimError
+from drivers.sim.lidar import LASER_ELEVATIONS_DEG, LidarConfig, Sweep, scan
+from drivers.sim.pose import Pose
+from drivers.sim.raycast import Hits, cast
+from drivers.sim.rig import (
+    PAPER_T_CAMERA_LIDAR,
+    SimCapture,
+    SimConfig,
+    SimRig,
+    make_scene,
+    scene_kind,
+    simulate_pair,
+)
+from drivers.sim.scene import Face, Lighting, Scene, SceneBuilder, SceneKind
+
+__all__ = [
+    "LASER_ELEVATIONS_DEG",
+    "PAPER_T_CAMERA_LIDAR",
+    "ROTATION_PANORAMA_OPTICAL",
+    "Face",
+    "Hits",
+    "LidarConfig",
+    "Lighting",
+    "Pose",
+    "Scene",
+    "SceneBuilder",
+    "SceneKind",
+    "SimCapture",
+    "SimConfig",
+    "SimError",
+    "SimRig",
+    "Sweep",
+    "cast",
+    "make_scene",
+    "render_panorama",
+    "render_pinhole",
+    "render_rays",
+    "scan",
+    "scene_kind",
+    "simulate_pair",
+]

@@ -1,0 +1,123 @@
+"""The simulated Velodyne VLP-16: one 360 degree sweep from a LiDAR pose.
+
+16 lasers fire in sequence (2.304 us apart, laser ids 0..15 at the elevations of
+:data:`LASER_ELEVATIONS_DEG`), one firing sequence every 0.2 degrees: 1800 firings per turn at 600 rpm.
+Laser ``k`` of firing ``f`` fires at ``time_s = f * FIRING_PERIOD_S + k * LASER_INTERVAL_S`` and the head
+turns clockwise (seen from above) at 3600 deg/s, so its azimuth is ``3600 * time_s`` degrees (0 at the
+start of the sweep, pointing along +x). Points follow the VLP-16 formula of docs/conventions.md:
+``x = r cos(w) cos(a)``, ``y = -r cos(w) sin(a)``, ``z = r sin(w)``.
+
+Ranges get Gaussian noise and are reported in 2 mm steps (the VLP-16's range unit). Returns beyond
+``max_range_m`` or before ``min_range_m``, and rays into the sky, give no point (range 0 in ``ranges_m``).
+Reflectivity follows the VLP-16's calibrated scale: 0..100 for diffuse surfaces, here ``100 * albedo *
+cos(incidence)`` plus noise (the sensor cannot know the incidence angle, so it is in the reading).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.sim.errors import SimError
+from drivers.sim.pose import Pose
+from drivers.sim.raycast import cast
+from drivers.sim.scene import Scene
+
+F64 = NDArray[np.float64]
+F32 = NDArray[np.float32]
+I16 = NDArray[np.int16]
+
+LASER_ELEVATIONS_DEG = np.array([-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15], dtype=np.float64)
+N_LASERS = 16
+FIRINGS_PER_TURN = 1800
+ROTATION_HZ = 10.0  # 600 rpm
+FIRING_PERIOD_S = 1.0 / (ROTATION_HZ * FIRINGS_PER_TURN)
+LASER_INTERVAL_S = 2.304e-6
+DEG_PER_S = 360.0 * ROTATION_HZ
+RANGE_RESOLUTION_M = 0.002
+# ring = position in elevation order, 0 = lowest (-15 deg) .. 15 = highest (+15 deg)
+RING_OF_LASER = np.argsort(np.argsort(LASER_ELEVATIONS_DEG)).astype(np.int16)
+
+
+@dataclass(frozen=True)
+class LidarConfig:
+    """Noise and limits: range noise sigma (m), usable range (m), reflectivity noise sigma (counts)."""
+
+    range_noise_m: float = 0.02
+    min_range_m: float = 0.5
+    max_range_m: float = 100.0
+    reflectivity_noise: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.range_noise_m < 0 or self.reflectivity_noise < 0:
+            raise SimError("LiDAR noise figures must be >= 0")
+        if not 0 <= self.min_range_m < self.max_range_m:
+            raise SimError(f"LiDAR range limits must satisfy 0 <= min < max, got {self.min_range_m}, "
+                           f"{self.max_range_m}")
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """One turn of the VLP-16, in the LiDAR frame, points in firing order (firing-major, then laser id).
+
+    Per point (N returns): ``points_lidar`` (N,3) float64 m; ``intensity`` (N,) float32 calibrated
+    reflectivity 0..255; ``ring`` (N,) int16 elevation order (0 = -15 deg); ``laser_id`` (N,) int16 firing
+    order 0..15; ``azimuth_deg`` (N,) float64 clockwise in [0, 360); ``time_s`` (N,) float64 since the start
+    of the sweep. Per firing, for the packet encoder: ``ranges_m`` (1800,16) float64 indexed
+    [firing, laser_id], multiples of 2 mm, 0 where there was no return; ``reflectivity`` (1800,16) uint8.
+    Firing ``f`` starts at azimuth ``0.2 * f`` degrees.
+    """
+
+    points_lidar: F64
+    intensity: F32
+    ring: I16
+    laser_id: I16
+    azimuth_deg: F64
+    time_s: F64
+    ranges_m: F64
+    reflectivity: NDArray[np.uint8]
+
+    def __len__(self) -> int:
+        return len(self.points_lidar)
+
+
+def firing_grid() -> tuple[F64, F64]:
+    """``time_s`` and ``azimuth_deg`` of every (firing, laser id), each (1800,16)."""
+    time_s = (np.arange(FIRINGS_PER_TURN)[:, None] * FIRING_PERIOD_S + np.arange(N_LASERS)[None, :] * LASER_INTERVAL_S)
+    return time_s, np.mod(DEG_PER_S * time_s, 360.0)
+
+
+def beam_directions_lidar(azimuth_deg: F64, elevation_deg: F64) -> F64:
+    """Unit beam directions (..., 3) in the LiDAR frame for clockwise azimuth and elevation (degrees)."""
+    a, w = np.radians(azimuth_deg), np.radians(elevation_deg)
+    return np.stack([np.cos(w) * np.cos(a), -np.cos(w) * np.sin(a), np.sin(w)], axis=-1)
+
+
+def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config: LidarConfig | None = None) -> Sweep:
+    """Simulate one sweep from ``pose_world_lidar`` (LiDAR frame -> world)."""
+    cfg = config or LidarConfig()
+    time_s, azimuth_deg = firing_grid()
+    beams = beam_directions_lidar(azimuth_deg, np.broadcast_to(LASER_ELEVATIONS_DEG, azimuth_deg.shape))
+    beams = beams.reshape(-1, 3)
+    hits = cast(scene, pose_world_lidar.translation_m, beams @ pose_world_lidar.rotation.T)
+    noisy = hits.depth_m + rng.normal(0.0, cfg.range_noise_m, size=len(beams))
+    ranges = np.round(noisy / RANGE_RESOLUTION_M) * RANGE_RESOLUTION_M
+    valid = hits.hit & (ranges >= cfg.min_range_m) & (ranges <= cfg.max_range_m)
+    ranges = np.where(valid, ranges, 0.0)
+    cos_incidence = np.abs(np.sum(hits.normal * (beams @ pose_world_lidar.rotation.T), axis=1))
+    counts = 100.0 * hits.albedo * cos_incidence + rng.normal(0.0, cfg.reflectivity_noise, size=len(beams))
+    reflectivity = np.where(valid, np.clip(np.rint(counts), 0, 255), 0).astype(np.uint8)
+    laser = np.tile(np.arange(N_LASERS, dtype=np.int16), FIRINGS_PER_TURN)
+    keep = np.flatnonzero(valid)
+    return Sweep(
+        points_lidar=ranges[keep, None] * beams[keep],
+        intensity=reflectivity[keep].astype(np.float32),
+        ring=RING_OF_LASER[laser[keep]],
+        laser_id=laser[keep],
+        azimuth_deg=azimuth_deg.reshape(-1)[keep],
+        time_s=time_s.reshape(-1)[keep],
+        ranges_m=ranges.reshape(FIRINGS_PER_TURN, N_LASERS),
+        reflectivity=reflectivity.reshape(FIRINGS_PER_TURN, N_LASERS),
+    )

@@ -1,0 +1,70 @@
+"""Rigid poses for the simulator (drivers may not import calib, so this is a small local copy).
+
+Same conventions as docs/conventions.md: ``p_to = rotation @ p_from + translation_m``; roll/pitch/yaw in
+degrees with ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+
+def rpy_deg_to_matrix(rpy_deg: F64 | tuple[float, float, float]) -> F64:
+    """``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` from (roll, pitch, yaw) degrees, (3,3)."""
+    roll, pitch, yaw = np.radians(np.asarray(rpy_deg, dtype=np.float64))
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    return rz @ ry @ rx
+
+
+def matrix_to_rpy_deg(rotation: F64) -> F64:
+    """(roll, pitch, yaw) degrees of a rotation matrix away from gimbal lock (enough for rig poses)."""
+    r = np.asarray(rotation, dtype=np.float64)
+    pitch = np.arctan2(-r[2, 0], np.hypot(r[2, 1], r[2, 2]))
+    return np.degrees(np.array([np.arctan2(r[2, 1], r[2, 2]), pitch, np.arctan2(r[1, 0], r[0, 0])]))
+
+
+@dataclass(frozen=True)
+class Pose:
+    """``p_to = rotation @ p_from + translation_m``; ``rotation`` (3,3) float64, ``translation_m`` (3,) m."""
+
+    rotation: F64
+    translation_m: F64
+
+    @classmethod
+    def from_rpy_xyz(cls, rpy_deg: tuple[float, float, float] | F64, xyz_m: tuple[float, float, float] | F64) -> Pose:
+        return cls(rpy_deg_to_matrix(rpy_deg), np.asarray(xyz_m, dtype=np.float64).reshape(3))
+
+    @property
+    def matrix(self) -> F64:
+        """4x4 homogeneous matrix."""
+        m = np.eye(4)
+        m[:3, :3] = self.rotation
+        m[:3, 3] = self.translation_m
+        return m
+
+    @property
+    def rpy_deg(self) -> F64:
+        return matrix_to_rpy_deg(self.rotation)
+
+    def inverse(self) -> Pose:
+        return Pose(self.rotation.T, -self.rotation.T @ self.translation_m)
+
+    def compose(self, other: Pose) -> Pose:
+        """``self @ other``: first ``other``, then ``self``."""
+        return Pose(self.rotation @ other.rotation, self.rotation @ other.translation_m + self.translation_m)
+
+    def apply(self, points_from: F64) -> F64:
+        """Map points (N,3) float64 m into the target frame."""
+        return np.asarray(points_from, dtype=np.float64) @ self.rotation.T + self.translation_m
+
+    def to_yaml(self) -> dict[str, list[float]]:
+        """Plain-Python form for meta.yaml: ``rpy_deg`` and ``xyz_m``."""
+        return {"rpy_deg": [float(a) for a in self.rpy_deg], "xyz_m": [float(a) for a in self.translation_m]}

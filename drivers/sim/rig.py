@@ -1,0 +1,160 @@
+"""The simulated rig: a Ladybug5-like panorama camera and a VLP-16 on one frame, captured at many places.
+
+Every pair is a new location: the scene is generated from (kind, seed, pair index) and the rig stands at
+a random free spot with a random heading. The camera is mounted upright (its z axis up, up to a few
+degrees of roll/pitch from an imperfectly levelled tripod); the LiDAR hangs below it, tilted, as given by
+the ground truth ``T_camera_lidar``: ``T_world_lidar = T_world_camera @ T_camera_lidar``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.sim.camera import render_panorama
+from drivers.sim.errors import SimError
+from drivers.sim.indoor import indoor_scene
+from drivers.sim.lidar import LidarConfig, Sweep, scan
+from drivers.sim.outdoor import outdoor_scene
+from drivers.sim.pose import Pose
+from drivers.sim.scene import Scene, SceneKind
+
+# Kang & Doh 2020, Table 2, indoor dataset, GMM: roll, pitch, yaw (deg) and t (m).
+PAPER_T_CAMERA_LIDAR = Pose.from_rpy_xyz((-0.18, 15.47, -55.14), (0.0934, 0.0597, -0.1659))
+
+RIG_HALF_WIDTH_M = 0.35  # footprint of the tripod and sensor head
+SENSOR_CLEARANCE_M = 0.8  # nearest surface allowed around either sensor when the rig is placed
+MAX_TILT_DEG = 3.0
+_PLACEMENT_TRIES = 500
+_STREAMS = {"scene": 0, "pose": 1, "camera": 2, "lidar": 3}
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Sensor settings of the simulated rig: panorama size, noise figures, ground truth extrinsics."""
+
+    width: int = 1024
+    height: int = 512
+    T_camera_lidar: Pose = field(default_factory=lambda: PAPER_T_CAMERA_LIDAR)
+    lidar: LidarConfig = field(default_factory=LidarConfig)
+    image_noise_grey: float = 1.5
+    supersample: int = 2
+    color: bool = False
+
+    def __post_init__(self) -> None:
+        if self.width <= 0 or self.height <= 0 or self.supersample <= 0:
+            raise SimError(f"panorama size and supersampling must be positive, got {self.width}x{self.height}"
+                           f" x{self.supersample}")
+        if self.image_noise_grey < 0:
+            raise SimError(f"image noise must be >= 0 grey levels, got {self.image_noise_grey}")
+
+
+@dataclass(frozen=True)
+class SimCapture:
+    """One simulated pair with its ground truth: ``image`` (H,W) or (H,W,3) uint8, the sweep, meta.yaml
+    content, the scene and the sensor poses in the world."""
+
+    image: NDArray[np.uint8]
+    sweep: Sweep
+    meta: dict[str, Any]
+    scene: Scene
+    pose_world_camera: Pose
+    pose_world_lidar: Pose
+
+
+def scene_kind(kind: SceneKind | str) -> SceneKind:
+    """Parse a scene kind, naming the choices when it is not one."""
+    if isinstance(kind, SceneKind):
+        return kind
+    try:
+        return SceneKind(kind)
+    except ValueError as exc:
+        choices = ", ".join(k.value for k in SceneKind)
+        raise SimError(f"unknown scene kind {kind!r}; choose one of {choices}") from exc
+
+
+def rng_for(kind: SceneKind, seed: int, index: int, stream: str) -> np.random.Generator:
+    """Independent random streams per (kind, seed, pair index, purpose): changing the LiDAR noise figure
+    does not move the scene, and pair ``i`` is the same whatever the number of pairs."""
+    if seed < 0 or index < 0:
+        raise SimError(f"seed and pair index must be >= 0, got seed={seed} index={index}")
+    kind_code = list(SceneKind).index(kind)
+    return np.random.default_rng([seed, index, kind_code, _STREAMS[stream]])
+
+
+def make_scene(kind: SceneKind | str, seed: int, index: int) -> Scene:
+    k = scene_kind(kind)
+    rng = rng_for(k, seed, index, "scene")
+    return indoor_scene(rng) if k is SceneKind.INDOOR else outdoor_scene(rng)
+
+
+def place_rig(scene: Scene, rng: np.random.Generator, T_camera_lidar: Pose) -> Pose:
+    """A random free pose of the camera (``T_world_camera``) where tripod and both sensors have room."""
+    x0, x1, y0, y1 = scene.free_area
+    for _ in range(_PLACEMENT_TRIES):
+        x, y = rng.uniform(x0, x1), rng.uniform(y0, y1)
+        z = scene.floor_z_m + rng.uniform(*scene.rig_height_m)
+        roll, pitch = np.clip(rng.normal(0.0, 1.0, size=2), -MAX_TILT_DEG, MAX_TILT_DEG)
+        pose = Pose.from_rpy_xyz((roll, pitch, rng.uniform(-180.0, 180.0)), (x, y, z))
+        lidar = pose.compose(T_camera_lidar).translation_m
+        if _has_room(scene, pose.translation_m, lidar):
+            return pose
+    raise SimError(f"no free place for the rig in this {scene.kind.value} scene after {_PLACEMENT_TRIES} tries")
+
+
+def _has_room(scene: Scene, camera: NDArray[np.float64], lidar: NDArray[np.float64]) -> bool:
+    """True when no box (other than the ground) is near the sensors or in the tripod's column."""
+    above_floor = scene.box_max[:, 2] > scene.floor_z_m + 1e-6
+    for sensor in (camera, lidar):
+        gap = np.maximum(np.maximum(scene.box_min - sensor, sensor - scene.box_max), 0.0)
+        if np.any(above_floor & (np.linalg.norm(gap, axis=1) < SENSOR_CLEARANCE_M)):
+            return False
+    lo = np.array([camera[0] - RIG_HALF_WIDTH_M, camera[1] - RIG_HALF_WIDTH_M, scene.floor_z_m])
+    hi = np.array([camera[0] + RIG_HALF_WIDTH_M, camera[1] + RIG_HALF_WIDTH_M, camera[2]])
+    column = np.all((scene.box_min < hi) & (scene.box_max > lo), axis=1)
+    return not np.any(above_floor & column)
+
+
+class SimRig:
+    """The simulated Ladybug5 + VLP-16 rig with ground truth ``config.T_camera_lidar``."""
+
+    def __init__(self, config: SimConfig | None = None) -> None:
+        self.config = config or SimConfig()
+
+    @property
+    def T_camera_lidar(self) -> Pose:
+        return self.config.T_camera_lidar
+
+    def capture(self, kind: SceneKind | str, seed: int, index: int) -> SimCapture:
+        """Pair ``index`` of the dataset ``seed``: a new scene, a rig pose in it, an image and a sweep."""
+        k = scene_kind(kind)
+        cfg = self.config
+        scene = make_scene(k, seed, index)
+        pose_cam = place_rig(scene, rng_for(k, seed, index, "pose"), cfg.T_camera_lidar)
+        pose_lidar = pose_cam.compose(cfg.T_camera_lidar)
+        image = render_panorama(scene, pose_cam, cfg.width, cfg.height, rng_for(k, seed, index, "camera"),
+                                cfg.image_noise_grey, cfg.supersample, cfg.color)
+        sweep = scan(scene, pose_lidar, rng_for(k, seed, index, "lidar"), cfg.lidar)
+        meta = {
+            "source": "simulated",
+            "scene": k.value,
+            "seed": int(seed),
+            "index": int(index),
+            "T_world_camera": pose_cam.to_yaml(),
+            "T_world_lidar": pose_lidar.to_yaml(),
+            "sun_dir_world": [float(v) for v in scene.lighting.sun_dir_world],
+            "range_noise_m": float(cfg.lidar.range_noise_m),
+            "image_noise_grey": float(cfg.image_noise_grey),
+        }
+        return SimCapture(image, sweep, meta, scene, pose_cam, pose_lidar)
+
+
+def simulate_pair(kind: SceneKind | str, seed: int, index: int, width: int = 1024, height: int = 512,
+                  range_noise_m: float = 0.02) -> tuple[NDArray[np.uint8], Sweep, dict[str, Any]]:
+    """``(image, sweep, meta)`` of pair ``index`` with the default rig (paper's ground truth)."""
+    config = SimConfig(width=width, height=height, lidar=LidarConfig(range_noise_m=range_noise_m))
+    cap = SimRig(config).capture(kind, seed, index)
+    return cap.image, cap.sweep, cap.meta
