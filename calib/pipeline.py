@@ -1,0 +1,117 @@
+"""Algorithm 1 end to end on arrays: edge extraction per pair, checks, coarse-to-fine optimisation."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from calib.camera import CameraModel, Equirectangular
+from calib.edges_image import ImageEdgeParams, extract_edge_pixels, image_edge_score
+from calib.edges_points import (
+    EdgePoints,
+    PaperEdgeParams,
+    ScanlineEdgeParams,
+    paper_edge_points,
+    scanline_edge_points,
+)
+from calib.errors import FeaturelessError, InitialGuessError
+from calib.fields import EdgeFields
+from calib.geometry import Transform
+from calib.gmm import Evaluator, GmmOptions, PairFeatures, in_image, transform_points
+from calib.optimize import OptimOptions, OptimResult, optimise
+
+F64 = NDArray[np.float64]
+
+
+class PointEdgeMethod(Enum):
+    SCANLINE = "scanline"
+    PAPER = "paper"
+
+
+@dataclass(frozen=True)
+class CalibParams:
+    image_edges: ImageEdgeParams = field(default_factory=ImageEdgeParams)
+    point_method: PointEdgeMethod = PointEdgeMethod.SCANLINE
+    scanline: ScanlineEdgeParams = field(default_factory=ScanlineEdgeParams)
+    paper_points: PaperEdgeParams = field(default_factory=PaperEdgeParams)
+    gmm: GmmOptions = field(default_factory=GmmOptions)
+    optim: OptimOptions = field(default_factory=OptimOptions)
+    min_edge_pixels: int = 200
+    min_edge_points: int = 30
+
+
+@dataclass(frozen=True)
+class PairInput:
+    """One pair as arrays: ``image`` (H,W[,3]) uint8, ``points_lidar`` (N,3) float64 m, ``ring`` (N,) or None."""
+
+    image: NDArray[np.uint8]
+    points_lidar: F64
+    ring: NDArray[np.int16] | None
+
+
+@dataclass(frozen=True)
+class PairStats:
+    edge_pixels: int
+    edge_points: int
+
+
+@dataclass(frozen=True)
+class CalibResult:
+    T_camera_lidar: Transform
+    optim: OptimResult
+    pairs: tuple[PairStats, ...]
+
+
+def _edge_points(pair: PairInput, params: CalibParams) -> EdgePoints:
+    if params.point_method is PointEdgeMethod.PAPER:
+        return paper_edge_points(pair.points_lidar, pair.ring, params.paper_points)
+    return scanline_edge_points(pair.points_lidar, pair.ring, params.scanline)
+
+
+def extract_features(pair: PairInput, camera: CameraModel, params: CalibParams, index: int = 0) -> PairFeatures:
+    """Edge pixels and edge points of one pair (paper 4.3); raises FeaturelessError naming the pair."""
+    wrap = isinstance(camera, Equirectangular)
+    score = image_edge_score(pair.image, params.image_edges, wrap_u=wrap)
+    pixels = extract_edge_pixels(score, params.image_edges.threshold)
+    points = _edge_points(pair, params)
+    if len(pixels.uv) < params.min_edge_pixels or len(points) < params.min_edge_points:
+        raise FeaturelessError(
+            f"pair {index}: featureless scene ({len(pixels.uv)} edge pixels, need {params.min_edge_pixels}; "
+            f"{len(points)} edge points, need {params.min_edge_points})"
+        )
+    fields = None
+    if params.gmm.evaluator is Evaluator.FIELD:
+        floor = max(params.gmm.sigma_floor_px, np.radians(params.gmm.sigma_floor_deg) * camera.pixels_per_radian)
+        fields = EdgeFields.build(pixels.uv, pixels.score, camera.width, camera.height, wrap,
+                                  floor, params.gmm.sigma_ceiling_px)
+    return PairFeatures(camera, pixels, points, fields, cKDTree(pixels.uv))
+
+
+def check_initial_guess(feats: list[PairFeatures], tau0: F64) -> int:
+    """Number of edge points that project into their image at ``tau0``; raises if none does."""
+    total = 0
+    for f in feats:
+        p_cam, _ = transform_points(tau0, f.points.points_lidar)
+        uv, valid = f.camera.project(p_cam)
+        total += int(in_image(f.camera, uv, valid).sum())
+    if total == 0:
+        raise InitialGuessError("no edge point projects into any image under the initial guess")
+    return total
+
+
+def calibrate(
+    feats: list[PairFeatures],
+    initial: Transform,
+    params: CalibParams,
+    on_iter: Callable[[int, int, float], None] | None = None,
+) -> CalibResult:
+    tau0 = initial.tau
+    check_initial_guess(feats, tau0)
+    result = optimise(feats, tau0, params.optim, params.gmm, on_iter)
+    stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
+    return CalibResult(Transform.from_tau(result.tau), result, stats)
