@@ -85,7 +85,9 @@ class Stitcher:
         points_head = rays if math.isinf(spec.radius_m) else rays * spec.radius_m
         maps, weights = zip(*(self._camera_map(c, points_head) for c in rig.cameras), strict=True)
         total = np.sum(weights, axis=0)
-        self.coverage = (total > 0).reshape(spec.height, spec.width)
+        self.coverage = (total > 0).reshape(spec.height, spec.width)  # (H, W) seen by some camera
+        seen_by = np.sum([w > 0 for w in weights], axis=0).reshape(spec.height, spec.width)
+        self.overlap = seen_by >= 2  # (H, W) blended from two or more cameras: where seams and parallax are
         normalised = [w / np.where(total > 0, total, 1.0) for w in weights]
         self._tiles = [tile for i in range(len(rig.cameras)) for tile in self._tiles_for(i, maps[i], normalised[i])]
 
