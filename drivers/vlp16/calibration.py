@@ -1,0 +1,88 @@
+"""Per-laser geometry: elevation angles and vertical offsets, optionally from a ROS ``VLP16db.yaml`` file."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from drivers.vlp16.errors import CalibrationFileError
+from drivers.vlp16.layout import DISTANCE_UNIT_M, LASERS, NOMINAL_ELEVATION_DEG
+
+# Fields of the ROS format this driver does not model; a file with a nonzero value is refused, not ignored.
+_UNSUPPORTED_FIELDS = (
+    "rot_correction",
+    "horiz_offset_correction",
+    "dist_correction",
+    "dist_correction_x",
+    "dist_correction_y",
+    "focal_distance",
+    "focal_slope",
+)
+
+
+@dataclass(frozen=True)
+class LaserCalibration:
+    """``elevation_deg`` (16,) float64 deg and ``vertical_offset_m`` (16,) float64 m of lasers 0..15.
+
+    The vertical offset ``o`` of a laser's origin is added to z: ``x = r cos w cos a``,
+    ``y = -r cos w sin a``, ``z = r sin w + o`` (the VLP-16 manual's "vertical correction", applied as
+    velodyne_decoder does).
+    """
+
+    elevation_deg: NDArray[np.float64] = field(default_factory=lambda: NOMINAL_ELEVATION_DEG.copy())
+    vertical_offset_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros(LASERS))
+
+    def __post_init__(self) -> None:
+        for name in ("elevation_deg", "vertical_offset_m"):
+            value = np.asarray(getattr(self, name), dtype=np.float64)
+            if value.shape != (LASERS,) or not np.all(np.isfinite(value)):
+                raise CalibrationFileError(
+                    f"laser calibration: {name} must be 16 finite numbers, got {value!r}"
+                )
+            object.__setattr__(self, name, value)
+
+    @property
+    def ring_of_laser(self) -> NDArray[np.uint8]:
+        """(16,) uint8: rank of each laser by elevation, 0 = lowest (the ROS/VeloView ``ring``)."""
+        ring = np.empty(LASERS, dtype=np.uint8)
+        ring[np.argsort(self.elevation_deg, kind="stable")] = np.arange(LASERS, dtype=np.uint8)
+        return ring
+
+
+def load_calibration(path: Path) -> LaserCalibration:
+    """Read ``lasers: [{laser_id, vert_correction (rad), vert_offset_correction (m)}, ...]`` from YAML."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise CalibrationFileError(f"{path}: cannot read calibration ({exc})") from exc
+    lasers = data.get("lasers") if isinstance(data, dict) else None
+    if not isinstance(lasers, list) or len(lasers) != LASERS:
+        raise CalibrationFileError(f"{path}: needs a 'lasers' list of 16 entries")
+    resolution = data.get("distance_resolution", DISTANCE_UNIT_M)
+    if not isinstance(resolution, (int, float)) or abs(resolution - DISTANCE_UNIT_M) > 1e-9:
+        raise CalibrationFileError(f"{path}: distance_resolution {resolution} is not the VLP-16's 0.002 m")
+    elevation = np.full(LASERS, np.nan)
+    offset = np.zeros(LASERS)
+    for entry in lasers:
+        try:
+            laser = int(entry["laser_id"])
+            if not 0 <= laser < LASERS:
+                raise IndexError(f"laser_id {laser} is not in 0..15")
+            elevation[laser] = np.degrees(float(entry["vert_correction"]))
+            offset[laser] = float(entry.get("vert_offset_correction", 0.0))
+            unsupported = [k for k in _UNSUPPORTED_FIELDS if float(entry.get(k, 0.0)) != 0.0]
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise CalibrationFileError(f"{path}: bad laser entry {entry!r} ({exc!r})") from exc
+        if unsupported:
+            raise CalibrationFileError(
+                f"{path}: laser {laser} sets {', '.join(unsupported)}, which this "
+                "driver does not apply (only vert_correction and vert_offset_correction)"
+            )
+    if np.isnan(elevation).any():
+        raise CalibrationFileError(f"{path}: laser ids must be 0..15, each once")
+    return LaserCalibration(elevation, offset)

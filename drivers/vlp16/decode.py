@@ -1,0 +1,153 @@
+"""Vectorised decoding of whole buffers of VLP-16 data packets into points (docs/vlp16.md).
+
+Azimuth of a firing: the block azimuth plus the packet's mean rotation rate (first to last block azimuth)
+times the firing's delay in the block, rounded to 0.01 deg. This is velodyne_decoder's and the ROS
+driver's arithmetic, done in float32 in the same order so that ties round the same way.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.vlp16.calibration import LaserCalibration
+from drivers.vlp16.layout import (
+    AZIMUTH_UNITS,
+    BLOCKS_PER_PACKET,
+    CHANNELS_PER_BLOCK,
+    DISTANCE_UNIT_M,
+    FIRING_US,
+    LASERS,
+    SEQUENCE_US,
+    ReturnMode,
+    ReturnType,
+    as_packet_records,
+)
+
+#: One decoded point. x y z m (ROS frame), intensity = reflectivity 0..255, time s (see decode_packets),
+#: ring = elevation rank 0 = lowest, azimuth deg [0, 360) clockwise from above, return_type = ReturnType.
+POINT_DTYPE = np.dtype(
+    {
+        "names": ["x", "y", "z", "intensity", "time", "ring", "azimuth", "return_type"],
+        "formats": ["<f4", "<f4", "<f4", "u1", "<f8", "u1", "<f4", "u1"],
+        "offsets": [0, 4, 8, 24, 16, 25, 12, 26],
+        "itemsize": 32,
+    }
+)
+
+_PER_PACKET = BLOCKS_PER_PACKET * CHANNELS_PER_BLOCK
+
+
+def _firing_delays() -> NDArray[np.float32]:
+    """(2,12,32) float32 s: delay of each channel after the packet timestamp, [single, dual] return modes."""
+    block = np.arange(BLOCKS_PER_PACKET)[:, None]
+    channel = np.arange(CHANNELS_PER_BLOCK)[None, :]
+    single_seq = 2 * block + channel // LASERS
+    dual_seq = 2 * (block // 2) + channel // LASERS  # a dual block pair shares its firings
+    seq = np.stack([single_seq, dual_seq])
+    return ((seq * SEQUENCE_US + (channel % LASERS) * FIRING_US) * 1e-6).astype(np.float32)
+
+
+_DELAY_S = _firing_delays()
+# Delay of each channel after its own block's first firing (the block azimuth's instant).
+_DELAY_IN_BLOCK_S = (_DELAY_S - _DELAY_S[:, :, :1]).astype(np.float32)
+# Time from block 0 to the last block's azimuth (block 11, or pair 5 in dual mode), as the peer computes it.
+_SPAN_S = np.array(
+    [_DELAY_S[0, 11, 0] - _DELAY_S[0, 0, 0], _DELAY_S[0, 5, 0] - _DELAY_S[0, 0, 0]], np.float32
+)
+# Tables over three turns so that an azimuth in units + one turn indexes them without a modulo.
+_TURNS = np.arange(3 * AZIMUTH_UNITS) % AZIMUTH_UNITS
+_COS_AZ = np.cos(np.radians(_TURNS / 100.0)).astype(np.float32)
+_SIN_AZ = np.sin(np.radians(_TURNS / 100.0)).astype(np.float32)
+_AZ_DEG = (_TURNS / 100.0).astype(np.float32)
+# return_type by [mode code (strongest, last, dual), block]: dual even blocks hold the last return.
+_RETURN_TYPE = np.array(
+    [[ReturnType.STRONGEST] * 12, [ReturnType.LAST] * 12, [ReturnType.LAST, ReturnType.STRONGEST] * 6],
+    dtype=np.uint8,
+)
+
+
+class Decoded(NamedTuple):
+    """``points`` (N,) POINT_DTYPE in packet, block, channel order; ``points_per_block`` (P,12) int64."""
+
+    points: np.ndarray
+    points_per_block: NDArray[np.int64]
+
+
+def _keep_mask(
+    distance: np.ndarray, reflectivity: np.ndarray, dual: NDArray[np.bool_]
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """(P,12,32) returns to keep (nonzero, not a repeated dual return) and (P,12,32) merged dual returns."""
+    keep = distance != 0
+    if not dual.any():
+        return keep, np.zeros((1, 1, 1), dtype=bool)
+    same = (distance[:, 0::2] == distance[:, 1::2]) & (reflectivity[:, 0::2] == reflectivity[:, 1::2])
+    merged = np.zeros_like(keep)
+    merged[:, 0::2] = same & dual[:, None, None] & keep[:, 0::2]
+    keep[:, 1::2] &= ~merged[:, 0::2]
+    return keep, merged
+
+
+def _per_mode(table: np.ndarray, mode_index: NDArray[np.intp]) -> np.ndarray:
+    """``table[mode_index]`` per packet, or the one table broadcast when all packets share a mode."""
+    if len(mode_index) and np.all(mode_index == mode_index[0]):
+        return table[mode_index[0]][None]
+    return table[mode_index]
+
+
+def decode_packets(
+    payloads: NDArray[np.uint8],
+    calibration: LaserCalibration | None = None,
+    packet_time_s: NDArray[np.float64] | None = None,
+) -> Decoded:
+    """Decode (P,1206) uint8 payloads of *valid* data packets (see :func:`check_packets`).
+
+    ``time`` of a point is ``packet_time_s[p]`` plus its firing delay, s; ``packet_time_s`` (P,) float64
+    defaults to each packet's own timestamp, seconds past the hour. Returns with distance 0 are dropped;
+    in dual-return mode a repeated return (same distance and reflectivity in both blocks) is kept once,
+    with return_type BOTH.
+    """
+    calibration = calibration or LaserCalibration()
+    records = as_packet_records(payloads)
+    blocks = records["blocks"]
+    distance = blocks["channels"]["distance"]
+    reflectivity = blocks["channels"]["reflectivity"]
+    mode = records["return_mode"]
+    dual = mode == ReturnMode.DUAL
+    dual_index = dual.astype(np.intp)
+    if packet_time_s is None:
+        packet_time_s = records["timestamp_us"] * 1e-6
+    keep, merged = _keep_mask(distance, reflectivity, dual)
+
+    azimuth = blocks["azimuth"]
+    span = ((azimuth[:, -1].astype(np.int32) - azimuth[:, 0]) % AZIMUTH_UNITS).astype(np.float32)
+    rate = span / _SPAN_S[dual_index]  # azimuth units per second, float32 like the peer
+    shifted = azimuth.astype(np.float32)[:, :, None] + rate[:, None, None] * _per_mode(
+        _DELAY_IN_BLOCK_S, dual_index
+    )
+    shifted += np.float32(AZIMUTH_UNITS)
+    az_units = np.floor(shifted + np.float32(0.5), out=shifted).astype(np.int32)[keep]
+
+    elevation = np.radians(calibration.elevation_deg)
+    r = distance.astype(np.float32) * np.float32(DISTANCE_UNIT_M)
+    xy = (r * np.tile(np.cos(elevation).astype(np.float32), 2))[keep]
+    z_offset = np.tile(calibration.vertical_offset_m, 2).astype(np.float32)
+    z = r * np.tile(np.sin(elevation).astype(np.float32), 2) + z_offset
+    time = np.asarray(packet_time_s, dtype=np.float64)[:, None, None] + _per_mode(_DELAY_S, dual_index)
+    mode_code = np.select([mode == ReturnMode.LAST, dual], [1, 2], 0)
+    return_type = np.broadcast_to(_per_mode(_RETURN_TYPE, mode_code)[:, :, None], keep.shape)
+
+    points = np.empty(np.count_nonzero(keep), dtype=POINT_DTYPE)
+    points["x"] = xy * _COS_AZ[az_units]
+    points["y"] = -xy * _SIN_AZ[az_units]
+    points["z"] = z[keep]
+    points["intensity"] = reflectivity[keep]
+    points["time"] = np.broadcast_to(time, keep.shape)[keep]
+    points["ring"] = np.broadcast_to(np.tile(calibration.ring_of_laser, 2), keep.shape)[keep]
+    points["azimuth"] = _AZ_DEG[az_units]
+    points["return_type"] = (
+        np.where(merged, np.uint8(ReturnType.BOTH), return_type)[keep] if dual.any() else return_type[keep]
+    )
+    return Decoded(points, keep.sum(axis=2))

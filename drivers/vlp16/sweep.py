@@ -1,0 +1,361 @@
+"""Sweep assembly: validated packets in, one record per rotation out (split at a cut azimuth, per block).
+
+A sweep runs from the first block at or past the cut azimuth to the block before the next crossing, as
+VeloView splits frames; the packet holding a crossing contributes to both sweeps. Packets are ordered by
+device time (within ``reorder_window`` packets of arrival order), duplicates dropped, and a packet that
+arrives after its sweep was emitted is counted LATE. Missing packets are gaps in the packet cadence
+(1327.104 us, 663.552 us in dual-return mode).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.vlp16.calibration import LaserCalibration
+from drivers.vlp16.clock import DeviceClock, TimePair, TimeSource
+from drivers.vlp16.datagrams import DatagramBatch
+from drivers.vlp16.decode import decode_packets
+from drivers.vlp16.layout import (
+    AZIMUTH_UNITS,
+    BLOCKS_PER_PACKET,
+    DATA_PACKET_SIZE,
+    FIRING_US,
+    LASERS,
+    SEQUENCE_US,
+    VLP16_PRODUCT_ID,
+    PpsStatus,
+    ReturnMode,
+    as_packet_records,
+)
+from drivers.vlp16.position import parse_position_packet
+from drivers.vlp16.validate import FaultTally, PacketFault, check_packets
+
+
+@dataclass(frozen=True)
+class Vlp16Config:
+    """Decoding and assembly settings.
+
+    ``product_ids``: accepted values of byte 1205 (None = any; pre-2015 firmware writes 0x21).
+    ``cut_azimuth_deg``: where sweeps start, deg clockwise from x. ``reorder_window``: packets that must
+    follow a crossing before its sweep is emitted (reordering tolerance of a live stream).
+    """
+
+    calibration: LaserCalibration = field(default_factory=LaserCalibration)
+    product_ids: frozenset[int] | None = frozenset({VLP16_PRODUCT_ID})
+    cut_azimuth_deg: float = 0.0
+    reorder_window: int = 8
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """One rotation. ``points`` (N,) POINT_DTYPE with ``time`` s since ``start.device``.
+
+    ``start``/``end``: first and last firing (device s since the epoch; host s of their packets).
+    ``complete`` is False for the partial first and last piece of a stream. ``clock_offset_s`` is host
+    minus device time (smallest seen); ``time_s`` is the sweep start on the best clock available.
+    """
+
+    index: int
+    points: np.ndarray
+    start: TimePair
+    end: TimePair
+    packet_count: int
+    missing_packets: int
+    rpm: float
+    return_mode: ReturnMode
+    complete: bool
+    time_source: TimeSource
+    clock_offset_s: float
+    pps: PpsStatus | None
+
+    @property
+    def time_s(self) -> float:
+        """Sweep start: GPS time when PPS is locked, else device time moved onto the host clock."""
+        if self.time_source is TimeSource.GPS:
+            return self.start.device
+        return self.start.device + self.clock_offset_s
+
+
+@dataclass(frozen=True)
+class StreamStats:
+    """What a source has seen so far. ``faults``/``first_fault`` by PacketFault (first datagram index)."""
+
+    data_packets: int
+    position_packets: int
+    sweeps: int
+    missing_packets: int
+    other_datagrams: int
+    overruns: int
+    faults: dict[PacketFault, int]
+    first_fault: dict[PacketFault, int]
+    return_modes: frozenset[ReturnMode]
+    product_ids: frozenset[int]
+    pps: PpsStatus | None
+    time_source: TimeSource
+    clock_offset_s: float
+
+    @property
+    def bad_packets(self) -> int:
+        return sum(self.faults.values())
+
+
+@dataclass
+class _Pending:
+    """Packets not yet emitted, by device time; the open sweep starts at ``start_block`` of packet 0."""
+
+    payloads: NDArray[np.uint8]
+    host_s: NDArray[np.float64]
+    count_us: NDArray[np.int64]
+    index: NDArray[np.int64]
+    start_block: int = 0
+    started: bool = False  # the open sweep began at a cut (else it is the stream's first piece)
+
+    @classmethod
+    def empty(cls) -> _Pending:
+        return cls(
+            np.empty((0, DATA_PACKET_SIZE), np.uint8),
+            np.empty(0),
+            np.empty(0, np.int64),
+            np.empty(0, np.int64),
+        )
+
+    def merged(
+        self,
+        payloads: NDArray[np.uint8],
+        host_s: NDArray[np.float64],
+        count_us: NDArray[np.int64],
+        index: NDArray[np.int64],
+    ) -> _Pending:
+        return replace(
+            self,
+            payloads=np.concatenate([self.payloads, payloads]),
+            host_s=np.concatenate([self.host_s, host_s]),
+            count_us=np.concatenate([self.count_us, count_us]),
+            index=np.concatenate([self.index, index]),
+        )
+
+    def take(self, keep: NDArray[np.intp] | slice) -> _Pending:
+        return replace(
+            self,
+            payloads=self.payloads[keep],
+            host_s=self.host_s[keep],
+            count_us=self.count_us[keep],
+            index=self.index[keep],
+        )
+
+
+def _block_delay_us(block: NDArray[np.int64] | int, dual: NDArray[np.bool_] | bool) -> NDArray[np.float64]:
+    """Delay of a block's first firing after its packet timestamp, us."""
+    block = np.asarray(block)
+    return np.where(dual, 2 * (block // 2), 2 * block) * SEQUENCE_US
+
+
+def _packet_rate(azimuth: NDArray[np.int64], dual: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """(P,) rotation rate of each packet from its first and last block azimuth, azimuth units per us."""
+    span_us = np.where(dual, 10, 22) * SEQUENCE_US
+    return ((azimuth[:, -1] - azimuth[:, 0]) % AZIMUTH_UNITS) / span_us
+
+
+class SweepAssembler:
+    """Feed datagram batches, get sweeps. Not thread-safe: one per stream, used by one thread."""
+
+    def __init__(self, config: Vlp16Config | None = None) -> None:
+        self.config = config or Vlp16Config()
+        self.clock = DeviceClock()
+        self.tally = FaultTally()
+        self._pending = _Pending.empty()
+        self._floor_us: int | None = None  # device count of the first packet not yet emitted
+        self._next_index = 0
+        self._counts = {"data": 0, "position": 0, "missing": 0, "other": 0}
+        self._modes: set[ReturnMode] = set()
+        self._products: set[int] = set()
+        self._cut_units = round(self.config.cut_azimuth_deg * 100) % AZIMUTH_UNITS
+
+    # -- input ---------------------------------------------------------------------------------------------
+    def feed(self, batch: DatagramBatch) -> list[Sweep]:
+        """Take one batch (positions first, then data packets); return the sweeps it completes."""
+        for fault, count, first in batch.faults:
+            self.tally.add(fault, count, first)
+        self._counts["other"] += batch.other
+        for position in batch.positions:
+            packet = parse_position_packet(position.payload)
+            if packet is None:
+                self.tally.add(PacketFault.POSITION, 1, position.index)
+                continue
+            self._counts["position"] += 1
+            self.clock.observe_position(packet)
+        if len(batch.data) == 0:
+            return []
+        return self._feed_data(batch.data, batch.data_host_s, batch.data_index)
+
+    def flush(self) -> list[Sweep]:
+        """End of stream: emit every pending sweep; the last one, cut short, is incomplete."""
+        return self._split(final=True) if len(self._pending.count_us) else []
+
+    def stats(self, overruns: int = 0) -> StreamStats:
+        return StreamStats(
+            self._counts["data"],
+            self._counts["position"],
+            self._next_index,
+            self._counts["missing"],
+            self._counts["other"],
+            overruns,
+            dict(self.tally.counts),
+            dict(self.tally.first_index),
+            frozenset(self._modes),
+            frozenset(self._products),
+            self.clock.pps,
+            self.clock.source,
+            self.clock.host_offset_s,
+        )
+
+    # -- internals -----------------------------------------------------------------------------------------
+    def _valid(self, payloads: NDArray[np.uint8], index: NDArray[np.int64]) -> NDArray[np.bool_]:
+        records = as_packet_records(payloads)
+        self._products.update(np.unique(records["product_id"]).tolist())
+        product_ids: Collection[int] | None = self.config.product_ids
+        check = check_packets(records, product_ids)
+        self.tally.add_check(check, index)
+        modes = np.unique(records["return_mode"][check.valid])
+        self._modes.update(ReturnMode(int(m)) for m in modes)
+        return check.valid
+
+    def _feed_data(
+        self, payloads: NDArray[np.uint8], host_s: NDArray[np.float64], index: NDArray[np.int64]
+    ) -> list[Sweep]:
+        valid = self._valid(payloads, index)
+        payloads, host_s, index = payloads[valid], host_s[valid], index[valid]
+        if len(payloads) == 0:
+            return []
+        count_us = self.clock.unwrap(as_packet_records(payloads)["timestamp_us"])
+        self.clock.observe_host(host_s, count_us)
+        if self._floor_us is not None:
+            late = count_us < self._floor_us
+            self.tally.add(PacketFault.LATE, int(late.sum()), int(index[late].min()) if late.any() else 0)
+            payloads, host_s, count_us, index = payloads[~late], host_s[~late], count_us[~late], index[~late]
+        pending = self._pending.merged(payloads, host_s, count_us, index)
+        pending = pending.take(np.argsort(pending.count_us, kind="stable"))
+        repeat = np.flatnonzero(np.diff(pending.count_us) == 0) + 1
+        if len(repeat):
+            self.tally.add(PacketFault.DUPLICATE, len(repeat), int(pending.index[repeat].min()))
+            pending = pending.take(np.setdiff1d(np.arange(len(pending.count_us)), repeat))
+        self._counts["data"] += len(pending.count_us) - len(self._pending.count_us)
+        self._pending = pending
+        return self._split()
+
+    def _cuts(self, pending: _Pending) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """Flat block indices (packet * 12 + block) after ``start_block`` where a new sweep starts, and
+        whether each is a crossing of the cut azimuth (else a gap of a whole turn or more)."""
+        records = as_packet_records(pending.payloads)
+        azimuth = records["blocks"]["azimuth"].astype(np.int64)
+        relative = ((azimuth - self._cut_units) % AZIMUTH_UNITS).ravel()
+        crossing = np.flatnonzero(relative[1:] < relative[:-1]) + 1
+        # A gap of a whole turn or more passes the cut even when the azimuths on either side do not show it.
+        dual = records["return_mode"] == ReturnMode.DUAL
+        expected = _packet_rate(azimuth, dual)[:-1] * np.diff(pending.count_us)
+        seen = (azimuth[1:, 0] - azimuth[:-1, 0]) % AZIMUTH_UNITS
+        skipped = (np.flatnonzero(expected - seen > AZIMUTH_UNITS / 2) + 1) * BLOCKS_PER_PACKET
+        cuts = np.union1d(crossing, skipped)
+        at_cut = np.isin(cuts, crossing) & ~np.isin(cuts, skipped)
+        later = cuts > pending.start_block
+        return cuts[later], at_cut[later]
+
+    def _split(self, final: bool = False) -> list[Sweep]:
+        pending = self._pending
+        packets = len(pending.count_us)
+        cuts, at_cut = self._cuts(pending)
+        if not final:
+            ready = cuts // BLOCKS_PER_PACKET < packets - self.config.reorder_window
+            cuts, at_cut = cuts[ready], at_cut[ready]
+            if len(cuts) == 0:
+                return []
+        else:
+            cuts, at_cut = np.append(cuts, packets * BLOCKS_PER_PACKET), np.append(at_cut, False)
+        last_packet = min(int(cuts[-1] // BLOCKS_PER_PACKET), packets - 1)
+        starts_at_cut = [pending.started, *at_cut[:-1].tolist()]
+        complete = [begin and end for begin, end in zip(starts_at_cut, at_cut.tolist(), strict=True)]
+        sweeps = self._emit(
+            pending.take(slice(0, last_packet + 1)), [pending.start_block, *cuts.tolist()], complete
+        )
+        if final:
+            self._pending = _Pending.empty()
+            return sweeps
+        self._pending = replace(
+            pending.take(slice(last_packet, None)),
+            start_block=int(cuts[-1] % BLOCKS_PER_PACKET),
+            started=bool(at_cut[-1]),
+        )
+        self._floor_us = int(self._pending.count_us[0])
+        return sweeps
+
+    def _emit(self, packets: _Pending, bounds: list[int], complete: list[bool]) -> list[Sweep]:
+        """Decode ``packets`` once and cut the sweeps [bounds[i], bounds[i+1]) out of them."""
+        records = as_packet_records(packets.payloads)
+        base_us = packets.count_us[0]
+        relative_s = (packets.count_us - base_us) * 1e-6
+        decoded = decode_packets(packets.payloads, self.config.calibration, relative_s)
+        offsets = np.concatenate([[0], np.cumsum(decoded.points_per_block.ravel())])
+        dual = records["return_mode"] == ReturnMode.DUAL
+        rate = _packet_rate(records["blocks"]["azimuth"].astype(np.int64), dual)
+        sweeps = []
+        for (first, stop), whole in zip(zip(bounds[:-1], bounds[1:], strict=True), complete, strict=True):
+            sweeps.append(
+                self._sweep(
+                    packets,
+                    records,
+                    decoded.points[offsets[first] : offsets[stop]],
+                    first,
+                    stop,
+                    whole,
+                    rate,
+                    dual,
+                )
+            )
+        return sweeps
+
+    def _sweep(
+        self,
+        packets: _Pending,
+        records: np.ndarray,
+        points: np.ndarray,
+        first: int,
+        stop: int,
+        complete: bool,
+        rate: NDArray[np.float64],
+        dual: NDArray[np.bool_],
+    ) -> Sweep:
+        p0, p_last = first // BLOCKS_PER_PACKET, (stop - 1) // BLOCKS_PER_PACKET
+        p_end = min(stop // BLOCKS_PER_PACKET, len(packets.count_us) - 1)  # packet of the next sweep's start
+        mode = ReturnMode(int(records["return_mode"][p0]))
+        start_us = packets.count_us[p0] + float(_block_delay_us(first % BLOCKS_PER_PACKET, dual[p0]))
+        end_us = (
+            packets.count_us[p_last]
+            + float(_block_delay_us((stop - 1) % BLOCKS_PER_PACKET, dual[p_last]))
+            + SEQUENCE_US
+            + (LASERS - 1) * FIRING_US
+        )  # last firing of the block's second sequence
+        points["time"] -= (start_us - packets.count_us[0]) * 1e-6  # a view of its own part of the decode
+        span = float(packets.count_us[p_end] - packets.count_us[p0])
+        missing = max(round(span / mode.packet_period_us) - (p_end - p0), 0)
+        self._counts["missing"] += missing
+        epoch_s = float(self.clock.epoch_s(0))
+        sweep = Sweep(
+            index=self._next_index,
+            points=points,
+            start=TimePair(float(packets.host_s[p0]), epoch_s + float(start_us) * 1e-6),
+            end=TimePair(float(packets.host_s[p_last]), epoch_s + float(end_us) * 1e-6),
+            packet_count=p_last - p0 + 1,
+            missing_packets=missing,
+            rpm=float(np.median(rate[p0 : p_last + 1])) * 1e6 / AZIMUTH_UNITS * 60.0,
+            return_mode=mode,
+            complete=complete,
+            time_source=self.clock.source,
+            clock_offset_s=self.clock.host_offset_s,
+            pps=self.clock.pps,
+        )
+        self._next_index += 1
+        return sweep
