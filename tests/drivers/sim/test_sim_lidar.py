@@ -1,0 +1,90 @@
+"""The simulated VLP-16 against hand geometry and the documented VLP-16 conventions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drivers.sim import LidarConfig, Lighting, Pose, SceneBuilder, SceneKind, SimError, scan
+from drivers.sim.lidar import FIRINGS_PER_TURN, LASER_ELEVATIONS_DEG
+
+LIGHT = Lighting(sun_dir_world=np.array([0.0, 0.0, 1.0]), ambient=0.5, sun=0.5, shadows=False)
+HEIGHT_M = 1.7
+
+
+def _floor_scene(albedo: float = 0.5):
+    """Only a floor (top at z = 0): upward beams see the sky."""
+    b = SceneBuilder()
+    b.box((-500.0, -500.0, -1.0), (500.0, 500.0, 0.0), albedo, texture=0.0)
+    return b.build(SceneKind.OUTDOOR, LIGHT, (0, 1, 0, 1), 0.0, (1.0, 1.5))
+
+
+def _level_pose() -> Pose:
+    return Pose(np.eye(3), np.array([0.0, 0.0, HEIGHT_M]))
+
+
+def test_floor_ranges_follow_the_elevation_of_each_laser():
+    sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(0), LidarConfig(range_noise_m=0.0))
+    # A beam at elevation w < 0 from height h meets the floor after h / sin(-w) metres (-1 deg: 97.4 m,
+    # inside the 100 m range); upward beams see the sky: range 0, no return.
+    w = np.radians(LASER_ELEVATIONS_DEG)
+    expected = np.where(w < 0, HEIGHT_M / np.sin(np.maximum(-w, 1e-9)), 0.0)
+    expected = np.where(expected <= 100.0, expected, 0.0)
+    for laser in range(16):
+        ranges = sweep.ranges_m[:, laser]
+        np.testing.assert_allclose(ranges, expected[laser], atol=0.001 + 1e-9)  # 2 mm range steps
+    assert sweep.ranges_m.shape == (FIRINGS_PER_TURN, 16)
+
+
+def test_points_follow_the_vlp16_formula_and_ring_order():
+    sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(1), LidarConfig(range_noise_m=0.02))
+    p = sweep.points_lidar
+    r = np.linalg.norm(p, axis=1)
+    # Inverting x = r cos w cos a, y = -r cos w sin a, z = r sin w (docs/conventions.md):
+    elevation = np.degrees(np.arcsin(p[:, 2] / r))
+    azimuth = np.mod(np.degrees(np.arctan2(-p[:, 1], p[:, 0])), 360.0)
+    np.testing.assert_allclose(elevation, LASER_ELEVATIONS_DEG[sweep.laser_id], atol=1e-9)
+    d_az = np.mod(azimuth - sweep.azimuth_deg + 180.0, 360.0) - 180.0
+    np.testing.assert_allclose(d_az, 0.0, atol=1e-9)
+    # ring = elevation order, 0 = lowest
+    np.testing.assert_array_equal(sweep.ring, np.round((LASER_ELEVATIONS_DEG[sweep.laser_id] + 15) / 2))
+    # The per-firing grid holds the same ranges in firing-major order.
+    grid = sweep.ranges_m.reshape(-1)
+    np.testing.assert_allclose(r, grid[grid > 0], rtol=1e-12)
+    assert np.all(np.diff(sweep.time_s) > 0) and 0 <= sweep.time_s.min() and sweep.time_s.max() < 0.1
+    # 600 rpm: the head turns 3600 deg/s, clockwise, so azimuth = 3600 * time.
+    np.testing.assert_allclose(np.mod(3600.0 * sweep.time_s, 360.0), sweep.azimuth_deg, atol=1e-9)
+
+
+def test_range_noise_sigma_and_quantisation():
+    sigma = 0.03
+    sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(2), LidarConfig(range_noise_m=sigma))
+    w = np.radians(LASER_ELEVATIONS_DEG[sweep.laser_id])
+    true = HEIGHT_M / np.sin(-w)
+    residual = np.linalg.norm(sweep.points_lidar, axis=1) - true
+    assert residual.std() == pytest.approx(sigma, rel=0.05)
+    assert abs(residual.mean()) < 0.002
+    steps = sweep.ranges_m[sweep.ranges_m > 0] / 0.002
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
+
+
+def test_range_limits_and_sky_give_no_return():
+    sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(3),
+                 LidarConfig(range_noise_m=0.0, max_range_m=20.0))
+    assert np.all(LASER_ELEVATIONS_DEG[sweep.laser_id] < 0)  # the sky gives nothing
+    assert np.linalg.norm(sweep.points_lidar, axis=1).max() <= 20.0
+    # -3 deg reaches the floor at 32 m and -1 deg at 97 m: beyond 20 m, no return.
+    assert not np.isin(sweep.laser_id, np.flatnonzero(LASER_ELEVATIONS_DEG >= -3)).any()
+    with pytest.raises(SimError, match="range limits"):
+        LidarConfig(min_range_m=5.0, max_range_m=2.0)
+
+
+def test_reflectivity_is_albedo_times_cosine_of_incidence():
+    albedo = 0.6
+    sweep = scan(_floor_scene(albedo), _level_pose(), np.random.default_rng(4), LidarConfig(range_noise_m=0.0))
+    # Beam at elevation w onto a horizontal floor: cos(incidence) = sin(-w). Calibrated scale 0..100.
+    w = np.radians(LASER_ELEVATIONS_DEG[sweep.laser_id])
+    expected = 100.0 * albedo * np.sin(-w)
+    assert np.abs(sweep.intensity - expected).max() <= 5.0
+    assert abs(np.mean(sweep.intensity - expected)) < 0.1
+    assert sweep.intensity.dtype == np.float32 and sweep.reflectivity.dtype == np.uint8
