@@ -148,6 +148,7 @@ class GrabbedImage:
     sequence_id: int
     data_format: int
     data: bytes
+    host_receive_s: float  # host clock right after ladybugGrabImage returned (before copying the pixels)
 
 
 def _read_uint(buf: ctypes.Array[ctypes.c_char], field: tuple[int, int]) -> int:
@@ -201,7 +202,7 @@ class LadybugLibrary:
     def new_image_buffer(self) -> ctypes.Array[ctypes.c_char]:
         return ctypes.create_string_buffer(self.layout.image_size)
 
-    def read_image(self, buf: ctypes.Array[ctypes.c_char]) -> GrabbedImage:
+    def read_image(self, buf: ctypes.Array[ctypes.c_char], host_receive_s: float) -> GrabbedImage:
         fields = self.layout.image_fields
 
         def field(name: str) -> int:
@@ -219,6 +220,7 @@ class LadybugLibrary:
             sequence_id=field("sequence_id"),
             data_format=field("data_format"),
             data=ctypes.string_at(pointer, size),
+            host_receive_s=host_receive_s,
         )
 
 
@@ -288,7 +290,7 @@ class SdkCamera:
     def grab(self) -> GrabbedImage:
         self._require_started("grab")
         self.lib.call("ladybugGrabImage", self._context, self._image)
-        return self.lib.read_image(self._image)
+        return self.lib.read_image(self._image, time.time())
 
     def exposure(self) -> Exposure:
         """Shutter (the SDK reports ms) and gain (dB) from ladybugGetAbsProperty."""
@@ -364,17 +366,16 @@ class SdkFrameSource:
         )
         self.skipped = SkipCounter()
 
-    def _grab_and_decode(self) -> tuple[GrabbedImage, float, list[NDArray]]:
+    def _grab_and_decode(self) -> tuple[GrabbedImage, list[NDArray]]:
         image = self.camera.grab()
-        host_s = time.time()  # as soon as the SDK hands the frame over: least added latency
-        return image, host_s, decode_grab(image, self.camera.lib.layout, self.bayer_pattern, self.pgr_layout)
+        return image, decode_grab(image, self.camera.lib.layout, self.bayer_pattern, self.pgr_layout)
 
     def frames(self) -> Iterator[PanoramaFrame]:
         failures = 0
         with self.camera:
             while True:
                 try:
-                    image, host_s, images = self._grab_and_decode()
+                    image, images = self._grab_and_decode()
                 except (CorruptFrameError, SdkError) as exc:
                     failures += 1
                     if failures >= self.max_failures:
@@ -384,7 +385,7 @@ class SdkFrameSource:
                     continue
                 failures = 0
                 raw = image.cycle_time_s if self.time_field is DeviceTimeField.CYCLE else image.embedded_time_s
-                device_s = self.clock.add(raw, host_s)
+                device_s = self.clock.add(raw, image.host_receive_s)
                 pano = self.stitcher.stitch(images)
                 yield PanoramaFrame(
                     pano,

@@ -37,10 +37,6 @@ def pixel_rays_optical(camera: RigCamera) -> F64:
     return rays / np.linalg.norm(rays, axis=1, keepdims=True)
 
 
-def _pose_rotation(pose: Pose) -> F64:
-    return np.asarray(pose.rotation, dtype=np.float64)
-
-
 class SimFrameSource:
     """Frames of the simulated Ladybug at ``poses_world_head`` (one frame each) in ``scene``."""
 
@@ -68,7 +64,7 @@ class SimFrameSource:
 
     def camera_images(self, pose_world_head: Pose) -> list[NDArray[np.uint8]]:
         """Six BGR uint8 images (each camera's raw image) seen from ``pose_world_head``."""
-        rotation = _pose_rotation(pose_world_head)
+        rotation = np.asarray(pose_world_head.rotation, dtype=np.float64)
         images = []
         for camera, rays in zip(self.stitcher.rig.cameras, self._rays, strict=True):
             origin = pose_world_head.apply(camera.t_head_camera_m[None, :])[0]

@@ -27,7 +27,7 @@ from drivers.ladybug5.rig import RigCamera, RigCameras
 
 F64 = NDArray[np.float64]
 PANORAMA_SIZES = ((2048, 1024), (1024, 512))
-DEFAULT_RADIUS_M = 20.0  # the Ladybug SDK's default sphere size is also 20 m
+DEFAULT_RADIUS_M = 20.0  # street scale; indoors 3-5 m fits better (docs/ladybug5.md, parallax)
 
 
 @dataclass(frozen=True)
