@@ -66,7 +66,7 @@ class ScanlineEdgeParams:
     max_gap_deg: float = 0.5
     fold_half_window_m: float = 0.25
     fold_min_points: int = 5
-    fold_min_deg: float = 30.0
+    fold_min_deg: float = 40.0
     min_range_m: float = 0.8
     use_folds: bool = True
 
@@ -145,8 +145,11 @@ def _fold_points(pts: F64, rng: F64, params: ScanlineEdgeParams) -> tuple[F64, F
     centre = idx + 41
     left_mean = (csum[centre] - csum[centre - half]) / half[:, None]
     right_mean = (csum[centre + 1 + half] - csum[centre + 1]) / half[:, None]
-    d_left = pts - left_mean
-    d_right = right_mean - pts
+    # The corner itself is taken as the mean of +-2 samples: a single sample's 2 cm range noise over a
+    # 0.1 m lever tilts each half by ~10 deg and fakes folds on flat walls.
+    centre_mean = (csum[centre + 3] - csum[centre - 2]) / 5.0
+    d_left = centre_mean - left_mean
+    d_right = right_mean - centre_mean
     n_l = np.linalg.norm(d_left, axis=1)
     n_r = np.linalg.norm(d_right, axis=1)
     cos_a = np.sum(d_left * d_right, axis=1) / np.maximum(n_l * n_r, 1e-9)

@@ -1,0 +1,137 @@
+"""The calibration job used by the CLI, the demo and the HTTP service."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from calib.errors import CalibError
+from calib.geometry import Transform, rotation_angle_deg
+from calib.gmm import PairFeatures
+from calib.optimize import OptimOptions
+from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features
+from rigd.calibration.visuals import overlay, write_coloured_ply
+from rigd.dataset import Dataset, open_dataset
+from rigd.dataset.records import transform_to_yaml
+from rigd.dataset.store import write_yaml
+from rigd.errors import RigdError
+
+# Paper defaults: sigma_in = 15, 10, 5 px of a 1024-wide panorama, as angles at 1 m.
+PAPER_SIGMAS_DEG = (5.27, 3.52, 1.76)
+
+
+@dataclass(frozen=True)
+class CalibrationRequest:
+    dataset: Path
+    out_dir: Path
+    initial: Transform | None = None  # None: the dataset's rig.yaml initial_guess
+    sigmas_deg: tuple[float, ...] = PAPER_SIGMAS_DEG
+    write_visuals: bool = True
+
+
+@dataclass(frozen=True)
+class CalibrationOutcome:
+    T_camera_lidar: Transform
+    initial: Transform
+    report: dict[str, Any]
+    out_dir: Path
+
+
+Progress = Callable[[str, float], None]
+
+
+def _initial(request: CalibrationRequest, dataset: Dataset) -> Transform:
+    if request.initial is not None:
+        return request.initial
+    if dataset.rig.initial_guess is not None:
+        return dataset.rig.initial_guess
+    raise RigdError(f"{dataset.root / 'rig.yaml'}: no initial_guess; give one with --init 'r,p,y,x,y,z'")
+
+
+def _features(dataset: Dataset, params: CalibParams, progress: Progress | None) -> list[PairFeatures]:
+    if len(dataset) == 0:
+        raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
+    camera = dataset.rig.camera.model()
+    feats = []
+    for i in range(len(dataset)):
+        pair = dataset.load_pair(i)
+        if progress:
+            progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
+        feats.append(extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring), camera,
+                                      params, index=i))
+    return feats
+
+
+def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: float) -> dict[str, Any]:
+    T = result.T_camera_lidar
+    report: dict[str, Any] = {
+        "T_camera_lidar": transform_to_yaml(T),
+        "quality": {
+            "final_cost": result.optim.final_cost,
+            "converged": result.optim.converged,
+            "levels": [{"sigma_in_deg": lv.sigma_in_deg, "iterations": lv.iterations, "converged": lv.converged,
+                        "final_cost": lv.costs[-1]} for lv in result.optim.levels],
+            "pairs": [{"edge_pixels": p.edge_pixels, "edge_points": p.edge_points} for p in result.pairs],
+            "wall_time_s": round(wall_s, 3),
+        },
+        "change_from_initial": {
+            "rotation_deg": rotation_angle_deg(initial.rotation, T.rotation),
+            "translation_cm": float(np.linalg.norm(T.translation_m - initial.translation_m) * 100.0),
+        },
+        "dataset": str(dataset.root),
+    }
+    if dataset.ground_truth is not None:
+        gt = dataset.ground_truth
+        report["error_vs_ground_truth"] = {
+            "rotation_deg": rotation_angle_deg(gt.rotation, T.rotation),
+            "translation_cm": float(np.linalg.norm(T.translation_m - gt.translation_m) * 100.0),
+            "rpy_deg": (T.rpy_deg - gt.rpy_deg).tolist(),
+            "xyz_cm": ((T.translation_m - gt.translation_m) * 100.0).tolist(),
+        }
+    return report
+
+
+def _write_visuals(dataset: Dataset, initial: Transform, T: Transform, out: Path) -> None:
+    camera = dataset.rig.camera.model()
+    (out / "overlays").mkdir(parents=True, exist_ok=True)
+    (out / "clouds").mkdir(parents=True, exist_ok=True)
+    for i in range(len(dataset)):
+        pair = dataset.load_pair(i)
+        pts = pair.cloud.points_lidar
+        for name, transform in (("before", initial), ("after", T)):
+            cv2.imwrite(str(out / "overlays" / f"{i:04d}_{name}.png"), overlay(pair.image, camera, transform, pts))
+        write_coloured_ply(out / "clouds" / f"{i:04d}.ply", pair.image, camera, T, pts)
+
+
+def run_calibration(request: CalibrationRequest, progress: Progress | None = None,
+                    on_iter: Callable[[int, int, float], None] | None = None) -> CalibrationOutcome:
+    """Calibrate ``request.dataset``; writes ``extrinsics.yaml``, overlays/ and clouds/ into ``out_dir``."""
+    started = time.monotonic()
+    dataset = open_dataset(request.dataset)
+    initial = _initial(request, dataset)
+    if not request.sigmas_deg or any(s <= 0 for s in request.sigmas_deg):
+        raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
+    params = CalibParams(optim=dataclasses.replace(OptimOptions(), sigmas_deg=tuple(request.sigmas_deg)))
+    feats = _features(dataset, params, progress)
+    if progress:
+        progress("optimising", 0.5)
+    try:
+        result = calibrate(feats, initial, params, on_iter)
+    except CalibError as exc:
+        raise RigdError(f"{dataset.root}: {exc}") from exc
+    report = _report(result, initial, dataset, time.monotonic() - started)
+    out = Path(request.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_yaml(out / "extrinsics.yaml", report)
+    if request.write_visuals:
+        if progress:
+            progress("writing overlays", 0.95)
+        _write_visuals(dataset, initial, result.T_camera_lidar, out)
+    return CalibrationOutcome(result.T_camera_lidar, initial, report, out)
