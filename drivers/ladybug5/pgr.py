@@ -117,10 +117,14 @@ class PgrStream:
                 self._buf = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
         except (OSError, ValueError) as exc:
             raise StreamFormatError(f"cannot open stream file {self.path}: {exc}") from exc
-        if self._buf[: len(SIGNATURE)] != SIGNATURE:
-            raise StreamFormatError(f"{self.path}: not a Ladybug stream (no {SIGNATURE.decode()} signature)")
-        self.header = self._read_header()
-        self.index = self._walk_frames()
+        try:
+            if self._buf[: len(SIGNATURE)] != SIGNATURE:
+                raise StreamFormatError(f"{self.path}: not a Ladybug stream (no {SIGNATURE.decode()} signature)")
+            self.header = self._read_header()
+            self.index = self._walk_frames()
+        except StreamFormatError:
+            self._buf.close()
+            raise
 
     def close(self) -> None:
         self._buf.close()

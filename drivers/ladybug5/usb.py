@@ -90,7 +90,10 @@ def _read_string(device: Any, attribute: str) -> str | None:
 
 
 def _describe(device: Any) -> UsbCamera:
-    speed = int(device.speed) if device.speed is not None else 0
+    try:
+        speed = UsbSpeed(int(device.speed)) if device.speed is not None else UsbSpeed.UNKNOWN
+    except ValueError:  # a speed newer than this table (e.g. USB4 numbering)
+        speed = UsbSpeed.UNKNOWN
     return UsbCamera(
         vendor_id=int(device.idVendor),
         product_id=int(device.idProduct),
@@ -99,7 +102,7 @@ def _describe(device: Any) -> UsbCamera:
         bus=device.bus,
         address=device.address,
         port_numbers=tuple(device.port_numbers or ()),
-        speed=UsbSpeed(speed) if speed in UsbSpeed._value2member_map_ else UsbSpeed.UNKNOWN,
+        speed=speed,
     )
 
 

@@ -84,3 +84,9 @@ def test_missing_libusb_is_a_clear_error(monkeypatch):
         monkeypatch.setattr(module, "get_backend", lambda *args, **kwargs: None)
     with pytest.raises(UsbBackendError, match="libusb"):
         lb_usb.find_cameras()
+
+
+def test_unknown_link_speed_is_reported_as_unknown_and_warned():
+    cameras, _ = lb_usb.find_cameras(backend=FakeUsbBackend([ladybug(speed=9)]))
+    assert cameras[0].speed is lb_usb.UsbSpeed.UNKNOWN
+    assert any("unknown" in w for w in lb_usb.health_warnings(cameras, 1000))
