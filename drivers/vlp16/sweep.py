@@ -293,64 +293,43 @@ class SweepAssembler:
         return sweeps
 
     def _emit(self, packets: _Pending, bounds: list[int], complete: list[bool]) -> list[Sweep]:
-        """Decode ``packets`` once and cut the sweeps [bounds[i], bounds[i+1]) out of them."""
-        records = as_packet_records(packets.payloads)
-        base_us = packets.count_us[0]
-        relative_s = (packets.count_us - base_us) * 1e-6
-        decoded = decode_packets(packets.payloads, self.config.calibration, relative_s)
-        offsets = np.concatenate([[0], np.cumsum(decoded.points_per_block.ravel())])
-        dual = records["return_mode"] == ReturnMode.DUAL
-        rate = _packet_rate(records["blocks"]["azimuth"].astype(np.int64), dual)
-        sweeps = []
-        for (first, stop), whole in zip(zip(bounds[:-1], bounds[1:], strict=True), complete, strict=True):
-            sweeps.append(
-                self._sweep(
-                    packets,
-                    records,
-                    decoded.points[offsets[first] : offsets[stop]],
-                    first,
-                    stop,
-                    whole,
-                    rate,
-                    dual,
-                )
-            )
-        return sweeps
+        """Decode ``packets`` once and cut the sweeps [bounds[i], bounds[i+1]) (flat block indices) out."""
+        decoded = decode_packets(packets.payloads, self.config.calibration, np.zeros(len(packets.count_us)))
+        per_block = decoded.points_per_block.ravel()
+        offsets = np.concatenate([[0], np.cumsum(per_block)])
+        emitted = _Emission(packets, as_packet_records(packets.payloads), per_block)
+        return [
+            self._sweep(emitted, decoded.points[offsets[first] : offsets[stop]], first, stop, whole)
+            for first, stop, whole in zip(bounds[:-1], bounds[1:], complete, strict=True)
+        ]
 
-    def _sweep(
-        self,
-        packets: _Pending,
-        records: np.ndarray,
-        points: np.ndarray,
-        first: int,
-        stop: int,
-        complete: bool,
-        rate: NDArray[np.float64],
-        dual: NDArray[np.bool_],
-    ) -> Sweep:
+    def _sweep(self, emitted: _Emission, points: np.ndarray, first: int, stop: int, complete: bool) -> Sweep:
+        """One sweep of blocks [first, stop); ``points``: its own slice of the decode, times made relative."""
+        count_us, dual = emitted.packets.count_us, emitted.dual
         p0, p_last = first // BLOCKS_PER_PACKET, (stop - 1) // BLOCKS_PER_PACKET
-        p_end = min(stop // BLOCKS_PER_PACKET, len(packets.count_us) - 1)  # packet of the next sweep's start
-        mode = ReturnMode(int(records["return_mode"][p0]))
-        start_us = packets.count_us[p0] + float(_block_delay_us(first % BLOCKS_PER_PACKET, dual[p0]))
-        end_us = (
-            packets.count_us[p_last]
-            + float(_block_delay_us((stop - 1) % BLOCKS_PER_PACKET, dual[p_last]))
-            + SEQUENCE_US
-            + (LASERS - 1) * FIRING_US
-        )  # last firing of the block's second sequence
-        points["time"] -= (start_us - packets.count_us[0]) * 1e-6  # a view of its own part of the decode
-        span = float(packets.count_us[p_end] - packets.count_us[p0])
+        p_end = min(stop // BLOCKS_PER_PACKET, len(count_us) - 1)  # packet of the next sweep's start
+        mode = ReturnMode(int(emitted.records["return_mode"][p0]))
+        start_delay_us = float(_block_delay_us(first % BLOCKS_PER_PACKET, dual[p0]))
+        # Decoded times are firing delays after each packet stamp; shift them per block, from integers, so a
+        # sweep's times do not depend on how the stream was batched.
+        block_packet = np.arange(first, stop) // BLOCKS_PER_PACKET
+        shift_s = (count_us[block_packet] - count_us[p0]) * 1e-6 - start_delay_us * 1e-6
+        points["time"] += np.repeat(shift_s, emitted.per_block[first:stop])
+        last_delay_us = float(_block_delay_us((stop - 1) % BLOCKS_PER_PACKET, dual[p_last]))
+        end_us = count_us[p_last] + last_delay_us + SEQUENCE_US + (LASERS - 1) * FIRING_US  # last firing
+        span = float(count_us[p_end] - count_us[p0])
         missing = max(round(span / mode.packet_period_us) - (p_end - p0), 0)
         self._counts["missing"] += missing
         epoch_s = float(self.clock.epoch_s(0))
+        start_us = float(count_us[p0]) + start_delay_us
         sweep = Sweep(
             index=self._next_index,
             points=points,
-            start=TimePair(float(packets.host_s[p0]), epoch_s + float(start_us) * 1e-6),
-            end=TimePair(float(packets.host_s[p_last]), epoch_s + float(end_us) * 1e-6),
+            start=TimePair(float(emitted.packets.host_s[p0]), epoch_s + start_us * 1e-6),
+            end=TimePair(float(emitted.packets.host_s[p_last]), epoch_s + float(end_us) * 1e-6),
             packet_count=p_last - p0 + 1,
             missing_packets=missing,
-            rpm=float(np.median(rate[p0 : p_last + 1])) * 1e6 / AZIMUTH_UNITS * 60.0,
+            rpm=float(np.median(emitted.rate[p0 : p_last + 1])) * 1e6 / AZIMUTH_UNITS * 60.0,
             return_mode=mode,
             complete=complete,
             time_source=self.clock.source,
@@ -359,3 +338,14 @@ class SweepAssembler:
         )
         self._next_index += 1
         return sweep
+
+
+class _Emission:
+    """Packets decoded together: their records, dual flags (P,), rates (P,) units/us, points per block."""
+
+    def __init__(self, packets: _Pending, records: np.ndarray, per_block: NDArray[np.int64]) -> None:
+        self.packets = packets
+        self.records = records
+        self.per_block = per_block
+        self.dual = records["return_mode"] == ReturnMode.DUAL
+        self.rate = _packet_rate(records["blocks"]["azimuth"].astype(np.int64), self.dual)

@@ -1,0 +1,113 @@
+"""``rigd lidar info`` and ``rigd lidar export`` through rigd.cli.main (only the lidar command registered)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from vlp16_helpers import LEGACY_PCAP, SMALL_PCAP
+
+import rigd.cli
+from drivers.vlp16 import PcapReplay, Vlp16Config
+from drivers.vlp16.layout import NOMINAL_ELEVATION_DEG
+from rigd.dataset import read_pcd
+
+pytestmark = pytest.mark.skipif(not LEGACY_PCAP.is_file(), reason="shared VLP-16 captures not present")
+
+
+@pytest.fixture(autouse=True)
+def only_lidar_command(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(rigd.cli, "COMMAND_MODULES", ("lidar",))
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = rigd.cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_info_on_the_small_capture(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "lidar", "info", str(SMALL_PCAP))
+    assert code == 0
+    for expected in (
+        "84 data packets, 0 position packets",
+        "return mode:     strongest",
+        "product id:      0x22",
+        "rpm:             600.",
+        "sweeps:          2 (0 complete)",
+        "duration:        0.11",
+        "PPS:             no position packets",
+        "bad packets:     0",
+    ):
+        assert expected in out, expected
+
+
+def test_info_on_the_legacy_capture_needs_any_product(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "lidar", "info", str(LEGACY_PCAP))
+    assert code == 0
+    assert "unexpected product id: 1902 (first at record 0)" in out and "--any-product" in out
+    code, out, _ = run(capsys, "lidar", "info", "--any-product", str(LEGACY_PCAP))
+    assert code == 0
+    for expected in (
+        "1902 data packets, 367 position packets",
+        "product id:      0x21",
+        "rpm:             1198.",
+        "sweeps:          52 (50 complete)",
+        "duration:        2.52",
+        "PPS:             absent",
+        "host time - device time = +1430.",
+    ):
+        assert expected in out, expected
+
+
+def test_export_writes_one_pcd_per_sweep_with_rings_by_elevation(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, _ = run(capsys, "lidar", "export", str(SMALL_PCAP), "--out", str(tmp_path / "out"))
+    assert code == 0 and "wrote 2 sweeps" in out
+    sweeps = list(PcapReplay(SMALL_PCAP, Vlp16Config()))
+    files = sorted((tmp_path / "out").glob("sweep_*.pcd"))
+    assert [f.name for f in files] == ["sweep_0000.pcd", "sweep_0001.pcd"]
+    for path, sweep in zip(files, sweeps, strict=True):
+        cloud = read_pcd(path)
+        assert len(cloud) == len(sweep.points)
+        assert cloud.ring is not None and cloud.intensity is not None
+        elevation = np.degrees(
+            np.arcsin(cloud.points_lidar[:, 2] / np.linalg.norm(cloud.points_lidar, axis=1))
+        )
+        for ring, nominal in enumerate(np.sort(NOMINAL_ELEVATION_DEG)):  # ring 0 is the lowest laser
+            assert np.abs(elevation[cloud.ring == ring] - nominal).max() < 0.01
+
+
+def test_export_complete_only_and_legacy_without_flag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, _ = run(
+        capsys,
+        "lidar",
+        "export",
+        "--any-product",
+        "--complete-only",
+        str(LEGACY_PCAP),
+        "--out",
+        str(tmp_path / "legacy"),
+    )
+    assert code == 0 and "wrote 50 sweeps" in out
+    assert len(list((tmp_path / "legacy").glob("*.pcd"))) == 50
+    code, _, err = run(capsys, "lidar", "export", str(LEGACY_PCAP), "--out", str(tmp_path / "none"))
+    assert code == 2 and "no sweeps to export" in err and "--any-product" in err
+
+
+def test_non_pcap_file_is_a_clear_error_with_exit_code_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = tmp_path / "notes.txt"
+    text.write_text("not a capture\n")
+    for action in (["info"], ["export", "--out", str(tmp_path / "x")]):
+        code, out, err = run(capsys, "lidar", *action, str(text))
+        assert code == 2
+        assert err.startswith("rigd: error: ") and "notes.txt: not a pcap or pcapng file" in err
+        assert "Traceback" not in err
+    code, _, err = run(capsys, "lidar", "info", "--calibration", str(text), str(SMALL_PCAP))
+    assert code == 2 and "notes.txt" in err
