@@ -104,14 +104,17 @@ def rpy_deg_to_matrix(rpy_deg: F64) -> F64:
 def matrix_to_rpy_deg(rotation: F64) -> F64:
     """(roll, pitch, yaw) in degrees with pitch in [-90, 90]; inverse of :func:`rpy_deg_to_matrix`."""
     r = check_rotation(rotation)
+    cos_pitch = math.hypot(r[0, 0], r[1, 0])
     # atan2 rather than arcsin(-r[2, 0]), which loses half the digits near the gimbal lock.
-    pitch = math.atan2(-r[2, 0], math.hypot(r[0, 0], r[1, 0]))
-    if abs(math.cos(pitch)) < 1e-12:  # gimbal lock: put everything in yaw
-        roll = 0.0
+    pitch = math.atan2(-r[2, 0], cos_pitch)
+    if cos_pitch < 1e-12:  # gimbal lock: only roll -/+ yaw is defined; put it all in yaw
         yaw = math.atan2(-r[0, 1], r[1, 1])
     else:
-        roll = math.atan2(r[2, 1], r[2, 2])
         yaw = math.atan2(r[1, 0], r[0, 0])
+    # Roll from Rz(yaw)^T R = Ry(pitch) Rx(roll), whose roll entries stay O(1) near the lock (r[2, 1] and
+    # r[2, 2] shrink with cos(pitch)): roll absorbs the rounding of yaw and R is rebuilt to machine precision.
+    m = _rz(yaw).T @ r
+    roll = math.atan2(-m[1, 2], m[1, 1])
     return np.array([math.degrees(roll), math.degrees(pitch), math.degrees(yaw)])
 
 

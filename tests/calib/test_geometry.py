@@ -90,6 +90,17 @@ def test_rpy_round_trip_at_and_near_gimbal_lock(roll: float, sign: float, offset
     np.testing.assert_allclose(rpy_deg_to_matrix(back), matrix, atol=1e-12)
 
 
+@given(unit_vectors, st.floats(1e-12, 1e-5), st.sampled_from([-1.0, 1.0]), degrees)
+def test_rpy_round_trip_of_any_matrix_near_gimbal_lock(
+    axis: np.ndarray, eps: float, sign: float, yaw: float
+) -> None:
+    # Matrices made by scipy rather than by rpy_deg_to_matrix: their tiny entries (r[2, 1], r[2, 2] ~
+    # cos(pitch)) carry rounding that rpy_deg_to_matrix's own entries would share.
+    locked = Rotation.from_euler("xyz", [0.0, sign * 90.0, yaw], degrees=True)
+    matrix = (Rotation.from_rotvec(eps * axis) * locked).as_matrix()
+    np.testing.assert_allclose(rpy_deg_to_matrix(matrix_to_rpy_deg(matrix)), matrix, atol=1e-12)
+
+
 def test_gimbal_lock_puts_everything_in_yaw() -> None:
     back = matrix_to_rpy_deg(rpy_deg_to_matrix(np.array([30.0, 90.0, 50.0])))
     # With pitch = +90, Rz(y) Ry(90) Rx(r) has first row [0, sin(r - y), cos(r - y)]: only yaw - roll = 20
