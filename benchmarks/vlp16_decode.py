@@ -34,19 +34,21 @@ def patched_copy(source: Path, target: Path) -> None:
             writer.writepkt(frame, ts=stamp)
 
 
-def best_time(run: Callable[[], int], repeats: int) -> tuple[float, int]:
-    times, points = [], 0
+def best_times(runs: dict[str, Callable[[], int]], repeats: int) -> dict[str, tuple[float, int]]:
+    """Best time and point count of each run, alternating the runs so that all see the same machine load."""
+    best: dict[str, tuple[float, int]] = {name: (float("inf"), 0) for name in runs}
     for _ in range(repeats):
-        start = time.perf_counter()
-        points = run()
-        times.append(time.perf_counter() - start)
-    return min(times), points
+        for name, run in runs.items():
+            start = time.perf_counter()
+            points = run()
+            best[name] = (min(best[name][0], time.perf_counter() - start), points)
+    return best
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pcap", type=Path, default=LEGACY)
-    parser.add_argument("--repeats", type=int, default=15)
+    parser.add_argument("--repeats", type=int, default=30)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         peer_file = Path(tmp) / "patched.pcap"
@@ -67,16 +69,8 @@ def main() -> None:
         def decode_only() -> int:
             return len(decode_packets(payloads).points)
 
-        results = {"rigd": (0.0, 0), "velodyne_decoder": (0.0, 0), "rigd decode_packets only": (0.0, 0)}
-        for _ in range(2):  # interleave so both see the same machine load
-            for name, run in (
-                ("rigd", ours),
-                ("velodyne_decoder", peer),
-                ("rigd decode_packets only", decode_only),
-            ):
-                best, points = best_time(run, args.repeats)
-                previous = results[name][0]
-                results[name] = (min(best, previous) if previous else best, points)
+        runs = {"rigd": ours, "velodyne_decoder": peer, "rigd decode_packets only": decode_only}
+        results = best_times(runs, args.repeats)
 
     print(f"capture: {args.pcap.name}, {duration_s:.3f} s of data, {len(payloads)} data packets")
     for name, (seconds, points) in results.items():

@@ -60,7 +60,7 @@ _SPAN_S = np.array(
 # Tables over three turns so that an azimuth in units + one turn indexes them without a modulo.
 _TURNS = np.arange(3 * AZIMUTH_UNITS) % AZIMUTH_UNITS
 _COS_AZ = np.cos(np.radians(_TURNS / 100.0)).astype(np.float32)
-_SIN_AZ = np.sin(np.radians(_TURNS / 100.0)).astype(np.float32)
+_NEG_SIN_AZ = -np.sin(np.radians(_TURNS / 100.0)).astype(np.float32)
 _AZ_DEG = (_TURNS / 100.0).astype(np.float32)
 # return_type by [mode code (strongest, last, dual), block]: dual even blocks hold the last return.
 _RETURN_TYPE = np.array(
@@ -82,7 +82,7 @@ def _keep_mask(
     """(P,12,32) returns to keep (nonzero, not a repeated dual return) and (P,12,32) merged dual returns."""
     keep = distance != 0
     if not dual.any():
-        return keep, np.zeros((1, 1, 1), dtype=bool)
+        return keep, np.zeros((1, 1, 1), dtype=bool)  # no dual packet: nothing merged
     same = (distance[:, 0::2] == distance[:, 1::2]) & (reflectivity[:, 0::2] == reflectivity[:, 1::2])
     merged = np.zeros_like(keep)
     merged[:, 0::2] = same & dual[:, None, None] & keep[:, 0::2]
@@ -97,6 +97,28 @@ def _per_mode(table: np.ndarray, mode_index: NDArray[np.intp]) -> np.ndarray:
     return table[mode_index]
 
 
+_CHUNK_PACKETS = 256  # packets decoded together: their temporaries stay in the CPU cache
+
+
+class _LaserTables(NamedTuple):
+    """Per-channel (32,) tables: cos and sin of the elevation (float32), z offset m (float32), ring."""
+
+    cos_w: NDArray[np.float32]
+    sin_w: NDArray[np.float32]
+    z_offset: NDArray[np.float32]
+    ring: NDArray[np.uint8]
+
+    @classmethod
+    def of(cls, calibration: LaserCalibration) -> _LaserTables:
+        elevation = np.radians(calibration.elevation_deg)
+        return cls(
+            np.tile(np.cos(elevation).astype(np.float32), 2),
+            np.tile(np.sin(elevation).astype(np.float32), 2),
+            np.tile(calibration.vertical_offset_m.astype(np.float32), 2),
+            np.tile(calibration.ring_of_laser, 2),
+        )
+
+
 def decode_packets(
     payloads: NDArray[np.uint8],
     calibration: LaserCalibration | None = None,
@@ -109,45 +131,68 @@ def decode_packets(
     in dual-return mode a repeated return (same distance and reflectivity in both blocks) is kept once,
     with return_type BOTH.
     """
-    calibration = calibration or LaserCalibration()
     records = as_packet_records(payloads)
+    channels = records["blocks"]["channels"]
+    dual = records["return_mode"] == ReturnMode.DUAL
+    if packet_time_s is None:
+        packet_time_s = records["timestamp_us"] * 1e-6
+    packet_time_s = np.asarray(packet_time_s, dtype=np.float64)
+    keep, merged = _keep_mask(channels["distance"], channels["reflectivity"], dual)
+    per_block = keep.sum(axis=2)
+    offsets = np.concatenate([[0], np.cumsum(per_block.sum(axis=1))])
+    points = np.empty(offsets[-1], dtype=POINT_DTYPE)
+    tables = _LaserTables.of(calibration or LaserCalibration())
+    for start in range(0, len(records), _CHUNK_PACKETS):
+        chunk = slice(start, start + _CHUNK_PACKETS)
+        _decode_into(
+            points[offsets[start] : offsets[min(start + _CHUNK_PACKETS, len(records))]],
+            records[chunk],
+            keep[chunk],
+            merged[chunk] if len(merged) > 1 else None,
+            packet_time_s[chunk],
+            tables,
+        )
+    return Decoded(points, per_block)
+
+
+def _decode_into(
+    out: np.ndarray,
+    records: np.ndarray,
+    keep: NDArray[np.bool_],
+    merged: NDArray[np.bool_] | None,
+    packet_time_s: NDArray[np.float64],
+    tables: _LaserTables,
+) -> None:
+    """Fill ``out`` with the kept returns of a few packets."""
     blocks = records["blocks"]
-    distance = blocks["channels"]["distance"]
-    reflectivity = blocks["channels"]["reflectivity"]
     mode = records["return_mode"]
     dual = mode == ReturnMode.DUAL
     dual_index = dual.astype(np.intp)
-    if packet_time_s is None:
-        packet_time_s = records["timestamp_us"] * 1e-6
-    keep, merged = _keep_mask(distance, reflectivity, dual)
 
     azimuth = blocks["azimuth"]
     span = ((azimuth[:, -1].astype(np.int32) - azimuth[:, 0]) % AZIMUTH_UNITS).astype(np.float32)
     rate = span / _SPAN_S[dual_index]  # azimuth units per second, float32 like the peer
-    shifted = azimuth.astype(np.float32)[:, :, None] + rate[:, None, None] * _per_mode(
-        _DELAY_IN_BLOCK_S, dual_index
-    )
+    shifted = rate[:, None, None] * _per_mode(_DELAY_IN_BLOCK_S, dual_index)
+    np.add(azimuth.astype(np.float32)[:, :, None], shifted, out=shifted)  # the peer's order of operations
     shifted += np.float32(AZIMUTH_UNITS)
-    az_units = np.floor(shifted + np.float32(0.5), out=shifted).astype(np.int32)[keep]
+    shifted += np.float32(0.5)  # exact in float32 here, so floor(x + 0.5) is lround(x)
+    az_units = np.floor(shifted, out=shifted).astype(np.intp)[keep]
 
-    elevation = np.radians(calibration.elevation_deg)
-    r = distance.astype(np.float32) * np.float32(DISTANCE_UNIT_M)
-    xy = (r * np.tile(np.cos(elevation).astype(np.float32), 2))[keep]
-    z_offset = np.tile(calibration.vertical_offset_m, 2).astype(np.float32)
-    z = r * np.tile(np.sin(elevation).astype(np.float32), 2) + z_offset
-    time = np.asarray(packet_time_s, dtype=np.float64)[:, None, None] + _per_mode(_DELAY_S, dual_index)
+    r = blocks["channels"]["distance"].astype(np.float32)
+    r *= np.float32(DISTANCE_UNIT_M)
+    xy = (r * tables.cos_w)[keep]
+    out["x"] = xy * _COS_AZ[az_units]
+    out["y"] = xy * _NEG_SIN_AZ[az_units]
+    r *= tables.sin_w
+    r += tables.z_offset
+    out["z"] = r[keep]
+    out["intensity"] = blocks["channels"]["reflectivity"][keep]
+    time = packet_time_s[:, None, None] + _per_mode(_DELAY_S, dual_index)
+    out["time"] = np.broadcast_to(time, keep.shape)[keep]
+    out["ring"] = np.broadcast_to(tables.ring, keep.shape)[keep]
+    out["azimuth"] = _AZ_DEG[az_units]
     mode_code = np.select([mode == ReturnMode.LAST, dual], [1, 2], 0)
     return_type = np.broadcast_to(_per_mode(_RETURN_TYPE, mode_code)[:, :, None], keep.shape)
-
-    points = np.empty(np.count_nonzero(keep), dtype=POINT_DTYPE)
-    points["x"] = xy * _COS_AZ[az_units]
-    points["y"] = -xy * _SIN_AZ[az_units]
-    points["z"] = z[keep]
-    points["intensity"] = reflectivity[keep]
-    points["time"] = np.broadcast_to(time, keep.shape)[keep]
-    points["ring"] = np.broadcast_to(np.tile(calibration.ring_of_laser, 2), keep.shape)[keep]
-    points["azimuth"] = _AZ_DEG[az_units]
-    points["return_type"] = (
-        np.where(merged, np.uint8(ReturnType.BOTH), return_type)[keep] if dual.any() else return_type[keep]
-    )
-    return Decoded(points, keep.sum(axis=2))
+    if merged is not None:
+        return_type = np.where(merged, np.uint8(ReturnType.BOTH), return_type)
+    out["return_type"] = return_type[keep]

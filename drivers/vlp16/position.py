@@ -28,7 +28,7 @@ class PositionPacket:
 
 def parse_position_packet(payload: bytes) -> PositionPacket | None:
     """Parse a 512-byte position packet; None if its size or PPS byte is invalid (the caller counts it)."""
-    if len(payload) != POSITION_PACKET_SIZE or payload[POSITION_PPS_OFFSET] > max(PpsStatus):
+    if len(payload) != POSITION_PACKET_SIZE or payload[POSITION_PPS_OFFSET] > PpsStatus.ERROR:
         return None
     (timestamp_us,) = struct.unpack_from("<I", payload, POSITION_TIMESTAMP_OFFSET)
     raw = payload[POSITION_NMEA_OFFSET:].split(b"\0", 1)[0]

@@ -148,10 +148,9 @@ class _Pending:
         )
 
 
-def _block_delay_us(block: NDArray[np.int64] | int, dual: NDArray[np.bool_] | bool) -> NDArray[np.float64]:
+def _block_delay_us(block: int, dual: bool) -> float:
     """Delay of a block's first firing after its packet timestamp, us."""
-    block = np.asarray(block)
-    return np.where(dual, 2 * (block // 2), 2 * block) * SEQUENCE_US
+    return (2 * (block // 2) if dual else 2 * block) * SEQUENCE_US
 
 
 def _packet_rate(azimuth: NDArray[np.int64], dual: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -228,17 +227,19 @@ class SweepAssembler:
         self, payloads: NDArray[np.uint8], host_s: NDArray[np.float64], index: NDArray[np.int64]
     ) -> list[Sweep]:
         valid = self._valid(payloads, index)
-        payloads, host_s, index = payloads[valid], host_s[valid], index[valid]
+        if not valid.all():
+            payloads, host_s, index = payloads[valid], host_s[valid], index[valid]
         if len(payloads) == 0:
             return []
         count_us = self.clock.unwrap(as_packet_records(payloads)["timestamp_us"])
         self.clock.observe_host(host_s, count_us)
-        if self._floor_us is not None:
-            late = count_us < self._floor_us
-            self.tally.add(PacketFault.LATE, int(late.sum()), int(index[late].min()) if late.any() else 0)
+        late = count_us < (self._floor_us if self._floor_us is not None else count_us.min())
+        if late.any():
+            self.tally.add(PacketFault.LATE, int(late.sum()), int(index[late].min()))
             payloads, host_s, count_us, index = payloads[~late], host_s[~late], count_us[~late], index[~late]
         pending = self._pending.merged(payloads, host_s, count_us, index)
-        pending = pending.take(np.argsort(pending.count_us, kind="stable"))
+        if np.any(np.diff(pending.count_us) < 0):
+            pending = pending.take(np.argsort(pending.count_us, kind="stable"))
         repeat = np.flatnonzero(np.diff(pending.count_us) == 0) + 1
         if len(repeat):
             self.tally.add(PacketFault.DUPLICATE, len(repeat), int(pending.index[repeat].min()))
@@ -309,13 +310,13 @@ class SweepAssembler:
         p0, p_last = first // BLOCKS_PER_PACKET, (stop - 1) // BLOCKS_PER_PACKET
         p_end = min(stop // BLOCKS_PER_PACKET, len(count_us) - 1)  # packet of the next sweep's start
         mode = ReturnMode(int(emitted.records["return_mode"][p0]))
-        start_delay_us = float(_block_delay_us(first % BLOCKS_PER_PACKET, dual[p0]))
+        start_delay_us = _block_delay_us(first % BLOCKS_PER_PACKET, bool(dual[p0]))
         # Decoded times are firing delays after each packet stamp; shift them per block, from integers, so a
         # sweep's times do not depend on how the stream was batched.
         block_packet = np.arange(first, stop) // BLOCKS_PER_PACKET
         shift_s = (count_us[block_packet] - count_us[p0]) * 1e-6 - start_delay_us * 1e-6
         points["time"] += np.repeat(shift_s, emitted.per_block[first:stop])
-        last_delay_us = float(_block_delay_us((stop - 1) % BLOCKS_PER_PACKET, dual[p_last]))
+        last_delay_us = _block_delay_us((stop - 1) % BLOCKS_PER_PACKET, bool(dual[p_last]))
         end_us = count_us[p_last] + last_delay_us + SEQUENCE_US + (LASERS - 1) * FIRING_US  # last firing
         span = float(count_us[p_end] - count_us[p0])
         missing = max(round(span / mode.packet_period_us) - (p_end - p0), 0)

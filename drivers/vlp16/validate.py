@@ -86,15 +86,3 @@ class FaultTally:
         """Merge a :class:`PacketCheck` whose packet ``i`` has stream index ``index_of[i]``."""
         for fault, count in check.counts.items():
             self.add(fault, count, int(index_of[check.first_index[fault]]))
-
-    @property
-    def total(self) -> int:
-        return sum(self.counts.values())
-
-    def describe(self) -> str:
-        """One line per fault, e.g. ``block flag is not FF EE: 3 (first at datagram 17)``; empty if none."""
-        return "\n".join(
-            f"{fault.value}: {self.counts[fault]} (first at datagram {self.first_index[fault]})"
-            for fault in PacketFault
-            if fault in self.counts
-        )
