@@ -107,7 +107,7 @@ def matrix_to_rpy_deg(rotation: F64) -> F64:
     cos_pitch = math.hypot(r[0, 0], r[1, 0])
     # atan2 rather than arcsin(-r[2, 0]), which loses half the digits near the gimbal lock.
     pitch = math.atan2(-r[2, 0], cos_pitch)
-    if cos_pitch < 1e-12:  # gimbal lock: only roll -/+ yaw is defined; put it all in yaw
+    if cos_pitch < 1e-14:  # gimbal lock: only roll -/+ yaw is defined; put it all in yaw
         yaw = math.atan2(-r[0, 1], r[1, 1])
     else:
         yaw = math.atan2(r[1, 0], r[0, 0])
