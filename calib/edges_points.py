@@ -140,7 +140,7 @@ def _fold_points(pts: F64, rng: F64, params: ScanlineEdgeParams) -> tuple[F64, F
     half = np.clip((params.fold_half_window_m / spacing).astype(np.int64), k, 40)
     idx = np.arange(n)
     # Cumulative sums give window means in O(1) per point; the ring is closed, so index modulo n.
-    ext = np.concatenate([pts[-41:], pts, pts[:41]])
+    ext = pts[np.arange(-41, n + 41) % n]
     csum = np.concatenate([np.zeros((1, 3)), np.cumsum(ext, axis=0)])
     centre = idx + 41
     left_mean = (csum[centre] - csum[centre - half]) / half[:, None]

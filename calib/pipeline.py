@@ -43,6 +43,7 @@ class CalibParams:
     optim: OptimOptions = field(default_factory=OptimOptions)
     min_edge_pixels: int = 200
     min_edge_points: int = 30
+    max_translation_m: float = 5.0  # camera and LiDAR share one rig: a longer baseline is a wrong guess
 
 
 @dataclass(frozen=True)
@@ -111,6 +112,10 @@ def calibrate(
     on_iter: Callable[[int, int, float], None] | None = None,
 ) -> CalibResult:
     tau0 = initial.tau
+    if float(np.linalg.norm(initial.translation_m)) > params.max_translation_m:
+        raise InitialGuessError(
+            f"initial guess puts the camera {np.linalg.norm(initial.translation_m):.2f} m from the LiDAR "
+            f"(more than {params.max_translation_m} m): not a rig")
     check_initial_guess(feats, tau0)
     result = optimise(feats, tau0, params.optim, params.gmm, on_iter)
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)

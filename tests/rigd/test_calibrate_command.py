@@ -1,0 +1,67 @@
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+
+from rigd.cli import main
+from rigd.dataset import open_dataset, write_pair
+from rigd.dataset.pcd import Cloud
+from rigd.simulate import write_simulated_dataset
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ds") / "indoor"
+    write_simulated_dataset(root, "indoor", 2, seed=5, width=512, height=256, progress=False)
+    return root
+
+
+def test_calibrate_json_prints_one_object_and_writes_outputs(small_dataset, tmp_path):
+    truth = open_dataset(small_dataset).ground_truth
+    init = np.r_[truth.rpy_deg + [1.0, -1.0, 1.0], truth.translation_m + [0.02, -0.02, 0.02]]
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "rigd", "calibrate", str(small_dataset), "--init", ",".join(map(str, init)),
+         "--out", str(out), "--json"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout)  # stdout holds exactly one JSON object
+    assert set(report["T_camera_lidar"]) == {"matrix", "quaternion_xyzw", "rpy_deg", "xyz_m"}
+    assert len(report["quality"]["pairs"]) == 2
+    written = yaml.safe_load((out / "extrinsics.yaml").read_text())
+    assert np.allclose(written["T_camera_lidar"]["matrix"], report["T_camera_lidar"]["matrix"])
+    assert (out / "overlays" / "0000_before.png").is_file() and (out / "overlays" / "0001_after.png").is_file()
+    assert (out / "clouds" / "0000.ply").read_bytes().startswith(b"ply\n")
+    # It must end closer to the truth than it started (1.7 deg, 3.5 cm off).
+    err = report["error_vs_ground_truth"]
+    assert err["rotation_deg"] < 1.0 and err["translation_cm"] < 3.5
+
+
+def test_featureless_scene_is_refused_with_exit_2(small_dataset, tmp_path, capsys):
+    root = tmp_path / "blank"
+    (root / "pairs").mkdir(parents=True)
+    (root / "rig.yaml").write_text((small_dataset / "rig.yaml").read_text())
+    pts = np.random.default_rng(0).normal(size=(500, 3)) + [5.0, 0.0, 0.0]
+    write_pair(root, 0, np.full((256, 512), 128, np.uint8), Cloud(pts), {})
+    assert main(["calibrate", str(root), "--init", "0,0,0,0,0,0", "--no-visuals"]) == 2
+    assert "featureless" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("init", ["1,2,3", "a,b,c,d,e,f", "nan,0,0,0,0,0"])
+def test_bad_initial_guess_text_is_refused(small_dataset, init, capsys):
+    assert main(["calibrate", str(small_dataset), "--init", init, "--no-visuals"]) == 2
+    assert "--init" in capsys.readouterr().err
+
+
+def test_initial_guess_that_sees_nothing_is_refused(small_dataset, tmp_path, capsys):
+    # Translate the LiDAR 1 km away: no edge point can land near the camera's image.
+    code = main(["calibrate", str(small_dataset), "--init", "0,0,0,1000,0,0", "--out", str(tmp_path), "--no-visuals"])
+    assert code == 2
+    assert "initial guess" in capsys.readouterr().err
+
+
+def test_missing_dataset_names_the_path(tmp_path, capsys):
+    assert main(["calibrate", str(tmp_path / "nope")]) == 2
+    assert "nope" in capsys.readouterr().err
