@@ -148,9 +148,13 @@ class _Pending:
         )
 
 
+_SINGLE_BLOCK_US = 2 * np.arange(BLOCKS_PER_PACKET) * SEQUENCE_US
+_DUAL_BLOCK_US = 2 * (np.arange(BLOCKS_PER_PACKET) // 2) * SEQUENCE_US
+
+
 def _block_delay_us(block: int, dual: bool) -> float:
     """Delay of a block's first firing after its packet timestamp, us."""
-    return (2 * (block // 2) if dual else 2 * block) * SEQUENCE_US
+    return float((_DUAL_BLOCK_US if dual else _SINGLE_BLOCK_US)[block])
 
 
 def _packet_rate(azimuth: NDArray[np.int64], dual: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -233,7 +237,7 @@ class SweepAssembler:
             return []
         count_us = self.clock.unwrap(as_packet_records(payloads)["timestamp_us"])
         self.clock.observe_host(host_s, count_us)
-        late = count_us < (self._floor_us if self._floor_us is not None else count_us.min())
+        late = count_us < self._floor_us if self._floor_us is not None else np.zeros(len(count_us), bool)
         if late.any():
             self.tally.add(PacketFault.LATE, int(late.sum()), int(index[late].min()))
             payloads, host_s, count_us, index = payloads[~late], host_s[~late], count_us[~late], index[~late]
@@ -250,20 +254,24 @@ class SweepAssembler:
 
     def _cuts(self, pending: _Pending) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
         """Flat block indices (packet * 12 + block) after ``start_block`` where a new sweep starts, and
-        whether each is a crossing of the cut azimuth (else a gap of a whole turn or more)."""
+        whether each is a plain crossing of the cut azimuth (False: a whole turn or more went missing).
+
+        The head's advance between consecutive blocks is the azimuth step plus the whole turns that the
+        rotation rate and the elapsed time say were skipped, so a gap of any length is seen, and a block
+        whose azimuth steps back a little (a corrupt one) does not pass for a crossing.
+        """
         records = as_packet_records(pending.payloads)
         azimuth = records["blocks"]["azimuth"].astype(np.int64)
-        relative = ((azimuth - self._cut_units) % AZIMUTH_UNITS).ravel()
-        crossing = np.flatnonzero(relative[1:] < relative[:-1]) + 1
-        # A gap of a whole turn or more passes the cut even when the azimuths on either side do not show it.
         dual = records["return_mode"] == ReturnMode.DUAL
-        expected = _packet_rate(azimuth, dual)[:-1] * np.diff(pending.count_us)
-        seen = (azimuth[1:, 0] - azimuth[:-1, 0]) % AZIMUTH_UNITS
-        skipped = (np.flatnonzero(expected - seen > AZIMUTH_UNITS / 2) + 1) * BLOCKS_PER_PACKET
-        cuts = np.union1d(crossing, skipped)
-        at_cut = np.isin(cuts, crossing) & ~np.isin(cuts, skipped)
+        block_us = pending.count_us[:, None] + np.where(dual[:, None], _DUAL_BLOCK_US, _SINGLE_BLOCK_US)
+        rate = np.repeat(_packet_rate(azimuth, dual), BLOCKS_PER_PACKET)[:-1]
+        azimuth, block_us = azimuth.ravel(), block_us.ravel()
+        step = np.diff(azimuth) % AZIMUTH_UNITS
+        turns = np.rint((rate * np.diff(block_us) - step) / AZIMUTH_UNITS)
+        relative = (azimuth[:-1] - self._cut_units) % AZIMUTH_UNITS
+        cuts = np.flatnonzero(relative + step + turns * AZIMUTH_UNITS >= AZIMUTH_UNITS) + 1
         later = cuts > pending.start_block
-        return cuts[later], at_cut[later]
+        return cuts[later], turns[cuts[later] - 1] == 0
 
     def _split(self, final: bool = False) -> list[Sweep]:
         pending = self._pending

@@ -119,6 +119,16 @@ def test_a_gap_longer_than_a_turn_ends_the_sweep() -> None:
     assert all(s.end.device - s.start.device < 0.1 + 1e-3 for s in sweeps)
 
 
+def test_an_azimuth_stepping_back_is_not_a_crossing() -> None:
+    packets = stream(2.5, start_deg=100.0)
+    clean, _ = assemble(batches(packets))
+    shaky = packets.payloads.copy()
+    azimuth = shaky[40, 302:304].view("<u2")  # block 3 of packet 40 reads 0.05 deg behind block 2
+    azimuth[0] = shaky[40, 202:204].view("<u2")[0] - 5
+    sweeps, _ = assemble(batches(packets._replace(payloads=shaky)))
+    assert [len(s.points) for s in sweeps] == [len(s.points) for s in clean]
+
+
 def test_device_clock_rollover_at_the_top_of_the_hour() -> None:
     start = 7200.0 - 0.15  # the device counts microseconds past the hour: it wraps 0.15 s in
     packets = stream(3.0, start_time_s=start)
