@@ -1,8 +1,8 @@
 """Vectorised decoding of whole buffers of VLP-16 data packets into points (docs/vlp16.md).
 
 Azimuth of a firing: the block azimuth plus the packet's mean rotation rate (first to last block azimuth)
-times the firing's delay in the block, rounded to 0.01 deg. This is velodyne_decoder's and the ROS
-driver's arithmetic, done in float32 in the same order so that ties round the same way.
+times the firing's delay in the block, rounded to 0.01 deg. This is velodyne_decoder's arithmetic, done
+in float32 in the same order so that ties round the same way.
 """
 
 from __future__ import annotations
@@ -36,9 +36,6 @@ POINT_DTYPE = np.dtype(
         "itemsize": 32,
     }
 )
-
-_PER_PACKET = BLOCKS_PER_PACKET * CHANNELS_PER_BLOCK
-
 
 def _firing_delays() -> NDArray[np.float32]:
     """(2,12,32) float32 s: delay of each channel after the packet timestamp, [single, dual] return modes."""
@@ -78,11 +75,12 @@ class Decoded(NamedTuple):
 
 def _keep_mask(
     distance: np.ndarray, reflectivity: np.ndarray, dual: NDArray[np.bool_]
-) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-    """(P,12,32) returns to keep (nonzero, not a repeated dual return) and (P,12,32) merged dual returns."""
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_] | None]:
+    """(P,12,32) returns to keep (nonzero, not a repeated dual return) and (P,12,32) merged dual returns
+    (None without dual-return packets)."""
     keep = distance != 0
     if not dual.any():
-        return keep, np.zeros((1, 1, 1), dtype=bool)  # no dual packet: nothing merged
+        return keep, None
     same = (distance[:, 0::2] == distance[:, 1::2]) & (reflectivity[:, 0::2] == reflectivity[:, 1::2])
     merged = np.zeros_like(keep)
     merged[:, 0::2] = same & dual[:, None, None] & keep[:, 0::2]
@@ -148,7 +146,7 @@ def decode_packets(
             points[offsets[start] : offsets[min(start + _CHUNK_PACKETS, len(records))]],
             records[chunk],
             keep[chunk],
-            merged[chunk] if len(merged) > 1 else None,
+            None if merged is None else merged[chunk],
             packet_time_s[chunk],
             tables,
         )

@@ -126,8 +126,10 @@ def encode_data_packets(
         blocks["azimuth"] = azimuth.reshape(packets, 12, 2)[:, :, 0]
         blocks["channels"]["distance"] = _padded(source, total, 0).reshape(shape)
         blocks["channels"]["reflectivity"] = _padded(source_refl, total, 0).reshape(shape)
-    time_s = start_time_s + np.arange(packets) * (per_packet * SEQUENCE_US * 1e-6)
-    records["timestamp_us"] = (np.rint(time_s * 1e6).astype(np.int64) % HOUR_US).astype(np.uint32)
+    offset_us = np.arange(packets) * (per_packet * SEQUENCE_US)
+    time_s = start_time_s + offset_us * 1e-6
+    stamp_us = round(start_time_s * 1e6) + np.rint(offset_us).astype(np.int64)  # integers: no drift
+    records["timestamp_us"] = (stamp_us % HOUR_US).astype(np.uint32)
     records["return_mode"] = return_mode
     records["product_id"] = product_id
     return EncodedPackets(records.view(np.uint8).reshape(packets, -1), time_s)

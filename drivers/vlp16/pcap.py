@@ -147,14 +147,12 @@ class _ChunkRouter:
             self.other += 1
 
     def batch(self, first_record: int, host_s: NDArray[np.float64]) -> DatagramBatch:
+        """The chunk's datagrams in record order (fast and slow paths each kept their own order)."""
         records = np.concatenate(self.data_records) if self.data_records else np.empty(0, np.int64)
-        order = np.argsort(records, kind="stable")
-        data = (
-            np.concatenate(self.data_rows)[order]
-            if self.data_rows
-            else np.empty((0, DATA_PACKET_SIZE), np.uint8)
-        )
-        records = records[order]
+        data = np.concatenate(self.data_rows) if self.data_rows else np.empty((0, DATA_PACKET_SIZE), np.uint8)
+        if np.any(np.diff(records) < 0):
+            order = np.argsort(records, kind="stable")
+            records, data = records[order], data[order]
         positions = tuple(
             PositionDatagram(payload, float(host_s[r - first_record]), r)
             for r, payload in sorted(self.positions, key=itemgetter(0))
@@ -164,14 +162,7 @@ class _ChunkRouter:
             + fault_entry(PacketFault.TRUNCATED, np.array(self.truncated, np.int64))
             + fault_entry(PacketFault.FRAME, np.array(self.frame_errors, np.int64))
         )
-        return DatagramBatch(
-            np.ascontiguousarray(data),
-            host_s[records - first_record],
-            records.astype(np.int64),
-            positions,
-            faults,
-            self.other,
-        )
+        return DatagramBatch(data, host_s[records - first_record], records, positions, faults, self.other)
 
 
 def _parse_one(router: _ChunkRouter, record: int, frame: bytes, linktype: int) -> None:
@@ -297,11 +288,14 @@ def udp_frame(
 def write_pcap(path: Path, datagrams: Iterable[tuple[float, int, bytes]]) -> int:
     """Write (time s, destination port, payload) datagrams as a classic pcap file; returns the count."""
     count = 0
-    with Path(path).open("wb") as fh:
-        writer = dpkt.pcap.Writer(fh, snaplen=65535, linktype=dpkt.pcap.DLT_EN10MB)
-        for time_s, dport, payload in datagrams:
-            writer.writepkt(udp_frame(payload, dport), ts=time_s)
-            count += 1
+    try:
+        with Path(path).open("wb") as fh:
+            writer = dpkt.pcap.Writer(fh, snaplen=65535, linktype=dpkt.pcap.DLT_EN10MB)
+            for time_s, dport, payload in datagrams:
+                writer.writepkt(udp_frame(payload, dport), ts=time_s)
+                count += 1
+    except OSError as exc:
+        raise CaptureFileError(f"{path}: cannot write capture ({exc.strerror})") from exc
     return count
 
 

@@ -88,6 +88,7 @@ class UdpReceiver:
         self._thread: threading.Thread | None = None
         self._sockets: list[socket.socket] = []
         self._datagrams = 0
+        self._error: OSError | None = None  # what stopped the receive thread, if it failed
 
     # -- lifecycle -----------------------------------------------------------------------------------------
     def start(self) -> UdpReceiver:
@@ -133,6 +134,8 @@ class UdpReceiver:
             try:
                 batch = self._queue.get(timeout=min(0.05, deadline - now))
             except queue.Empty:
+                if self._error is not None:
+                    raise ReceiverError(f"UDP receiver: receiving failed ({self._error})") from self._error
                 if self._stop.is_set() or (
                     idle_s is not None and last_batch is not None and time.monotonic() - last_batch >= idle_s
                 ):
@@ -159,18 +162,22 @@ class UdpReceiver:
 
     def _run(self, data: socket.socket, position: socket.socket) -> None:
         builder = _BatchBuilder(self._batch_packets)
-        with selectors.DefaultSelector() as selector:
-            selector.register(data, selectors.EVENT_READ, self._drain_data)
-            selector.register(position, selectors.EVENT_READ, self._drain_position)
-            while not self._stop.is_set():
-                for key, _ in selector.select(timeout=self._batch_wait_s):
-                    key.data(key.fileobj, builder)
-                if len(builder) and (
-                    builder.full or time.monotonic() - builder.started >= self._batch_wait_s
-                ):
-                    self._hand_over(builder)
-            if len(builder):
-                self._hand_over(builder)
+        try:
+            with selectors.DefaultSelector() as selector:
+                selector.register(data, selectors.EVENT_READ, self._drain_data)
+                selector.register(position, selectors.EVENT_READ, self._drain_position)
+                while not self._stop.is_set():
+                    for key, _ in selector.select(timeout=self._batch_wait_s):
+                        key.data(key.fileobj, builder)
+                    if len(builder) and (
+                        builder.full or time.monotonic() - builder.started >= self._batch_wait_s
+                    ):
+                        self._hand_over(builder)
+        except OSError as exc:
+            self._error = exc  # reported by sweeps(); the thread ends
+            self._stop.set()
+        if len(builder):
+            self._hand_over(builder)
 
     def _next_index(self, builder: _BatchBuilder) -> int:
         if not len(builder):

@@ -158,3 +158,10 @@ def test_pcap_writer_round_trip_through_file_replay(tmp_path: Path) -> None:
         since_start = sweep.start.device + sweep.points["time"] - 1_700_000_000.0
         firings = len(np.unique(np.floor(since_start / FIRING_S + 0.1)))
         assert abs(firings - 0.1 / FIRING_S) <= 2
+
+
+def test_a_single_dual_packet_with_one_echo_per_laser_gives_both_returns_once() -> None:
+    f = synthetic_firings(12, no_return_fraction=0.0)
+    packets = encode_data_packets(f.ranges_m, f.reflectivity, f.azimuth_deg, 0.0, ReturnMode.DUAL)
+    points = decode_packets(packets.payloads).points
+    assert len(points) == 12 * 16 and np.all(points["return_type"] == ReturnType.BOTH)
