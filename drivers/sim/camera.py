@@ -12,12 +12,14 @@ camera frame x forward, y left, z up; pixel (row i, column j) has centre ``(u, v
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from drivers.sim.errors import SimError
-from drivers.sim.pose import Pose
+from drivers.sim.pose import Pose, rotate
 from drivers.sim.raycast import cast
 from drivers.sim.scene import Scene
 
@@ -45,7 +47,7 @@ def radiance(scene: Scene, origin_world: F64, directions_world: F64) -> F64:
     light = scene.lighting
     hits = cast(scene, origin_world, directions_world)
     sun_dir = np.asarray(light.sun_dir_world, dtype=np.float64)
-    cos_sun = np.maximum(hits.normal @ sun_dir, 0.0)
+    cos_sun = np.maximum(np.einsum("ij,j->i", hits.normal, sun_dir), 0.0)
     if light.shadows:
         lit = np.flatnonzero(hits.hit & (cos_sun > 0))
         points = origin_world + hits.depth_m[lit, None] * directions_world[lit]
@@ -74,7 +76,7 @@ def render_rays(scene: Scene, origin_world: F64, rotation_world_cam: F64, rays_c
         raise SimError(f"rays_cam must be (N,3), got shape {rays.shape}")
     out = np.empty(len(rays), dtype=np.float32)
     for s in range(0, len(rays), BAND_RAYS):
-        dirs = rays[s : s + BAND_RAYS] @ np.asarray(rotation_world_cam, dtype=np.float64).T
+        dirs = rotate(rays[s : s + BAND_RAYS], rotation_world_cam)
         dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
         out[s : s + BAND_RAYS] = tone(scene, radiance(scene, np.asarray(origin_world, float), dirs))
     return out
@@ -84,18 +86,27 @@ def render_panorama(scene: Scene, pose_world_camera: Pose, width: int, height: i
                     noise_grey: float = 1.5, supersample: int = 2, color: bool = False) -> U8:
     """An equirectangular panorama (H,W) uint8 grey, or (H,W,3) BGR when ``color``."""
     _check_size(width, height, supersample)
-    sub = (np.arange(supersample) + 0.5) / supersample - 0.5
-    cols = (np.arange(width)[:, None] + sub).reshape(-1)
-    band = max(1, BAND_RAYS // (width * supersample * supersample))
+    rays_cam = _panorama_rays(width, height, supersample)
+    per_row = width * supersample * supersample
+    band = max(1, BAND_RAYS // per_row)
     linear = np.empty((height, width))
     for r0 in range(0, height, band):
-        rows = (np.arange(r0, min(r0 + band, height))[:, None] + sub).reshape(-1)
-        vv, uu = np.meshgrid(rows, cols, indexing="ij")
-        rays_cam = equirectangular_rays(np.stack([uu.ravel(), vv.ravel()], axis=1), width, height)
-        dirs = rays_cam @ pose_world_camera.rotation.T
+        r1 = min(r0 + band, height)
+        dirs = rotate(rays_cam[r0 * per_row : r1 * per_row], pose_world_camera.rotation)
         lin = radiance(scene, pose_world_camera.translation_m, dirs)
-        linear[r0 : r0 + band] = lin.reshape(-1, supersample, width, supersample).mean(axis=(1, 3))
+        linear[r0:r1] = lin.reshape(-1, supersample, width, supersample).mean(axis=(1, 3))
     return _to_8bit(tone(scene, linear), rng, noise_grey, color)
+
+
+@lru_cache(maxsize=2)
+def _panorama_rays(width: int, height: int, supersample: int) -> F64:
+    """Camera-frame rays (H*s*W*s, 3) of every sub-pixel sample, row by row; read-only, cached per size."""
+    sub = (np.arange(supersample) + 0.5) / supersample - 0.5
+    vv, uu = np.meshgrid((np.arange(height)[:, None] + sub).ravel(), (np.arange(width)[:, None] + sub).ravel(),
+                         indexing="ij")
+    rays = equirectangular_rays(np.stack([uu.ravel(), vv.ravel()], axis=1), width, height)
+    rays.flags.writeable = False
+    return rays
 
 
 def render_pinhole(scene: Scene, origin_world: F64, rotation_world_optical: F64, K: F64, width: int,
@@ -119,7 +130,7 @@ def render_pinhole(scene: Scene, origin_world: F64, rotation_world_optical: F64,
     normalised = cv2.undistortPoints(pixels, k, dist).reshape(-1, 2)
     rays = np.column_stack([normalised, np.ones(len(normalised))])
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-    dirs = rays @ np.asarray(rotation_world_optical, dtype=np.float64).T
+    dirs = rotate(rays, rotation_world_optical)
     origin = np.asarray(origin_world, dtype=np.float64)
     lin = np.concatenate([radiance(scene, origin, dirs[s : s + BAND_RAYS]) for s in range(0, len(dirs), BAND_RAYS)])
     linear = lin.reshape(height, supersample, width, supersample).mean(axis=(1, 3))

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.sim.errors import SimError
-from drivers.sim.pose import Pose
+from drivers.sim.pose import Pose, rotate
 from drivers.sim.raycast import cast
 from drivers.sim.scene import Scene
 
@@ -101,12 +101,13 @@ def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config:
     time_s, azimuth_deg = firing_grid()
     beams = beam_directions_lidar(azimuth_deg, np.broadcast_to(LASER_ELEVATIONS_DEG, azimuth_deg.shape))
     beams = beams.reshape(-1, 3)
-    hits = cast(scene, pose_world_lidar.translation_m, beams @ pose_world_lidar.rotation.T)
+    beams_world = rotate(beams, pose_world_lidar.rotation)
+    hits = cast(scene, pose_world_lidar.translation_m, beams_world)
     noisy = hits.depth_m + rng.normal(0.0, cfg.range_noise_m, size=len(beams))
     ranges = np.round(noisy / RANGE_RESOLUTION_M) * RANGE_RESOLUTION_M
     valid = hits.hit & (ranges >= cfg.min_range_m) & (ranges <= cfg.max_range_m)
     ranges = np.where(valid, ranges, 0.0)
-    cos_incidence = np.abs(np.sum(hits.normal * (beams @ pose_world_lidar.rotation.T), axis=1))
+    cos_incidence = np.abs(np.sum(hits.normal * beams_world, axis=1))
     counts = 100.0 * hits.albedo * cos_incidence + rng.normal(0.0, cfg.reflectivity_noise, size=len(beams))
     reflectivity = np.where(valid, np.clip(np.rint(counts), 0, 255), 0).astype(np.uint8)
     laser = np.tile(np.arange(N_LASERS, dtype=np.int16), FIRINGS_PER_TURN)

@@ -24,6 +24,15 @@ def rpy_deg_to_matrix(rpy_deg: F64 | tuple[float, float, float]) -> F64:
     return rz @ ry @ rx
 
 
+def rotate(vectors: F64, rotation: F64) -> F64:
+    """``rotation @ v`` for each row of ``vectors`` (N,3).
+
+    einsum, not ``@``: a BLAS matmul of an (N,3) array by a 3x3 is many times slower (and erratic) when
+    OpenBLAS's threads compete for busy cores, and gains nothing for such a small inner dimension.
+    """
+    return np.einsum("ij,kj->ik", np.asarray(vectors, dtype=np.float64), np.asarray(rotation, dtype=np.float64))
+
+
 def matrix_to_rpy_deg(rotation: F64) -> F64:
     """(roll, pitch, yaw) degrees of a rotation matrix away from gimbal lock (enough for rig poses)."""
     r = np.asarray(rotation, dtype=np.float64)
@@ -63,7 +72,7 @@ class Pose:
 
     def apply(self, points_from: F64) -> F64:
         """Map points (N,3) float64 m into the target frame."""
-        return np.asarray(points_from, dtype=np.float64) @ self.rotation.T + self.translation_m
+        return rotate(points_from, self.rotation) + self.translation_m
 
     def to_yaml(self) -> dict[str, list[float]]:
         """Plain-Python form for meta.yaml: ``rpy_deg`` and ``xyz_m``."""

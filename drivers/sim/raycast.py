@@ -116,7 +116,7 @@ def _candidate_boxes(scene: Scene, o: F64, d: F64) -> tuple[I64, F64]:
         keep = np.ones(len(dist), dtype=bool)
     else:
         axis_dir /= length
-        half = float(np.arccos(np.clip(np.min(d @ axis_dir), -1.0, 1.0)))
+        half = float(np.arccos(np.clip(np.min(np.einsum("ij,j->i", d, axis_dir)), -1.0, 1.0)))
         with np.errstate(invalid="ignore", divide="ignore"):
             angle = np.arccos(np.clip((v @ axis_dir) / dist, -1.0, 1.0))
             reach = np.arcsin(np.clip(rad / dist, 0.0, 1.0))
