@@ -88,7 +88,7 @@ class DeviceClock:
             return
         if self._last_stamp_us is None:
             self._last_stamp_us = self._last_count_us = packet.timestamp_us
-        step = int(_wrapped(np.int64(packet.timestamp_us - self._last_stamp_us)))
+        step = (packet.timestamp_us - self._last_stamp_us + _HALF_HOUR_US) % HOUR_US - _HALF_HOUR_US
         count_us = self._last_count_us + step
         anchor = packet.utc_s - count_us * 1e-6
         new_epoch = 3600.0 * round(anchor / 3600.0)  # a locked device clock counts from the UTC hour

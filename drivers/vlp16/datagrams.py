@@ -13,11 +13,11 @@ from drivers.vlp16.validate import PacketFault
 
 
 class PositionDatagram(NamedTuple):
-    """A 512-byte payload from the position port, its host time s and stream datagram index."""
+    """A 512-byte payload from the position port, its host time s and stream datagram (or record) number."""
 
     payload: bytes
     host_s: float
-    index: int
+    number: int
 
 
 @dataclass(frozen=True)

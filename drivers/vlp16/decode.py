@@ -91,8 +91,8 @@ def _keep_mask(
 def _per_mode(table: np.ndarray, mode_index: NDArray[np.intp]) -> np.ndarray:
     """``table[mode_index]`` per packet, or the one table broadcast when all packets share a mode."""
     if len(mode_index) and np.all(mode_index == mode_index[0]):
-        return table[mode_index[0]][None]
-    return table[mode_index]
+        return np.asarray(table[mode_index[0]][None])
+    return np.asarray(table[mode_index])
 
 
 _CHUNK_PACKETS = 256  # packets decoded together: their temporaries stay in the CPU cache

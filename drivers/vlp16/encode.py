@@ -51,14 +51,14 @@ def _distance_units(ranges_m: NDArray[np.float64]) -> NDArray[np.uint16]:
     return np.where(ok, np.maximum(units, 1), 0).astype(np.uint16)
 
 
-def _checked(name: str, array: NDArray, shape: tuple[int, ...]) -> NDArray:
+def _checked(name: str, array: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     array = np.asarray(array)
     if array.shape != shape:
         raise EncodeError(f"encoder: {name} has shape {array.shape}, expected {shape}")
     return array
 
 
-def _padded(array: NDArray, total: int, fill: float) -> NDArray:
+def _padded(array: np.ndarray, total: int, fill: float) -> np.ndarray:
     pad = [(0, total - len(array))] + [(0, 0)] * (array.ndim - 1)
     return np.pad(array, pad, constant_values=fill)
 
@@ -127,7 +127,7 @@ def encode_data_packets(
         blocks["channels"]["distance"] = _padded(source, total, 0).reshape(shape)
         blocks["channels"]["reflectivity"] = _padded(source_refl, total, 0).reshape(shape)
     offset_us = np.arange(packets) * (per_packet * SEQUENCE_US)
-    time_s = start_time_s + offset_us * 1e-6
+    time_s = (start_time_s + offset_us * 1e-6).astype(np.float64)
     stamp_us = round(start_time_s * 1e6) + np.rint(offset_us).astype(np.int64)  # integers: no drift
     records["timestamp_us"] = (stamp_us % HOUR_US).astype(np.uint32)
     records["return_mode"] = return_mode

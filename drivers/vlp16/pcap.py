@@ -308,6 +308,6 @@ def read_datagrams(path: Path, ports: Ports | None = None) -> Iterator[tuple[flo
             (int(i), float(t), ports.data, row.tobytes())
             for i, t, row in zip(batch.data_index, batch.data_host_s, batch.data, strict=True)
         ]
-        merged += [(p.index, p.host_s, ports.position, p.payload) for p in batch.positions]
+        merged += [(p.number, p.host_s, ports.position, p.payload) for p in batch.positions]
         for _, time_s, port, payload in sorted(merged, key=itemgetter(0)):
             yield time_s, port, payload

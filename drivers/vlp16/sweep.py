@@ -187,7 +187,7 @@ class SweepAssembler:
         for position in batch.positions:
             packet = parse_position_packet(position.payload)
             if packet is None:
-                self.tally.add(PacketFault.POSITION, 1, position.index)
+                self.tally.add(PacketFault.POSITION, 1, position.number)
                 continue
             self._counts["position"] += 1
             self.clock.observe_position(packet)
