@@ -9,6 +9,7 @@ arrives after its sweep was emitted is counted LATE. Missing packets are gaps in
 
 from __future__ import annotations
 
+import math
 from collections.abc import Collection
 from dataclasses import dataclass, field, replace
 
@@ -19,6 +20,7 @@ from drivers.vlp16.calibration import LaserCalibration
 from drivers.vlp16.clock import DeviceClock, TimePair, TimeSource
 from drivers.vlp16.datagrams import DatagramBatch
 from drivers.vlp16.decode import decode_packets
+from drivers.vlp16.errors import Vlp16Error
 from drivers.vlp16.layout import (
     AZIMUTH_UNITS,
     BLOCKS_PER_PACKET,
@@ -48,6 +50,12 @@ class Vlp16Config:
     product_ids: frozenset[int] | None = frozenset({VLP16_PRODUCT_ID})
     cut_azimuth_deg: float = 0.0
     reorder_window: int = 8
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.cut_azimuth_deg):
+            raise Vlp16Error(f"VLP-16 config: cut azimuth must be a finite angle, got {self.cut_azimuth_deg}")
+        if self.reorder_window < 0:
+            raise Vlp16Error(f"VLP-16 config: reorder window must be >= 0 packets, got {self.reorder_window}")
 
 
 @dataclass(frozen=True)

@@ -111,3 +111,8 @@ def test_non_pcap_file_is_a_clear_error_with_exit_code_2(
         assert "Traceback" not in err
     code, _, err = run(capsys, "lidar", "info", "--calibration", str(text), str(SMALL_PCAP))
     assert code == 2 and "notes.txt" in err
+
+
+def test_bad_cut_azimuth_is_a_clear_error(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(capsys, "lidar", "info", "--cut-azimuth", "nan", str(SMALL_PCAP))
+    assert code == 2 and "cut azimuth must be a finite angle" in err
