@@ -21,7 +21,7 @@ def indoor_scene(rng: np.random.Generator) -> Scene:
     walls = _shell(b, rng, length, width, height)
     floor = Floor()
     for wall in walls:
-        _skirting(b, rng, wall, height)
+        _skirting(b, rng, wall)
     for _ in range(rng.integers(1, 4)):
         _door(b, rng, walls[rng.integers(4)], height)
     for _ in range(rng.integers(3, 9)):
@@ -63,7 +63,7 @@ def _shell(b: SceneBuilder, rng: np.random.Generator, length: float, width: floa
     ]
 
 
-def _skirting(b: SceneBuilder, rng: np.random.Generator, wall: Wall, height: float) -> None:
+def _skirting(b: SceneBuilder, rng: np.random.Generator, wall: Wall) -> None:
     grey = float(b.boxes[wall.box][2][int(wall.face)])
     b.paint(wall.box, wall.face, (wall.extent[0], wall.extent[1], 0.0, rng.uniform(0.07, 0.12)),
             contrasting(rng, grey, 0.15))
@@ -101,7 +101,7 @@ def _wall_furniture(b: SceneBuilder, rng: np.random.Generator, wall: Wall, floor
     if shelf:
         _shelf_compartments(b, rng, box, front, start, w, top, depth, grey)
     else:
-        _cabinet_front(b, rng, box, front, start, w, top)
+        _cabinet_front(b, box, front, start, w, top)
 
 
 def _shelf_compartments(b: SceneBuilder, rng: np.random.Generator, box: int, front: Face, start: float,
@@ -119,14 +119,13 @@ def _shelf_compartments(b: SceneBuilder, rng: np.random.Generator, box: int, fro
             b.recess(box, front, (a0, a0 + col_w, z0, z0 + row_h), depth - board, inside)
 
 
-def _cabinet_front(b: SceneBuilder, rng: np.random.Generator, box: int, front: Face, start: float, w: float,
-                   top: float) -> None:
+def _cabinet_front(b: SceneBuilder, box: int, front: Face, start: float, w: float, top: float) -> None:
     if w > 0.7:  # two doors: a dark gap down the middle
         mid = start + w / 2
         b.paint(box, front, (mid - 0.005, mid + 0.005, 0.02, top - 0.02), 0.05)
-        handles = (mid - 0.06, mid + 0.04)
+        handles = [mid - 0.06, mid + 0.04]
     else:
-        handles = (start + w - 0.08,)
+        handles = [start + w - 0.08]
     z = min(1.0, top - 0.2)
     for h in handles:
         b.paint(box, front, (h, h + 0.02, z - 0.08, z + 0.08), 0.08)

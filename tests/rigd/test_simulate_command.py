@@ -31,7 +31,7 @@ np.savez(sys.argv[2], **arrays)
 """
 
 
-def test_simulate_writes_a_dataset_that_reads_back_in_a_fresh_process(tmp_path, capsys):
+def test_simulate_writes_a_dataset_that_reads_back_in_a_fresh_process(tmp_path):
     out = tmp_path / "sim"
     args = ["simulate", str(out), "--scene", "outdoor", "--pairs", "2", "--seed", "5", "--width", "256",
             "--height", "128", "--noise-m", "0.01"]
