@@ -28,8 +28,8 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from drivers.geometry import matrix_to_quaternion_xyzw, matrix_to_rpy_deg, rpy_deg_to_matrix
 from drivers.ladybug5.errors import RigFileError
-from drivers.ladybug5.rotation import matrix_to_quaternion_xyzw, matrix_to_rpy_deg, rpy_deg_to_matrix
 
 F64 = NDArray[np.float64]
 _MIN_DEPTH_M = 1e-9

@@ -11,17 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.geometry import matrix_to_rpy_deg, rpy_deg_to_matrix
+
 F64 = NDArray[np.float64]
-
-
-def rpy_deg_to_matrix(rpy_deg: F64 | tuple[float, float, float]) -> F64:
-    """``Rz(yaw) @ Ry(pitch) @ Rx(roll)`` from (roll, pitch, yaw) degrees, (3,3)."""
-    roll, pitch, yaw = np.radians(np.asarray(rpy_deg, dtype=np.float64))
-    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    return rz @ ry @ rx
 
 
 def rotate(vectors: F64, rotation: F64) -> F64:
@@ -31,13 +23,6 @@ def rotate(vectors: F64, rotation: F64) -> F64:
     OpenBLAS's threads compete for busy cores, and gains nothing for such a small inner dimension.
     """
     return np.einsum("ij,kj->ik", np.asarray(vectors, dtype=np.float64), np.asarray(rotation, dtype=np.float64))
-
-
-def matrix_to_rpy_deg(rotation: F64) -> F64:
-    """(roll, pitch, yaw) degrees of a rotation matrix away from gimbal lock (enough for rig poses)."""
-    r = np.asarray(rotation, dtype=np.float64)
-    pitch = np.arctan2(-r[2, 0], np.hypot(r[2, 1], r[2, 2]))
-    return np.degrees(np.array([np.arctan2(r[2, 1], r[2, 2]), pitch, np.arctan2(r[1, 0], r[0, 0])]))
 
 
 @dataclass(frozen=True)

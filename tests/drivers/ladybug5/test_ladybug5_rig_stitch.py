@@ -12,7 +12,7 @@ from ladybug5_helpers import pixel_rays_head, scaled_rig, smooth_field
 
 from calib.camera import Equirectangular
 from calib.geometry import matrix_to_quaternion_xyzw, matrix_to_rpy_deg, rpy_deg_to_matrix
-from drivers.ladybug5 import rotation
+from drivers import geometry as rotation
 from drivers.ladybug5.errors import Ladybug5Error, RigFileError
 from drivers.ladybug5.rig import (
     default_ladybug5_rig,

@@ -1,4 +1,5 @@
-"""The few rotation helpers the rig camera file needs, written locally (drivers does not import calib).
+"""Rotation helpers shared by the drivers (the simulator, the Ladybug5 rig file); drivers does not import
+calib, so these few functions are written here once and cross-checked against calib.geometry in tests.
 
 Same conventions as docs/conventions.md: roll/pitch/yaw in degrees with ``R = Rz(yaw) @ Ry(pitch) @
 Rx(roll)``, pitch in [-90, 90]; quaternions in ``xyzw`` order with ``w >= 0``.
