@@ -113,12 +113,19 @@ class EdgeFields:
     def build(
         cls, uv: F64, score: F64, width: int, height: int, wrap_u: bool, sigma_min: float, sigma_max: float
     ) -> EdgeFields:
-        """``uv`` (M,2) integer pixel centres, ``score`` (M,) normalised edge scores."""
+        """``uv`` (M,2) px edge positions (sub-pixel), ``score`` (M,) normalised edge scores."""
         score_map = np.zeros((height, width))
         mask_map = np.zeros((height, width))
-        cols, rows = uv[:, 0].astype(np.int64), uv[:, 1].astype(np.int64)
-        score_map[rows, cols] = score
-        mask_map[rows, cols] = 1.0
+        # Sub-pixel edge positions are splatted bilinearly, which keeps each pixel's mass and centroid.
+        u0, v0 = np.floor(uv[:, 0]).astype(np.int64), np.floor(uv[:, 1]).astype(np.int64)
+        au, av = uv[:, 0] - u0, uv[:, 1] - v0
+        for du, dv, wgt in ((0, 0, (1 - au) * (1 - av)), (1, 0, au * (1 - av)), (0, 1, (1 - au) * av), (1, 1, au * av)):
+            cols, rows = u0 + du, v0 + dv
+            if wrap_u:
+                cols = np.mod(cols, width)
+            ok = (cols >= 0) & (cols < width) & (rows >= 0) & (rows < height)
+            np.add.at(score_map, (rows[ok], cols[ok]), (score * wgt)[ok])
+            np.add.at(mask_map, (rows[ok], cols[ok]), wgt[ok])
         n = int(np.ceil(np.log2(sigma_max / sigma_min) * RUNGS_PER_OCTAVE)) + 1
         sigmas = sigma_min * 2.0 ** (np.arange(n) / RUNGS_PER_OCTAVE)
         return cls(tuple(_rung(score_map, mask_map, float(s), wrap_u) for s in sigmas), width, height, wrap_u)

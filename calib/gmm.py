@@ -56,6 +56,7 @@ class KernelNorm(Enum):
 class Evaluator(Enum):
     EXACT = "exact"
     FIELD = "field"
+    AUTO = "auto"  # FIELD on coarse levels (wide sigma: many pairs per point), EXACT on fine ones
 
 
 @dataclass(frozen=True)
@@ -69,7 +70,8 @@ class GmmOptions:
     weighted: bool = True
     sigma_model: SigmaModel = SigmaModel.PAPER
     kernel_norm: KernelNorm = KernelNorm.LEVEL
-    evaluator: Evaluator = Evaluator.FIELD
+    evaluator: Evaluator = Evaluator.AUTO
+    exact_below_deg: float = 2.5  # with AUTO: levels with sigma_in below this use EXACT
     sigma_floor_px: float = 0.7
     sigma_floor_deg: float = 0.2
     sigma_ceiling_px: float = 48.0

@@ -15,13 +15,13 @@ mean range of the edge points) makes one step move rotation and translation by c
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from calib.errors import CalibError
-from calib.gmm import CostGrad, Frozen, GmmOptions, PairFeatures, cost_and_gradient, freeze
+from calib.gmm import CostGrad, Evaluator, Frozen, GmmOptions, PairFeatures, cost_and_gradient, freeze
 
 F64 = NDArray[np.float64]
 
@@ -156,6 +156,14 @@ def _run_level(
     return tau, LevelTrace(float(np.degrees(sigma_rad)), it, converged, tuple(costs), tau.copy())
 
 
+def _level_gmm(gmm: GmmOptions, sigma_deg: float) -> GmmOptions:
+    """Resolve ``Evaluator.AUTO`` for one level: the fields where sigma is wide, exact sums where it is
+    narrow (few pixels per point, and the exact model's gradient lets the line search go further)."""
+    if gmm.evaluator is not Evaluator.AUTO:
+        return gmm
+    return replace(gmm, evaluator=Evaluator.FIELD if sigma_deg >= gmm.exact_below_deg else Evaluator.EXACT)
+
+
 def optimise(
     feats: list[PairFeatures],
     tau0: F64,
@@ -170,7 +178,8 @@ def optimise(
     levels = []
     for level, sigma_deg in enumerate(opts.sigmas_deg):
         sigma_rad = float(np.radians(sigma_deg))
-        prob = _Problem(feats, gmm, [sigma_rad * f.camera.pixels_per_radian for f in feats], opts.numerical_gradient)
+        prob = _Problem(feats, _level_gmm(gmm, sigma_deg), [sigma_rad * f.camera.pixels_per_radian for f in feats],
+                        opts.numerical_gradient)
         cb = (lambda i, c, lv=level: on_iter(lv, i, c)) if on_iter else None
         tau, trace = _run_level(prob, tau, opts, scale, sigma_rad, cb)
         levels.append(trace)

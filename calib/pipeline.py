@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from calib.camera import CameraModel, Equirectangular
-from calib.edges_image import ImageEdgeParams, extract_edge_pixels, image_edge_score
+from calib.edges_image import ImageEdgeParams, image_edge_pixels
 from calib.edges_points import (
     EdgePoints,
     PaperEdgeParams,
@@ -77,8 +77,7 @@ def _edge_points(pair: PairInput, params: CalibParams) -> EdgePoints:
 def extract_features(pair: PairInput, camera: CameraModel, params: CalibParams, index: int = 0) -> PairFeatures:
     """Edge pixels and edge points of one pair (paper 4.3); raises FeaturelessError naming the pair."""
     wrap = isinstance(camera, Equirectangular)
-    score = image_edge_score(pair.image, params.image_edges, wrap_u=wrap)
-    pixels = extract_edge_pixels(score, params.image_edges.threshold)
+    pixels = image_edge_pixels(pair.image, params.image_edges, wrap_u=wrap)
     points = _edge_points(pair, params)
     if len(pixels.uv) < params.min_edge_pixels or len(points) < params.min_edge_points:
         raise FeaturelessError(
@@ -86,7 +85,7 @@ def extract_features(pair: PairInput, camera: CameraModel, params: CalibParams, 
             f"{len(points)} edge points, need {params.min_edge_points})"
         )
     fields = None
-    if params.gmm.evaluator is Evaluator.FIELD:
+    if params.gmm.evaluator is not Evaluator.EXACT:
         floor = max(params.gmm.sigma_floor_px, np.radians(params.gmm.sigma_floor_deg) * camera.pixels_per_radian)
         fields = EdgeFields.build(pixels.uv, pixels.score, camera.width, camera.height, wrap,
                                   floor, params.gmm.sigma_ceiling_px)
