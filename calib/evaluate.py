@@ -1,0 +1,227 @@
+"""Statistics of repeated calibrations: the paper's precision (8.2.2, Table 1) and convergence (8.5, Fig. 19)
+protocols on arrays.
+
+Convergence: calibrate from starts drawn uniformly within +-rot_deg on each of roll, pitch, yaw and +-trans_m
+on each of x, y, z around a reference; a run is an outlier ("not converged") when it is too far from the
+median of all runs (Fig. 19: 0.5 deg / 2.5 cm). Precision: calibrate random subsets of the pairs from one
+start and report the per-parameter standard deviation (Table 1) and the deviations from the mean (Fig. 11).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.errors import CalibError
+from calib.geometry import Transform, rotation_angle_deg
+
+F64 = NDArray[np.float64]
+
+PARAMETER_NAMES = ("roll_deg", "pitch_deg", "yaw_deg", "x_m", "y_m", "z_m")
+
+
+class EvaluationError(CalibError):
+    """Invalid settings of an evaluation protocol (counts, ranges, subset sizes)."""
+
+
+class OutlierRule(Enum):
+    # Paper Fig. 19: an outlier if any of roll/pitch/yaw is more than rot_tol from its median, or any of
+    # x/y/z more than trans_tol from its median.
+    PER_PARAMETER = "per-parameter"
+    # The rotation angle to the median pose exceeds rot_tol, or the translation distance exceeds trans_tol.
+    POSE = "pose"
+
+
+class Params6(NamedTuple):
+    """One value per calibration parameter: roll, pitch, yaw in degrees, x, y, z in metres."""
+
+    roll_deg: float
+    pitch_deg: float
+    yaw_deg: float
+    x_m: float
+    y_m: float
+    z_m: float
+
+    @classmethod
+    def from_array(cls, values: F64) -> Params6:
+        v = [float(x) for x in np.asarray(values, dtype=np.float64).reshape(6)]
+        return cls(v[0], v[1], v[2], v[3], v[4], v[5])
+
+
+class PoseError(NamedTuple):
+    """A pose minus a reference: rotation angle of the relative rotation, translation distance, and per
+    parameter (roll, pitch, yaw in degrees; x, y, z in centimetres)."""
+
+    rotation_deg: float
+    translation_cm: float
+    roll_deg: float
+    pitch_deg: float
+    yaw_deg: float
+    x_cm: float
+    y_cm: float
+    z_cm: float
+
+
+class ErrorMedian(NamedTuple):
+    """Median over runs of each run's own rotation angle (deg) and translation distance (cm) error."""
+
+    rotation_deg: float
+    translation_cm: float
+
+
+@dataclass(frozen=True)
+class RunStats:
+    """Statistics of N calibration runs of one protocol against a reference pose.
+
+    ``values`` (N,6) float64: roll, pitch, yaw (deg; each within 180 deg of the reference's, so medians do
+    not break at the +-180 wrap) and x, y, z (m) of every run; a row of NaN for a run that failed (raised).
+    ``converged`` (N,) bool: finished and not an outlier. ``median``: per-parameter median of the finished
+    runs (the outlier rule's centre). ``mean``/``std``: over all finished runs (Table 1, Fig. 11);
+    ``std_converged``: over the converged runs (Fig. 19); standard deviations are sample ones (ddof=1) and
+    None with fewer than two runs. ``solution``: per-parameter median of the converged runs and
+    ``solution_error`` its error vs the reference; ``run_error_median``: the median of the converged runs'
+    own errors.
+    """
+
+    values: F64
+    converged: NDArray[np.bool_]
+    rule: OutlierRule
+    rot_tol_deg: float
+    trans_tol_m: float
+    median: Params6 | None
+    mean: Params6 | None
+    std: Params6 | None
+    std_converged: Params6 | None
+    solution: Params6 | None
+    solution_error: PoseError | None
+    run_error_median: ErrorMedian | None
+
+    @property
+    def runs(self) -> int:
+        return len(self.converged)
+
+    @property
+    def finished(self) -> int:
+        return int(np.isfinite(self.values[:, 0]).sum())
+
+    @property
+    def converged_count(self) -> int:
+        return int(self.converged.sum())
+
+    @property
+    def converged_percent(self) -> float:
+        return 100.0 * self.converged_count / self.runs if self.runs else 0.0
+
+
+def _wrap_deg(angles: F64) -> F64:
+    """Angles in degrees mapped to [-180, 180)."""
+    return np.asarray((angles + 180.0) % 360.0 - 180.0, dtype=np.float64)
+
+
+def parameter_values(reference: Transform, results: Sequence[Transform | None]) -> F64:
+    """(N,6) roll, pitch, yaw deg (unwrapped around ``reference``'s) and x, y, z m; NaN rows for None."""
+    values = np.full((len(results), 6), np.nan)
+    ref_rpy = reference.rpy_deg
+    for i, t in enumerate(results):
+        if t is not None:
+            values[i, :3] = ref_rpy + _wrap_deg(t.rpy_deg - ref_rpy)
+            values[i, 3:] = t.translation_m
+    return values
+
+
+def _pose(values: F64) -> Transform:
+    return Transform.from_rpy_xyz(values[:3], values[3:])
+
+
+def pose_error(pose: Transform, reference: Transform) -> PoseError:
+    d_rpy = _wrap_deg(pose.rpy_deg - reference.rpy_deg)
+    d_xyz_cm = (pose.translation_m - reference.translation_m) * 100.0
+    return PoseError(
+        rotation_angle_deg(reference.rotation, pose.rotation), float(np.linalg.norm(d_xyz_cm)),
+        float(d_rpy[0]), float(d_rpy[1]), float(d_rpy[2]),
+        float(d_xyz_cm[0]), float(d_xyz_cm[1]), float(d_xyz_cm[2]),
+    )
+
+
+def _outliers(values: F64, centre: F64, rule: OutlierRule, rot_tol_deg: float, trans_tol_m: float) -> NDArray[np.bool_]:
+    """(N,) True for a finished run farther from ``centre`` (6,) than the rule allows; ``values`` finite."""
+    if rule is OutlierRule.PER_PARAMETER:
+        far_rot = (np.abs(values[:, :3] - centre[:3]) > rot_tol_deg).any(axis=1)
+        far_trans = (np.abs(values[:, 3:] - centre[3:]) > trans_tol_m).any(axis=1)
+        return np.asarray(far_rot | far_trans)
+    centre_pose = _pose(centre)
+    angles = np.array([rotation_angle_deg(centre_pose.rotation, _pose(v).rotation) for v in values])
+    distances = np.linalg.norm(values[:, 3:] - centre[3:], axis=1)
+    return np.asarray((angles > rot_tol_deg) | (distances > trans_tol_m))
+
+
+def _std(values: F64) -> Params6 | None:
+    return Params6.from_array(values.std(axis=0, ddof=1)) if len(values) >= 2 else None
+
+
+def run_stats(
+    reference: Transform,
+    results: Sequence[Transform | None],
+    rule: OutlierRule = OutlierRule.PER_PARAMETER,
+    rot_tol_deg: float = 0.5,
+    trans_tol_m: float = 0.025,
+) -> RunStats:
+    """Statistics of calibration ``results`` (None: the run failed) against ``reference`` (module docstring)."""
+    if not (rot_tol_deg > 0 and trans_tol_m > 0):
+        raise EvaluationError(f"outlier tolerances must be positive, got {rot_tol_deg} deg, {trans_tol_m} m")
+    values = parameter_values(reference, results)
+    finished = np.isfinite(values[:, 0])
+    done = values[finished]
+    converged = np.zeros(len(values), dtype=bool)
+    if len(done) == 0:
+        return RunStats(values, converged, rule, rot_tol_deg, trans_tol_m, None, None, None, None, None, None, None)
+    centre = np.median(done, axis=0)
+    converged[finished] = ~_outliers(done, centre, rule, rot_tol_deg, trans_tol_m)
+    good = values[converged]
+    solution = solution_error = run_error = None
+    if len(good):
+        solution_values = np.median(good, axis=0)
+        solution = Params6.from_array(solution_values)
+        solution_error = pose_error(_pose(solution_values), reference)
+        errors = np.array([pose_error(_pose(v), reference)[:2] for v in good])
+        run_error = ErrorMedian(float(np.median(errors[:, 0])), float(np.median(errors[:, 1])))
+    return RunStats(
+        values, converged, rule, rot_tol_deg, trans_tol_m, Params6.from_array(centre),
+        Params6.from_array(done.mean(axis=0)), _std(done), _std(good), solution, solution_error, run_error,
+    )
+
+
+def _rng(seed: int) -> np.random.Generator:
+    if seed < 0:
+        raise EvaluationError(f"seed must be >= 0, got {seed}")
+    return np.random.default_rng(seed)
+
+
+def random_starts(reference: Transform, count: int, rot_deg: float, trans_m: float, seed: int) -> tuple[Transform, ...]:
+    """``count`` starts: ``reference``'s roll, pitch, yaw each plus U(-rot_deg, rot_deg) and x, y, z each plus
+    U(-trans_m, trans_m) (paper 8.5: +-5 deg, +-10 cm), from ``numpy.random.default_rng(seed)``; the first k
+    of n starts equal the k starts of the same seed."""
+    if count < 1:
+        raise EvaluationError(f"the number of starts must be at least 1, got {count}")
+    if not (np.isfinite(rot_deg) and np.isfinite(trans_m) and rot_deg >= 0 and trans_m >= 0):
+        raise EvaluationError(f"start ranges must be finite and >= 0, got +-{rot_deg} deg, +-{trans_m} m")
+    # One row of 6 draws per start, so the first k of n starts are the k starts of the same seed.
+    unit = _rng(seed).uniform(-1.0, 1.0, size=(count, 6))
+    rpy, xyz = reference.rpy_deg, reference.translation_m
+    return tuple(Transform.from_rpy_xyz(rpy + rot_deg * u[:3], xyz + trans_m * u[3:]) for u in unit)
+
+
+def random_subsets(n_pairs: int, size: int, count: int, seed: int) -> tuple[tuple[int, ...], ...]:
+    """``count`` subsets of ``size`` distinct pair indices out of ``range(n_pairs)``, each sorted (paper 8.2.2:
+    100 subsets of 12 pairs), from ``numpy.random.default_rng(seed)``. Subsets may repeat."""
+    if count < 1:
+        raise EvaluationError(f"the number of subsets must be at least 1, got {count}")
+    if not 1 <= size <= n_pairs:
+        raise EvaluationError(f"subset size must be between 1 and the dataset's {n_pairs} pairs, got {size}")
+    rng = _rng(seed)
+    return tuple(tuple(sorted(int(i) for i in rng.choice(n_pairs, size=size, replace=False))) for _ in range(count))
