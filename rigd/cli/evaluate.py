@@ -1,0 +1,144 @@
+"""``rigd evaluate convergence|precision DATASET``: the paper's evaluation protocols (docs/evaluation.md)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from calib.evaluate import OutlierRule, Params6, PoseError
+from rigd.cli.calibrate import parse_init, parse_sigmas
+from rigd.evaluate import (
+    ConvergenceRequest,
+    EvaluationOutcome,
+    EvaluationSettings,
+    PrecisionRequest,
+    run_convergence,
+    run_precision,
+)
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    return value
+
+
+def _non_negative_float(text: str) -> float:
+    value = float(text)
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
+def _common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("dataset", type=Path, metavar="DATASET")
+    parser.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
+    parser.add_argument("--workers", type=_positive_int, default=2,
+                        help="parallel processes, each extracts the features once (default 2)")
+    parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/evaluation)")
+    parser.add_argument("--sigmas", type=str, default=None,
+                        help="sigma_in per coarse-to-fine level, degrees at 1 m (default: the calibration's)")
+    parser.add_argument("--init", type=str, default=None,
+                        help="initial guess 'roll,pitch,yaw,x,y,z' in deg and m (default: rig.yaml initial_guess)")
+    parser.add_argument("--outlier-rule", choices=[r.value for r in OutlierRule],
+                        default=OutlierRule.PER_PARAMETER.value,
+                        help="per-parameter (paper Fig. 19: any of roll/pitch/yaw > 0.5 deg or x/y/z > 2.5 cm from "
+                        "its median) or pose (rotation angle > 0.5 deg or distance > 2.5 cm from the median pose)")
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "evaluate",
+        help="convergence and precision statistics of the calibration on a dataset",
+        description="Run many calibrations in parallel and summarise them (Kang & Doh 2020, 8.5 and 8.2.2). "
+        "Writes OUT/<protocol>.yaml with every number and OUT/<protocol>.png.",
+    )
+    protocols = parser.add_subparsers(dest="protocol", metavar="PROTOCOL", required=True)
+    conv = protocols.add_parser(
+        "convergence", help="random starts around the reference (paper Fig. 19)",
+        description="Calibrate with all pairs from TRIALS starts drawn uniformly within +-ROT_DEG on each of "
+        "roll/pitch/yaw and +-TRANS_M on each of x/y/z around the reference: the ground truth when the dataset "
+        "has one, else a first calibration from --init / rig.yaml's initial_guess.")
+    _common(conv)
+    conv.add_argument("--trials", type=_positive_int, default=200, help="number of starts (default 200)")
+    conv.add_argument("--rot-deg", type=_non_negative_float, default=5.0, help="start range in degrees (default 5)")
+    conv.add_argument("--trans-m", type=_non_negative_float, default=0.1, help="start range in metres (default 0.1)")
+    conv.set_defaults(func=run)
+    prec = protocols.add_parser(
+        "precision", help="random subsets of pairs from one start (paper Table 1, Fig. 11)",
+        description="Calibrate SUBSETS random subsets of SIZE pairs, all from one start (--init, else rig.yaml's "
+        "initial_guess, else the ground truth), and report the per-parameter standard deviation.")
+    _common(prec)
+    prec.add_argument("--subsets", type=_positive_int, default=100, help="number of subsets (default 100)")
+    prec.add_argument("--size", type=_positive_int, default=12, help="pairs per subset (default 12)")
+    prec.set_defaults(func=run)
+
+
+def _fmt_params(p: Params6 | None, digits: int) -> str:
+    if p is None:
+        return "n/a (fewer than 2 runs)"
+    return (f"roll {p.roll_deg:.{digits}f} pitch {p.pitch_deg:.{digits}f} yaw {p.yaw_deg:.{digits}f} deg, "
+            f"x {p.x_m * 100:.{digits - 1}f} y {p.y_m * 100:.{digits - 1}f} z {p.z_m * 100:.{digits - 1}f} cm")
+
+
+def _fmt_error(e: PoseError) -> str:
+    return (f"{e.rotation_deg:.3f} deg, {e.translation_cm:.2f} cm (roll {e.roll_deg:+.3f} pitch {e.pitch_deg:+.3f} "
+            f"yaw {e.yaw_deg:+.3f} deg; x {e.x_cm:+.2f} y {e.y_cm:+.2f} z {e.z_cm:+.2f} cm)")
+
+
+def summary_lines(outcome: EvaluationOutcome) -> list[str]:
+    """The human summary printed after a run (every number is also in the YAML report)."""
+    stats, report = outcome.stats, outcome.report
+    s = report["settings"]
+    if report["protocol"] == "convergence":
+        what = (f"{s['trials']} starts within +-{s['rot_deg']} deg / +-{s['trans_m'] * 100:g} cm of the "
+                f"{outcome.reference_source.replace('_', ' ')}")
+    else:
+        what = f"{s['subsets']} random subsets of size {s['size']}, started at the {s['start'].replace('_', ' ')}"
+    times = report["summary"]["calibration_time_s"]
+    lines = [
+        f"{report['protocol']} on {report['dataset']} ({report['pairs_in_dataset']} pairs): {what}, "
+        f"workers: {s['workers']}, seed {s['seed']}",
+        f"converged: {stats.converged_count}/{stats.runs} ({stats.converged_percent:.1f} %), "
+        f"{stats.runs - stats.finished} failed to run; rule {stats.rule.value} "
+        f"({stats.rot_tol_deg} deg / {stats.trans_tol_m * 100:g} cm from the median)",
+        f"std of converged runs: {_fmt_params(stats.std_converged, 4)}",
+        f"std of all finished runs: {_fmt_params(stats.std, 4)}",
+    ]
+    err = report["summary"].get("error_vs_ground_truth")
+    if err is not None and stats.solution_error is not None and stats.run_error_median is not None:
+        med = stats.run_error_median
+        lines.append(f"converged solution vs ground truth: {_fmt_error(stats.solution_error)}")
+        lines.append(f"median error of converged runs: {med.rotation_deg:.3f} deg, {med.translation_cm:.2f} cm")
+    lines.append(f"time: {report['wall_time_s']:.0f} s wall; per calibration median {times['median']:.1f} s, "
+                 f"max {times['max']:.1f} s")
+    lines.append(f"written: {outcome.yaml_path}, {outcome.plot_path}")
+    return lines
+
+
+def run(args: argparse.Namespace) -> int:
+    settings = EvaluationSettings(
+        dataset=args.dataset,
+        seed=args.seed,
+        workers=args.workers,
+        out_dir=args.out,
+        sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
+        initial=parse_init(args.init) if args.init else None,
+        outlier_rule=OutlierRule(args.outlier_rule),
+    )
+    if args.protocol == "convergence":
+        outcome = run_convergence(ConvergenceRequest(settings, args.trials, args.rot_deg, args.trans_m))
+    else:
+        outcome = run_precision(PrecisionRequest(settings, args.subsets, args.size))
+    print("\n".join(summary_lines(outcome)))
+    return 0

@@ -1,0 +1,309 @@
+"""The evaluation protocols on a dataset (docs/evaluation.md): many calibrations in parallel processes, their
+statistics (calib.evaluate), a YAML report and a plot.
+
+Each worker process extracts the dataset's edge features once, in its initializer (they are tens of MB per
+pair: sending them with every task would cost more than a calibration), then runs calibrations on them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from enum import Enum
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from calib.errors import CalibError
+from calib.evaluate import OutlierRule, Params6, RunStats, parameter_values, random_starts, random_subsets, run_stats
+from calib.geometry import Transform
+from calib.gmm import PairFeatures
+from calib.pipeline import CalibParams, calibrate
+from rigd.calibration.service import _features
+from rigd.dataset import Dataset, open_dataset
+from rigd.dataset.records import transform_to_yaml
+from rigd.dataset.store import write_yaml
+from rigd.errors import RigdError
+from rigd.evaluate_plots import plot_convergence, plot_precision
+
+
+class Protocol(Enum):
+    CONVERGENCE = "convergence"  # paper 8.5, Fig. 19: random starts around a reference, all pairs
+    PRECISION = "precision"  # paper 8.2.2, Table 1: random subsets of pairs, one start
+
+
+@dataclass(frozen=True)
+class EvaluationSettings:
+    """What both protocols share. ``sigmas_deg`` None: ``CalibParams()``'s schedule. ``initial``: the start
+    of the reference calibration (convergence without ground truth) or of every run (precision); None: the
+    dataset's rig.yaml initial_guess."""
+
+    dataset: Path
+    seed: int = 0
+    workers: int = 2
+    out_dir: Path | None = None  # None: DATASET/evaluation
+    sigmas_deg: tuple[float, ...] | None = None
+    initial: Transform | None = None
+    outlier_rule: OutlierRule = OutlierRule.PER_PARAMETER
+    progress: bool = True  # a tqdm bar on stderr
+
+
+@dataclass(frozen=True)
+class ConvergenceRequest:
+    settings: EvaluationSettings
+    trials: int = 200
+    rot_deg: float = 5.0
+    trans_m: float = 0.1
+
+
+@dataclass(frozen=True)
+class PrecisionRequest:
+    settings: EvaluationSettings
+    subsets: int = 100
+    size: int = 12
+
+
+@dataclass(frozen=True)
+class Run:
+    """One calibration: its pairs, start and result (None with ``error`` when it raised)."""
+
+    index: int
+    pairs: tuple[int, ...]
+    start: Transform
+    result: Transform | None
+    error: str | None
+    final_cost: float | None
+    iterations: int
+    wall_s: float
+
+
+@dataclass(frozen=True)
+class EvaluationOutcome:
+    protocol: Protocol
+    stats: RunStats
+    runs: tuple[Run, ...]
+    reference: Transform
+    reference_source: str  # "ground_truth", "calibration" (from the initial guess) or "start"
+    report: dict[str, Any]
+    yaml_path: Path
+    plot_path: Path
+
+
+@dataclass(frozen=True)
+class _Task:
+    index: int
+    start: Transform
+    pairs: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class _WorkerState:
+    feats: tuple[PairFeatures, ...]
+    params: CalibParams
+    error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
+
+
+_STATE: _WorkerState | None = None  # one per worker process, set by _init_worker
+
+
+def _init_worker(root: Path, params: CalibParams) -> None:
+    global _STATE
+    cv2.setNumThreads(1)  # the pool already runs one process per core
+    try:
+        feats = tuple(_features(open_dataset(root), params, None))
+    except (RigdError, CalibError) as exc:
+        _STATE = _WorkerState((), params, f"{root}: {exc}")
+        return
+    _STATE = _WorkerState(feats, params, None)
+
+
+def _run_task(task: _Task) -> Run:
+    state = _STATE
+    if state is None or state.error is not None:
+        raise RigdError(state.error if state else "evaluation worker was not initialised")
+    started = time.monotonic()
+    try:
+        result = calibrate([state.feats[i] for i in task.pairs], task.start, state.params)
+    except CalibError as exc:  # a start that sees nothing: a failed run, counted as not converged
+        return Run(task.index, task.pairs, task.start, None, str(exc), None, 0, time.monotonic() - started)
+    iterations = sum(level.iterations for level in result.optim.levels)
+    return Run(task.index, task.pairs, task.start, result.T_camera_lidar, None, result.optim.final_cost, iterations,
+               time.monotonic() - started)
+
+
+def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
+    """``CalibParams()`` with only the sigma schedule replaced (when given)."""
+    params = CalibParams()
+    if sigmas_deg is None:
+        return params
+    if not sigmas_deg or not all(np.isfinite(s) and s > 0 for s in sigmas_deg):
+        raise RigdError(f"sigmas must be positive angles in degrees, got {sigmas_deg}")
+    return dataclasses.replace(params, optim=dataclasses.replace(params.optim, sigmas_deg=tuple(sigmas_deg)))
+
+
+def _open(settings: EvaluationSettings) -> Dataset:
+    if settings.workers < 1:
+        raise RigdError(f"--workers must be at least 1, got {settings.workers}")
+    dataset = open_dataset(settings.dataset)
+    if len(dataset) == 0:
+        raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
+    return dataset
+
+
+def _initial(settings: EvaluationSettings, dataset: Dataset) -> Transform | None:
+    return settings.initial if settings.initial is not None else dataset.rig.initial_guess
+
+
+def _pool(dataset: Dataset, params: CalibParams, workers: int) -> ProcessPoolExecutor:
+    return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(dataset.root, params))
+
+
+def _run_all(pool: ProcessPoolExecutor, tasks: Sequence[_Task], desc: str, progress: bool) -> tuple[Run, ...]:
+    futures = [pool.submit(_run_task, t) for t in tasks]
+    runs = []
+    try:
+        for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="run", file=sys.stderr,
+                        disable=not progress):
+            runs.append(fut.result())
+    except BrokenProcessPool as exc:
+        raise RigdError(f"{desc}: a worker process died ({exc}); fewer --workers need less memory") from exc
+    finally:
+        for fut in futures:
+            fut.cancel()
+    return tuple(sorted(runs, key=lambda r: r.index))
+
+
+def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
+    """Paper 8.5: calibrate from ``trials`` random starts around the ground truth (or, without one, around a
+    first calibration from the initial guess); writes OUT/convergence.yaml and convergence.png."""
+    started = time.monotonic()
+    s = request.settings
+    dataset = _open(s)
+    params = calib_params(s.sigmas_deg)
+    pairs = tuple(range(len(dataset)))
+    with _pool(dataset, params, s.workers) as pool:
+        if dataset.ground_truth is not None:
+            reference, source = dataset.ground_truth, "ground_truth"
+        else:
+            initial = _initial(s, dataset)
+            if initial is None:
+                raise RigdError(f"{dataset.root}: no ground_truth.yaml and no initial_guess in rig.yaml; give a "
+                                "start for the reference calibration with --init 'r,p,y,x,y,z'")
+            (first,) = _run_all(pool, [_Task(-1, initial, pairs)], "reference calibration", s.progress)
+            if first.result is None:
+                raise RigdError(f"{dataset.root}: the reference calibration failed: {first.error}")
+            reference, source = first.result, "calibration"
+        starts = random_starts(reference, request.trials, request.rot_deg, request.trans_m, s.seed)
+        runs = _run_all(pool, [_Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
+    stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
+    setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m}
+    return _finish(Protocol.CONVERGENCE, s, dataset, params, setup, runs, stats, reference, source, started)
+
+
+def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
+    """Paper 8.2.2: calibrate ``subsets`` random subsets of ``size`` pairs from one start (``--init``, rig.yaml's
+    initial_guess or, failing both, the ground truth); writes OUT/precision.yaml and precision.png."""
+    started = time.monotonic()
+    s = request.settings
+    dataset = _open(s)
+    params = calib_params(s.sigmas_deg)
+    subsets = random_subsets(len(dataset), request.size, request.subsets, s.seed)
+    initial = _initial(s, dataset)
+    start, start_source = (initial, "initial_guess") if initial is not None else (dataset.ground_truth, "ground_truth")
+    if start is None:
+        raise RigdError(f"{dataset.root}: no initial_guess in rig.yaml and no ground_truth.yaml; give the start "
+                        "with --init 'r,p,y,x,y,z'")
+    with _pool(dataset, params, s.workers) as pool:
+        runs = _run_all(pool, [_Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
+    truth = dataset.ground_truth
+    reference, source = (truth, "ground_truth") if truth is not None else (start, "start")
+    stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
+    setup = {"subsets": request.subsets, "size": request.size, "start": start_source,
+             "start_T_camera_lidar": transform_to_yaml(start)}
+    return _finish(Protocol.PRECISION, s, dataset, params, setup, runs, stats, reference, source, started)
+
+
+def _params_yaml(p: Params6 | None) -> dict[str, float] | None:
+    return None if p is None else dict(p._asdict())
+
+
+def _pose_yaml(t: Transform) -> dict[str, list[float]]:
+    return {"rpy_deg": t.rpy_deg.tolist(), "xyz_m": t.translation_m.tolist()}
+
+
+def _summary_yaml(stats: RunStats, runs: Sequence[Run], with_error: bool) -> dict[str, Any]:
+    times = [r.wall_s for r in runs]
+    out: dict[str, Any] = {
+        "runs": stats.runs,
+        "finished": stats.finished,
+        "converged": stats.converged_count,
+        "converged_percent": stats.converged_percent,
+        "outlier_rule": {"rule": stats.rule.value, "rotation_deg": stats.rot_tol_deg,
+                         "translation_m": stats.trans_tol_m},
+        "median": _params_yaml(stats.median),
+        "mean": _params_yaml(stats.mean),
+        "std": _params_yaml(stats.std),
+        "std_converged": _params_yaml(stats.std_converged),
+        "solution": _params_yaml(stats.solution),
+        "calibration_time_s": {"median": float(np.median(times)), "max": float(np.max(times))},
+    }
+    if with_error:
+        err, med = stats.solution_error, stats.run_error_median
+        out["error_vs_ground_truth"] = {
+            "solution": None if err is None else dict(err._asdict()),
+            "run_median": None if med is None else dict(med._asdict()),
+        }
+    return out
+
+
+def _runs_yaml(runs: Sequence[Run], stats: RunStats, protocol: Protocol) -> list[dict[str, Any]]:
+    out = []
+    for run, converged in zip(runs, stats.converged.tolist(), strict=True):
+        entry: dict[str, Any] = {"index": run.index}
+        if protocol is Protocol.PRECISION:
+            entry["pairs"] = list(run.pairs)
+        else:
+            entry["start"] = _pose_yaml(run.start)
+        entry["result"] = None if run.result is None else _pose_yaml(run.result)
+        entry.update(converged=bool(converged), final_cost=run.final_cost, iterations=run.iterations,
+                     wall_time_s=round(run.wall_s, 3))
+        if run.error is not None:
+            entry["error"] = run.error
+        out.append(entry)
+    return out
+
+
+def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params: CalibParams,
+            setup: dict[str, Any], runs: tuple[Run, ...], stats: RunStats, reference: Transform, source: str,
+            started: float) -> EvaluationOutcome:
+    out = Path(s.out_dir) if s.out_dir is not None else dataset.root / "evaluation"
+    out.mkdir(parents=True, exist_ok=True)
+    plot_path = out / f"{protocol.value}.png"
+    if protocol is Protocol.CONVERGENCE:
+        starts = parameter_values(reference, [r.start for r in runs])
+        plot_convergence(plot_path, starts, stats, parameter_values(reference, [reference])[0],
+                         source.replace("_", " "))
+    else:
+        plot_precision(plot_path, stats)
+    report: dict[str, Any] = {
+        "protocol": protocol.value,
+        "dataset": str(dataset.root),
+        "pairs_in_dataset": len(dataset),
+        "settings": {**setup, "seed": s.seed, "workers": s.workers, "sigmas_deg": list(params.optim.sigmas_deg)},
+        "reference": {"source": source, "T_camera_lidar": transform_to_yaml(reference)},
+        "summary": _summary_yaml(stats, runs, with_error=dataset.ground_truth is not None),
+        "wall_time_s": round(time.monotonic() - started, 2),
+        "plot": plot_path.name,
+        "runs": _runs_yaml(runs, stats, protocol),
+    }
+    yaml_path = out / f"{protocol.value}.yaml"
+    write_yaml(yaml_path, report)
+    return EvaluationOutcome(protocol, stats, runs, reference, source, report, yaml_path, plot_path)

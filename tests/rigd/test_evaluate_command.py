@@ -1,0 +1,103 @@
+"""``rigd evaluate``: files and keys written, seeds honoured, results independent of the number of workers."""
+
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+
+from calib.evaluate import random_starts, random_subsets
+from rigd.cli import main
+from rigd.dataset import open_dataset, write_pair
+from rigd.dataset.pcd import Cloud
+from rigd.simulate import write_simulated_dataset
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+SUMMARY_KEYS = {"runs", "finished", "converged", "converged_percent", "outlier_rule", "median", "mean", "std",
+                "std_converged", "solution", "calibration_time_s"}
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ev") / "indoor"
+    write_simulated_dataset(root, "indoor", 2, seed=5, width=512, height=256, progress=False)
+    return root
+
+
+def _convergence(dataset, out, workers, capsys):
+    code = main(["evaluate", "convergence", str(dataset), "--trials", "2", "--seed", "4", "--workers", str(workers),
+                 "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    return yaml.safe_load((out / "convergence.yaml").read_text()), captured.out
+
+
+def test_convergence_report_plot_and_worker_independence(small_dataset, tmp_path, capsys):
+    one, printed = _convergence(small_dataset, tmp_path / "w1", 1, capsys)
+    two, _ = _convergence(small_dataset, tmp_path / "w2", 2, capsys)
+    assert "converged:" in printed and "convergence.yaml" in printed
+    assert one["protocol"] == "convergence" and one["settings"]["trials"] == 2 and one["settings"]["seed"] == 4
+    assert one["reference"]["source"] == "ground_truth"
+    assert SUMMARY_KEYS | {"error_vs_ground_truth"} <= set(one["summary"])
+    # With two runs the median is their midpoint: whether either converged depends on the optimiser, not on us.
+    assert set(one["summary"]["error_vs_ground_truth"]) == {"solution", "run_median"}
+    assert len(one["runs"]) == 2 and all(r["result"] is not None for r in one["runs"])
+    assert (tmp_path / "w1" / "convergence.png").read_bytes().startswith(PNG_MAGIC)
+    # The starts are calib.evaluate's draws around the ground truth for the seed.
+    truth = open_dataset(small_dataset).ground_truth
+    expected = random_starts(truth, 2, 5.0, 0.1, seed=4)
+    for run, start in zip(one["runs"], expected, strict=True):
+        assert np.allclose(run["start"]["rpy_deg"], start.rpy_deg) and np.allclose(run["start"]["xyz_m"],
+                                                                                    start.translation_m)
+    # A calibration is deterministic: splitting the runs over processes must not change any of them.
+    assert [r["index"] for r in two["runs"]] == [0, 1]
+    for a, b in zip(one["runs"], two["runs"], strict=True):
+        assert np.allclose(a["result"]["rpy_deg"], b["result"]["rpy_deg"], atol=1e-9)
+        assert np.allclose(a["result"]["xyz_m"], b["result"]["xyz_m"], atol=1e-12)
+    assert one["summary"]["converged"] == two["summary"]["converged"]
+
+
+def test_precision_report_uses_the_seeded_subsets(small_dataset, tmp_path, capsys):
+    out = tmp_path / "prec"
+    code = main(["evaluate", "precision", str(small_dataset), "--subsets", "3", "--size", "1", "--seed", "2",
+                 "--workers", "2", "--out", str(out), "--sigmas", "3.5,1.8"])
+    assert code == 0, capsys.readouterr().err
+    report = yaml.safe_load((out / "precision.yaml").read_text())
+    assert report["protocol"] == "precision" and report["settings"]["start"] == "ground_truth"
+    assert report["settings"]["sigmas_deg"] == [3.5, 1.8]
+    assert [tuple(r["pairs"]) for r in report["runs"]] == list(random_subsets(2, 1, 3, seed=2))
+    assert SUMMARY_KEYS | {"error_vs_ground_truth"} <= set(report["summary"])
+    assert report["summary"]["runs"] == 3
+    assert (out / "precision.png").read_bytes().startswith(PNG_MAGIC)
+
+
+def test_without_ground_truth_the_reference_is_a_first_calibration(small_dataset, tmp_path, capsys):
+    root = tmp_path / "no_truth"
+    shutil.copytree(small_dataset, root)
+    (root / "ground_truth.yaml").unlink()
+    assert main(["evaluate", "convergence", str(root), "--trials", "1", "--workers", "1"]) == 2
+    assert "--init" in capsys.readouterr().err
+    truth = open_dataset(small_dataset).ground_truth
+    init = ",".join(str(v) for v in np.r_[truth.rpy_deg + 0.5, truth.translation_m + 0.01])
+    assert main(["evaluate", "convergence", str(root), "--trials", "1", "--workers", "1", "--init", init]) == 0
+    report = yaml.safe_load((root / "evaluation" / "convergence.yaml").read_text())
+    assert report["reference"]["source"] == "calibration"
+    assert "error_vs_ground_truth" not in report["summary"]
+
+
+def test_featureless_dataset_reports_the_worker_error(small_dataset, tmp_path, capsys):
+    root = tmp_path / "blank"
+    (root / "pairs").mkdir(parents=True)
+    (root / "rig.yaml").write_text((small_dataset / "rig.yaml").read_text())
+    (root / "ground_truth.yaml").write_text((small_dataset / "ground_truth.yaml").read_text())
+    pts = np.random.default_rng(0).normal(size=(500, 3)) + [5.0, 0.0, 0.0]
+    write_pair(root, 0, np.full((256, 512), 128, np.uint8), Cloud(pts), {})
+    assert main(["evaluate", "convergence", str(root), "--trials", "2", "--workers", "2"]) == 2
+    assert "featureless" in capsys.readouterr().err
+
+
+def test_bad_settings_are_refused(small_dataset, capsys):
+    assert main(["evaluate", "precision", str(small_dataset), "--size", "3"]) == 2
+    assert "subset size" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["evaluate", "convergence", str(small_dataset), "--workers", "0"])
