@@ -1,0 +1,84 @@
+"""The FastAPI application: routers, error mapping, the request-size limit, start-up and shutdown."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from http import HTTPStatus
+
+from fastapi import FastAPI, Request
+from fastapi.responses import JSONResponse
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+from calib.errors import CalibError
+from drivers.errors import DriverError
+from rigd.api.routes import calibrate, datasets, extrinsics, jobs
+from rigd.api.routes import status as status_routes
+from rigd.api.service import Service
+from rigd.errors import DatasetError, RigdError
+from rigd.store import ConflictError, NotFoundError, StoreError
+
+# Most specific first: the first class an error is an instance of decides its status.
+ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
+    (NotFoundError, HTTPStatus.NOT_FOUND),
+    (ConflictError, HTTPStatus.CONFLICT),
+    (StoreError, HTTPStatus.INTERNAL_SERVER_ERROR),
+    (DatasetError, HTTPStatus.UNPROCESSABLE_ENTITY),
+    (DriverError, HTTPStatus.SERVICE_UNAVAILABLE),
+    (CalibError, HTTPStatus.UNPROCESSABLE_ENTITY),
+    (RigdError, HTTPStatus.UNPROCESSABLE_ENTITY),
+)
+
+
+async def _error_response(request: Request, exc: Exception) -> JSONResponse:
+    code = next(code for kind, code in ERROR_STATUS if isinstance(exc, kind))
+    return JSONResponse({"detail": str(exc)}, status_code=int(code))
+
+
+class BodyLimit:
+    """Refuse request bodies over ``max_bytes`` (413) and bodies of unknown length (411) before reading them."""
+
+    def __init__(self, app: ASGIApp, max_bytes: int) -> None:
+        self.app = app
+        self.max_bytes = max_bytes
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http":
+            headers = dict(scope["headers"])
+            length = headers.get(b"content-length")
+            refusal = None
+            if length is None and b"transfer-encoding" in headers:
+                refusal = (HTTPStatus.LENGTH_REQUIRED, "send the body with a Content-Length")
+            elif length is not None and (not length.isdigit() or int(length) > self.max_bytes):
+                refusal = (HTTPStatus.REQUEST_ENTITY_TOO_LARGE, f"request bodies are limited to {self.max_bytes} bytes")
+            if refusal is not None:
+                await JSONResponse({"detail": refusal[1]}, status_code=int(refusal[0]))(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
+
+
+def create_app(service: Service) -> FastAPI:
+    """The application around a built (not yet started) service; starting and stopping follow the lifespan."""
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        service.start()
+        try:
+            yield
+        finally:
+            service.stop()
+
+    app = FastAPI(
+        title="rigd",
+        version=service.software_version,
+        description="Targetless camera-LiDAR calibration service for a Ladybug5 + VLP-16 rig: capture datasets, "
+        "calibrate them in a worker process, keep immutable extrinsics versions and export them.",
+        lifespan=lifespan,
+    )
+    app.state.service = service
+    for kind, _ in ERROR_STATUS:
+        app.add_exception_handler(kind, _error_response)
+    app.add_middleware(BodyLimit, max_bytes=service.settings.max_body_bytes)
+    for module in (status_routes, jobs, calibrate, datasets, extrinsics):
+        app.include_router(module.router)
+    return app

@@ -1,0 +1,202 @@
+"""Request and response bodies (pydantic). Requests are bounded and reject unknown keys and NaN."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+
+from calib.errors import CalibError
+from calib.geometry import Transform
+from rigd.calibration.service import PAPER_SIGMAS_DEG
+from rigd.dataset.records import transform_to_yaml
+from rigd.store.datasets import DATASET_ID_PATTERN
+
+DatasetId = Annotated[str, Field(pattern=DATASET_ID_PATTERN, examples=["indoor-2025-01-31"])]
+Coordinate = Annotated[float, Field(ge=-1e3, le=1e3)]
+Angle = Annotated[float, Field(ge=-720.0, le=720.0)]
+Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
+Row4 = Annotated[list[Coordinate], Field(min_length=4, max_length=4)]
+
+
+class Request(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class TransformIn(Request):
+    """T_camera_lidar (p_cam = R p_lidar + t): a 4x4 ``matrix``, or ``rpy_deg`` (deg) with ``xyz_m`` (m)."""
+
+    matrix: Annotated[list[Row4], Field(min_length=4, max_length=4)] | None = None
+    rpy_deg: Annotated[list[Angle], Field(min_length=3, max_length=3)] | None = None
+    xyz_m: Vec3 | None = None
+    _transform: Transform = PrivateAttr()
+
+    @model_validator(mode="after")
+    def _to_transform(self) -> TransformIn:
+        try:
+            if self.matrix is not None and self.rpy_deg is None and self.xyz_m is None:
+                self._transform = Transform.from_matrix(self.matrix)  # type: ignore[arg-type]
+            elif self.matrix is None and self.rpy_deg is not None and self.xyz_m is not None:
+                self._transform = Transform.from_rpy_xyz(self.rpy_deg, self.xyz_m)  # type: ignore[arg-type]
+            else:
+                raise ValueError("give either matrix, or rpy_deg together with xyz_m")
+        except CalibError as exc:
+            raise ValueError(str(exc)) from exc
+        return self
+
+    @property
+    def transform(self) -> Transform:
+        return self._transform
+
+
+class CalibrateIn(Request):
+    dataset: DatasetId
+    init: Literal["active", "rig"] | TransformIn = Field(
+        "active", description="initial guess: the active extrinsics version, the rig file's (the dataset's "
+        "rig.yaml, else the service's rig file), or an explicit transform")
+    sigmas_deg: Annotated[list[Annotated[float, Field(gt=0.0, le=30.0)]], Field(min_length=1, max_length=6)] = Field(
+        default_factory=lambda: list(PAPER_SIGMAS_DEG), description="sigma_in per coarse-to-fine level, deg at 1 m")
+    auto_activate: bool = Field(False, description="activate the result if its quality passes the service's bounds")
+
+
+class ManualVersionIn(Request):
+    T_camera_lidar: TransformIn
+    note: Annotated[str, Field(max_length=500)] = ""
+    activate: bool = False
+
+
+class TransformOut(BaseModel):
+    matrix: list[list[float]]
+    quaternion_xyzw: list[float]
+    rpy_deg: list[float]
+    xyz_m: list[float]
+
+    @classmethod
+    def of(cls, transform: Transform) -> TransformOut:
+        return cls(**transform_to_yaml(transform))
+
+
+class ChangeOut(BaseModel):
+    against: int = Field(description="the version that was active when this one was made")
+    rotation_deg: float
+    translation_cm: float
+
+
+class VersionOut(BaseModel):
+    number: int
+    status: Literal["candidate", "active", "superseded"]
+    created_at: str
+    activated_at: str | None
+    T_camera_lidar: TransformOut
+    quality: dict[str, Any]
+    method: str
+    parameters: dict[str, Any]
+    code_version: str
+    dataset_id: str | None
+    dataset_hash: str | None
+    job_id: int | None
+    supersedes: int | None
+    change: ChangeOut | None
+    overlays: list[str] = Field(description="links to the LiDAR-over-image overlays of each pair")
+
+
+class JobOut(BaseModel):
+    id: int
+    kind: Literal["capture", "calibrate"]
+    status: Literal["queued", "running", "succeeded", "failed", "cancelled"]
+    stage: str
+    fraction: float
+    created_at: str
+    started_at: str | None
+    finished_at: str | None
+    params: dict[str, Any]
+    result: dict[str, Any] | None
+    result_link: str | None
+    error: str | None
+    log_tail: list[str]
+
+
+class CameraOut(BaseModel):
+    model: str
+    width: int
+    height: int
+
+
+class DatasetOut(BaseModel):
+    id: str
+    pair_count: int
+    camera: CameraOut | None
+    lidar_model: str | None
+    initial_guess: TransformOut | None
+    has_ground_truth: bool
+    capturing: bool
+    error: str | None = Field(None, description="why the dataset cannot be read (then camera is null)")
+
+
+class PairOut(BaseModel):
+    number: int
+    image: str
+    meta: dict[str, Any]
+
+
+class DatasetDetailOut(DatasetOut):
+    pairs: list[PairOut]
+    ground_truth: TransformOut | None
+
+
+class LidarStatus(BaseModel):
+    source: str
+    state: str = Field(description="ok | silent | error | busy (a capture holds it) | simulated | replay | unknown")
+    packet_rate_hz: float | None = None
+    packets_lost: int | None = None
+    pps: str | None = Field(None, description="absent | synchronising | locked | error")
+    checked_at: str | None = None
+    message: str = ""
+
+
+class CameraStatus(BaseModel):
+    source: str
+    present: bool | None = None
+    usb_speed: str | None = None
+    serial: str | None = None
+    warnings: list[str] = []
+    checked_at: str | None = None
+    message: str = ""
+
+
+class SensorsOut(BaseModel):
+    lidar: LidarStatus
+    camera: CameraStatus
+
+
+class JobBrief(BaseModel):
+    id: int
+    kind: str
+    stage: str
+    fraction: float
+    link: str
+
+
+class ActiveBrief(BaseModel):
+    version: int
+    created_at: str
+    link: str
+
+
+class DiskOut(BaseModel):
+    path: str
+    free_bytes: int
+    total_bytes: int
+
+
+class StatusOut(BaseModel):
+    software_version: str
+    started_at: str
+    sensors: SensorsOut
+    running_jobs: list[JobBrief]
+    active_extrinsics: ActiveBrief | None
+    data_dir: DiskOut
+
+
+class ErrorOut(BaseModel):
+    detail: str

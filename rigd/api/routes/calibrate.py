@@ -1,0 +1,49 @@
+"""``POST /calibrate``: queue a calibration of a dataset; 202 with the job."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response, status
+
+from rigd.api.deps import Authorized, ServiceDep
+from rigd.api.models import CalibrateIn, ErrorOut, JobOut
+from rigd.api.routes.jobs import job_link, job_out
+from rigd.api.runner import CalibrationPlan
+from rigd.api.service import Service
+from rigd.errors import RigdError
+from rigd.store import ConflictError
+
+router = APIRouter(tags=["calibrate"])
+
+
+def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
+    """Check the dataset and resolve the initial guess now, so a bad request fails before it is queued."""
+    dataset = service.datasets.open(body.dataset)
+    if len(dataset) == 0:
+        raise RigdError(f"dataset {body.dataset} has no pairs yet")
+    init_version = None
+    if body.init == "active":
+        active = service.versions.active()
+        if active is None:
+            raise ConflictError("there is no active extrinsics version yet; start from init 'rig' or a transform")
+        initial, init_version, init = active.T_camera_lidar, active.number, "active"
+    elif body.init == "rig":
+        guess = dataset.rig.initial_guess or service.rig.initial_guess
+        if guess is None:
+            raise RigdError(f"neither dataset {body.dataset}'s rig.yaml nor the service's rig file has an "
+                            "initial_guess; give the transform explicitly")
+        initial, init = guess, "rig"
+    else:
+        initial, init = body.init.transform, "explicit"
+    return CalibrationPlan(body.dataset, initial, init, init_version, tuple(body.sigmas_deg), body.auto_activate)
+
+
+@router.post("/calibrate", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, dependencies=[Authorized],
+             summary="calibrate a dataset in a worker process",
+             responses={404: {"model": ErrorOut, "description": "no such dataset"},
+                        409: {"model": ErrorOut, "description": "the dataset is being captured, or init 'active' "
+                              "without an active version"},
+                        422: {"model": ErrorOut, "description": "bad request or unusable dataset"}})
+def calibrate(service: ServiceDep, body: CalibrateIn, response: Response) -> JobOut:
+    job = service.runner.submit_calibration(plan(service, body))
+    response.headers["Location"] = job_link(job)
+    return job_out(service, job)

@@ -1,0 +1,51 @@
+"""``/jobs``: captures and calibrations, their progress, logs and results; DELETE cancels."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Path, Query, status
+
+from rigd.api.deps import Authorized, ServiceDep
+from rigd.api.models import ErrorOut, JobOut
+from rigd.api.service import Service
+from rigd.store import Job, JobKind, JobStatus
+
+router = APIRouter(prefix="/jobs", tags=["jobs"])
+JobId = Annotated[int, Path(ge=1, le=2**31 - 1)]
+LOG_TAIL_LINES = 20
+
+
+def job_link(job: Job) -> str:
+    return f"/jobs/{job.id}"
+
+
+def job_out(service: Service, job: Job, tail: int = LOG_TAIL_LINES) -> JobOut:
+    link = None
+    if job.result and job.result.get("version") is not None:
+        link = f"/extrinsics/versions/{job.result['version']}"
+    elif job.kind is JobKind.CAPTURE and job.result:
+        link = f"/datasets/{job.params['dataset']}"
+    return JobOut(
+        id=job.id, kind=job.kind.value, status=job.status.value, stage=job.stage, fraction=job.fraction,
+        created_at=job.created_at, started_at=job.started_at, finished_at=job.finished_at, params=job.params,
+        result=job.result, result_link=link, error=job.error, log_tail=service.jobs.log_tail(job.id, tail),
+    )
+
+
+@router.get("", response_model=list[JobOut], summary="jobs, newest first")
+def list_jobs(service: ServiceDep, limit: Annotated[int, Query(ge=1, le=500)] = 50,
+              kind: JobKind | None = None, status: JobStatus | None = None) -> list[JobOut]:
+    return [job_out(service, job, tail=3) for job in service.jobs.list(limit, kind, status)]
+
+
+@router.get("/{job_id}", response_model=JobOut, responses={404: {"model": ErrorOut}})
+def get_job(service: ServiceDep, job_id: JobId) -> JobOut:
+    return job_out(service, service.jobs.get(job_id))
+
+
+@router.delete("/{job_id}", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, dependencies=[Authorized],
+               summary="cancel a queued or running job",
+               responses={404: {"model": ErrorOut}, 409: {"model": ErrorOut, "description": "already finished"}})
+def cancel_job(service: ServiceDep, job_id: JobId) -> JobOut:
+    return job_out(service, service.runner.cancel(job_id))

@@ -1,0 +1,292 @@
+"""Runs jobs: calibrations one at a time in a worker process, captures in a thread; records everything.
+
+The runner owns the decisions that must not race: starting a queued job, cancelling it, and refusing a
+second capture while the sensors are in use. Errors are store errors (never HTTP ones).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import queue
+import subprocess
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from calib.geometry import Transform
+from rigd.dataset.records import transform_to_yaml
+from rigd.store import (
+    Change,
+    ConflictError,
+    Job,
+    JobKind,
+    JobStatus,
+    JobStore,
+    NewVersion,
+    VersionStore,
+)
+from rigd.store.datasets import DatasetCatalog
+
+CALIBRATION_METHOD = "kang-doh-2020-gmm-edge-alignment"
+PROGRESS_INTERVAL_S = 0.5  # progress is written at most this often (plus every change of stage)
+
+
+@dataclass(frozen=True)
+class ActivationBounds:
+    """The quality a calibration needs to be activated by ``auto_activate``."""
+
+    require_converged: bool = True
+    min_pairs: int = 6
+    max_rotation_deg: float = 5.0
+    max_translation_cm: float = 10.0
+
+    def failures(self, quality: dict[str, Any], pairs: int, change: Change | None) -> list[str]:
+        reasons = []
+        if self.require_converged and not quality.get("converged"):
+            reasons.append("the optimisation did not converge")
+        if pairs < self.min_pairs:
+            reasons.append(f"{pairs} pairs, at least {self.min_pairs} needed")
+        if change is not None and change.rotation_deg > self.max_rotation_deg:
+            reasons.append(f"rotation moved {change.rotation_deg:.2f} deg from version {change.against}, "
+                           f"more than {self.max_rotation_deg} deg")
+        if change is not None and change.translation_cm > self.max_translation_cm:
+            reasons.append(f"translation moved {change.translation_cm:.2f} cm from version {change.against}, "
+                           f"more than {self.max_translation_cm} cm")
+        return reasons
+
+
+@dataclass(frozen=True)
+class CalibrationPlan:
+    """A validated calibration request: the dataset and the resolved initial guess."""
+
+    dataset_id: str
+    initial: Transform
+    init: str  # active | rig | explicit
+    init_version: int | None
+    sigmas_deg: tuple[float, ...]
+    auto_activate: bool
+
+    def params(self) -> dict[str, Any]:
+        return {"dataset": self.dataset_id, "init": self.init, "init_version": self.init_version,
+                "initial": transform_to_yaml(self.initial), "sigmas_deg": list(self.sigmas_deg),
+                "auto_activate": self.auto_activate}
+
+
+class _Throttle:
+    def __init__(self) -> None:
+        self.stage = ""
+        self.last = 0.0
+
+    def due(self, stage: str) -> bool:
+        now = time.monotonic()
+        if stage != self.stage or now - self.last >= PROGRESS_INTERVAL_S:
+            self.stage, self.last = stage, now
+            return True
+        return False
+
+
+class JobRunner:
+    def __init__(self, jobs: JobStore, versions: VersionStore, datasets: DatasetCatalog, bounds: ActivationBounds,
+                 code_version: str) -> None:
+        self.jobs = jobs
+        self.versions = versions
+        self.datasets = datasets
+        self.bounds = bounds
+        self.code_version = code_version
+        self._lock = threading.RLock()
+        self._queue: queue.Queue[int | None] = queue.Queue()
+        self._procs: dict[int, subprocess.Popen[str]] = {}
+        self._cancelled: set[int] = set()
+        self._captures: dict[int, tuple[str, threading.Event, threading.Thread]] = {}
+        self._stopping = False
+        self._thread = threading.Thread(target=self._calibration_loop, name="rigd-calibrations", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    # -- calibration --------------------------------------------------------------------------------------------
+    def submit_calibration(self, plan: CalibrationPlan) -> Job:
+        if plan.dataset_id in self.capturing():
+            raise ConflictError(f"dataset {plan.dataset_id} is being captured; calibrate it when the capture ends")
+        job = self.jobs.create(JobKind.CALIBRATE, plan.params())
+        self.jobs.log(job.id, f"queued: calibrate dataset {plan.dataset_id} from {plan.init} guess")
+        self._queue.put(job.id)
+        return job
+
+    def _calibration_loop(self) -> None:
+        while (job_id := self._queue.get()) is not None:
+            with self._lock:
+                job = self.jobs.get(job_id)
+                if job.status is not JobStatus.QUEUED or self._stopping:
+                    continue
+                job = self.jobs.start(job_id, "starting the worker")
+            try:
+                self._run_calibration(job)
+            except Exception as exc:  # a bug must fail its job, not stop every later calibration
+                self.jobs.log(job.id, traceback.format_exc())
+                self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"internal error: {exc!r}")
+
+    def _run_calibration(self, job: Job) -> None:
+        params = job.params
+        out_dir = self.jobs.job_dir(job.id) / "calibration"
+        payload = {"dataset": str(self.datasets.path(params["dataset"])), "out_dir": str(out_dir),
+                   "initial_matrix": params["initial"]["matrix"], "sigmas_deg": params["sigmas_deg"]}
+        with (self.jobs.job_dir(job.id) / "job.log").open("a") as stderr, self._lock:
+            proc = subprocess.Popen([sys.executable, "-m", "rigd.api.worker"], stdin=subprocess.PIPE,
+                                    stdout=subprocess.PIPE, stderr=stderr, text=True)
+            self._procs[job.id] = proc
+            if job.id in self._cancelled or self._stopping:
+                proc.terminate()
+        assert proc.stdin is not None and proc.stdout is not None
+        with contextlib.suppress(BrokenPipeError):  # terminated before it read the job: its exit code tells
+            proc.stdin.write(json.dumps(payload) + "\n")
+            proc.stdin.flush()
+        result, error = self._follow_worker(job.id, proc.stdout)
+        proc.stdin.close()
+        code = proc.wait()
+        with self._lock:
+            del self._procs[job.id]
+            cancelled = job.id in self._cancelled
+        if cancelled:
+            self.jobs.finish(job.id, JobStatus.CANCELLED, "cancelled")
+        elif self._stopping:
+            self.jobs.finish(job.id, JobStatus.FAILED, "interrupted", error="interrupted: the service stopped")
+        elif result is not None:
+            self._store_result(job, result)
+        else:
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed",
+                             error=error or f"the calibration worker exited with code {code} (see the job log)")
+
+    def _follow_worker(self, job_id: int, stdout: Any) -> tuple[dict[str, Any] | None, str | None]:
+        throttle = _Throttle()
+        result, error = None, None
+        for line in stdout:
+            try:
+                message = json.loads(line)
+            except json.JSONDecodeError:
+                self.jobs.log(job_id, f"worker: {line}")
+                continue
+            kind = message.get("type")
+            if kind == "progress" and throttle.due(message["stage"]):
+                self.jobs.progress(job_id, message["stage"], float(message["fraction"]))
+            elif kind == "log":
+                self.jobs.log(job_id, message["line"])
+            elif kind == "result":
+                result = message
+            elif kind == "error":
+                error = message["message"]
+                self.jobs.log(job_id, f"error: {error}")
+        return result, error
+
+    def _store_result(self, job: Job, result: dict[str, Any]) -> None:
+        params, report = job.params, result["report"]
+        pairs = result["pair_numbers"]
+        quality = {**report["quality"], "pairs_used": len(pairs)}
+        if "error_vs_ground_truth" in report:
+            quality["error_vs_ground_truth"] = report["error_vs_ground_truth"]
+        decision: dict[str, Any] = {"requested": params["auto_activate"]}
+
+        def policy(change: Change | None) -> bool:
+            decision["failed_checks"] = self.bounds.failures(quality, len(pairs), change)
+            return bool(params["auto_activate"] and not decision["failed_checks"])
+
+        new = NewVersion(
+            T_camera_lidar=Transform.from_matrix(np.asarray(result["matrix"])),
+            quality=quality,
+            method=CALIBRATION_METHOD,
+            parameters={**params, "pair_numbers": pairs, "change_from_initial": report["change_from_initial"]},
+            code_version=self.code_version,
+            dataset_id=params["dataset"],
+            dataset_hash=result["dataset_hash"],
+            job_id=job.id,
+        )
+        version = self.versions.add(new, policy)
+        self.jobs.log(job.id, f"stored extrinsics version {version.number} ({version.status.value})")
+        self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result={
+            "version": version.number,
+            "status": version.status.value,
+            "change": asdict(version.change) if version.change else None,
+            "auto_activate": decision,
+        })
+
+    # -- captures -----------------------------------------------------------------------------------------------
+    def capturing(self) -> set[str]:
+        """Ids of the datasets being captured now."""
+        with self._lock:
+            return {dataset for dataset, _, _ in self._captures.values()}
+
+    def submit_capture(self, dataset_id: str, params: dict[str, Any],
+                       work: Callable[[Job, threading.Event], dict[str, Any]]) -> Job:
+        """Start ``work(job, stop)`` in a thread; ConflictError while another capture holds the sensors."""
+        with self._lock:
+            if self._stopping:
+                raise ConflictError("the service is stopping")
+            busy = self.jobs.unfinished(JobKind.CAPTURE)
+            if busy:
+                raise ConflictError(f"the sensors are in use by capture job {busy[0].id}")
+            job = self.jobs.create(JobKind.CAPTURE, {"dataset": dataset_id, **params})
+            job = self.jobs.start(job.id, "opening the sensors")
+            stop = threading.Event()
+            thread = threading.Thread(target=self._run_capture, args=(job, stop, work), name=f"rigd-capture-{job.id}",
+                                      daemon=True)
+            self._captures[job.id] = (dataset_id, stop, thread)
+        thread.start()
+        return job
+
+    def _run_capture(self, job: Job, stop: threading.Event, work: Callable[[Job, threading.Event], dict[str, Any]]
+                     ) -> None:
+        try:
+            result = work(job, stop)
+            if job.id in self._cancelled:
+                self.jobs.finish(job.id, JobStatus.CANCELLED, "cancelled", result=result)
+            elif self._stopping:
+                self.jobs.finish(job.id, JobStatus.FAILED, "interrupted", result=result,
+                                 error="interrupted: the service stopped")
+            else:
+                self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result=result)
+        except Exception as exc:  # sensor and dataset errors, and bugs: the job fails with the reason
+            self.jobs.log(job.id, traceback.format_exc())
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=str(exc) or repr(exc))
+        finally:
+            with self._lock:
+                del self._captures[job.id]
+
+    # -- cancel, stop -------------------------------------------------------------------------------------------
+    def cancel(self, job_id: int) -> Job:
+        with self._lock:
+            job = self.jobs.get(job_id)
+            if job.status.finished:
+                raise ConflictError(f"job {job_id} has already {job.status.value}")
+            if job.status is JobStatus.QUEUED:
+                self.jobs.log(job_id, "cancelled while queued")
+                return self.jobs.finish(job_id, JobStatus.CANCELLED, "cancelled")
+            self._cancelled.add(job_id)
+            self.jobs.progress(job_id, "cancelling", job.fraction)
+            self.jobs.log(job_id, "cancel requested")
+            if job_id in self._procs:
+                self._procs[job_id].terminate()
+            if job_id in self._captures:
+                self._captures[job_id][1].set()
+            return self.jobs.get(job_id)
+
+    def shutdown(self, timeout_s: float = 20.0) -> None:
+        """Stop the worker and captures; what was running is recorded as failed (interrupted)."""
+        with self._lock:
+            self._stopping = True
+            for proc in self._procs.values():
+                proc.terminate()
+            for _, stop, _ in self._captures.values():
+                stop.set()
+            threads = [t for _, _, t in self._captures.values()]
+        self._queue.put(None)
+        for thread in (self._thread, *threads):
+            if thread.is_alive():
+                thread.join(timeout_s)
+        self.jobs.fail_unfinished("interrupted: the service stopped")

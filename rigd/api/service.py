@@ -1,0 +1,98 @@
+"""The service's parts wired together: database, stores, job runner and sensor monitor, and their start/stop."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+from rigd.api.models import LidarStatus
+from rigd.api.runner import ActivationBounds, JobRunner
+from rigd.api.sensors import SensorMonitor
+from rigd.api.settings import RigSetup, Settings, load_rig_setup
+from rigd.store import Database, JobStore, VersionStore
+from rigd.store.datasets import DatasetCatalog
+from rigd.store.db import utc_now
+
+
+def software_version() -> str:
+    try:
+        return version("rigd")
+    except PackageNotFoundError:  # running from a source tree that was never installed
+        return "unknown"
+
+
+@dataclass
+class CaptureFigures:
+    """The LiDAR figures a running capture reports, shown by GET /status while it holds the sensors."""
+
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    current: LidarStatus | None = None
+
+    def set(self, status: LidarStatus | None) -> None:
+        with self.lock:
+            self.current = status
+
+    def get(self) -> LidarStatus | None:
+        with self.lock:
+            return self.current
+
+
+@dataclass
+class Service:
+    settings: Settings
+    rig: RigSetup
+    db: Database
+    versions: VersionStore
+    jobs: JobStore
+    datasets: DatasetCatalog
+    runner: JobRunner
+    sensors: SensorMonitor
+    capture_figures: CaptureFigures
+    software_version: str
+    started_at: str
+
+    @property
+    def data_dir(self) -> Path:
+        return self.settings.data_dir
+
+    def start(self) -> None:
+        self.runner.start()
+        self.sensors.start()
+
+    def stop(self) -> None:
+        self.runner.shutdown()
+        self.sensors.stop()
+        self.db.close()
+
+
+def build_service(settings: Settings) -> Service:
+    """Open the data directory; jobs left unfinished by a previous run are marked failed (interrupted)."""
+    rig = load_rig_setup(settings.config)
+    db = Database(settings.data_dir / "rigd.db")
+    jobs = JobStore(db, settings.data_dir / "jobs")
+    jobs.fail_unfinished("interrupted: the service stopped while the job was queued or running")
+    versions = VersionStore(db)
+    datasets = DatasetCatalog(settings.data_dir / "datasets")
+    code_version = software_version()
+    bounds = ActivationBounds(
+        require_converged=settings.auto_activate_require_converged,
+        min_pairs=settings.auto_activate_min_pairs,
+        max_rotation_deg=settings.auto_activate_max_rotation_deg,
+        max_translation_cm=settings.auto_activate_max_translation_cm,
+    )
+    figures = CaptureFigures()
+    return Service(
+        settings=settings,
+        rig=rig,
+        db=db,
+        versions=versions,
+        jobs=jobs,
+        datasets=datasets,
+        runner=JobRunner(jobs, versions, datasets, bounds, code_version),
+        sensors=SensorMonitor(rig.camera_source, rig.lidar_source, settings.sensor_poll_s, figures.get),
+        capture_figures=figures,
+        software_version=code_version,
+        started_at=utc_now(),
+    )

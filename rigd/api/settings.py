@@ -1,0 +1,115 @@
+"""Settings of ``rigd serve`` (pydantic-settings): arguments > ``RIGD_*`` environment > the ``service:``
+section of the rig file (``RIGD_CONFIG``) > defaults. Also the rig file's sensor sources and initial guess."""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import Field, SecretStr, ValidationError
+from pydantic_settings import BaseSettings, InitSettingsSource, PydanticBaseSettingsSource, SettingsConfigDict
+
+from calib.geometry import Transform
+from rigd.dataset import RigConfig
+from rigd.dataset.store import read_yaml_mapping
+from rigd.errors import RigdError
+
+MIN_TOKEN_LENGTH = 16
+
+
+class Settings(BaseSettings):
+    model_config = SettingsConfigDict(env_prefix="RIGD_", extra="forbid")
+
+    data_dir: Path = Field(Path("rigd-data"), description="datasets, the database and job outputs")
+    config: Path | None = Field(None, description="the rig file (/etc/rigd/rig.yaml): sources, initial guess")
+    host: str = Field("127.0.0.1", description="listen address; other than loopback it needs a token")
+    port: int = Field(8000, ge=0, le=65535, description="listen port")
+    token: SecretStr | None = Field(None, description=f"bearer token for mutating requests (>= {MIN_TOKEN_LENGTH} "
+                                    "characters); required to listen on a non-loopback address")
+    auto_activate_require_converged: bool = Field(True, description="auto_activate only a converged calibration")
+    auto_activate_min_pairs: int = Field(6, ge=1, description="auto_activate needs at least this many pairs")
+    auto_activate_max_rotation_deg: float = Field(
+        5.0, gt=0, description="auto_activate only if the rotation moved at most this far from the active version")
+    auto_activate_max_translation_cm: float = Field(
+        10.0, gt=0, description="auto_activate only if the translation moved at most this far from the active version")
+    sensor_poll_s: float = Field(10.0, ge=1.0, description="seconds between sensor checks for GET /status")
+    max_body_bytes: int = Field(65536, ge=1024, description="largest request body accepted")
+    log_level: str = Field("info", description="uvicorn log level")
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        init_kwargs = getattr(init_settings, "init_kwargs", {})
+        config = init_kwargs.get("config") or os.environ.get("RIGD_CONFIG")
+        section = service_section(Path(config)) if config else {}
+        return init_settings, env_settings, InitSettingsSource(settings_cls, init_kwargs=section)
+
+
+def service_section(config: Path) -> dict[str, Any]:
+    section = read_yaml_mapping(config).get("service") or {}
+    if not isinstance(section, dict):
+        raise RigdError(f"{config}: 'service' must be a mapping of settings, got {section!r}")
+    return section
+
+
+def load_settings(**overrides: Any) -> Settings:
+    """Settings from all sources; bad values raise RigdError naming the setting."""
+    try:
+        return Settings(**{k: v for k, v in overrides.items() if v is not None})
+    except ValidationError as exc:
+        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
+        raise RigdError(f"bad rigd serve settings: {problems}") from exc
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def check_exposure(settings: Settings) -> None:
+    """Refuse a non-loopback listen address without a token, and a short token anywhere."""
+    token = settings.token.get_secret_value() if settings.token else None
+    if token is not None and len(token) < MIN_TOKEN_LENGTH:
+        raise RigdError(f"the API token (RIGD_TOKEN) must have at least {MIN_TOKEN_LENGTH} characters")
+    if token is None and not is_loopback(settings.host):
+        raise RigdError(f"refusing to listen on {settings.host} without an API token: set RIGD_TOKEN (e.g. in "
+                        "/etc/rigd/rigd.env) or listen on 127.0.0.1")
+
+
+@dataclass(frozen=True)
+class RigSetup:
+    """What the service takes from the rig file: sensor sources, the initial guess, capture defaults."""
+
+    camera_source: str = "sim"
+    lidar_source: str = "sim"
+    initial_guess: Transform | None = None
+    capture_defaults: dict[str, Any] | None = None
+
+
+def load_rig_setup(config: Path | None) -> RigSetup:
+    if config is None:
+        return RigSetup()
+    data = read_yaml_mapping(config)
+    rig = RigConfig.from_yaml(data, str(config))
+    capture = data.get("capture") or {}
+    if not isinstance(capture, dict):
+        raise RigdError(f"{config}: 'capture' must be a mapping, got {capture!r}")
+    return RigSetup(
+        camera_source=str((data.get("camera") or {}).get("source", "sim")),
+        lidar_source=str((data.get("lidar") or {}).get("source", "sim")),
+        initial_guess=rig.initial_guess,
+        capture_defaults=capture,
+    )

@@ -1,0 +1,100 @@
+"""The calibration worker: a child process of ``rigd serve`` (``python -m rigd.api.worker``).
+
+Protocol: the parent writes one JSON line (the job) to stdin and keeps stdin open; the worker writes JSON
+lines to stdout: ``{"type": "progress", "stage", "fraction"}``, ``{"type": "log", "line"}``, and finally
+``{"type": "result", ...}`` or ``{"type": "error", "message"}``. Its stderr goes to the job log.
+
+A separate process keeps the service responsive (the GIL is not shared) and makes cancelling a running
+calibration a plain SIGTERM. When stdin reaches end of file the parent is gone (killed, crashed): the
+worker exits at once instead of finishing a job nobody will record.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import threading
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from calib.errors import CalibError
+from calib.geometry import Transform
+from drivers.errors import DriverError
+from rigd.calibration import CalibrationRequest, run_calibration
+from rigd.dataset import open_dataset
+from rigd.errors import RigdError
+from rigd.store.datasets import content_hash
+from rigd.store.jsonsafe import json_safe
+
+EXIT_PARENT_GONE = 3
+
+
+class Reporter:
+    """Writes protocol lines to the parent; levels' iterations go to the log, throttled by the parent."""
+
+    def __init__(self, out: TextIO) -> None:
+        self.out = out
+        self.levels = 1
+
+    def send(self, message: dict[str, Any]) -> None:
+        try:
+            self.out.write(json.dumps(message) + "\n")
+            self.out.flush()
+        except BrokenPipeError:
+            os._exit(EXIT_PARENT_GONE)
+
+    def progress(self, stage: str, fraction: float) -> None:
+        self.send({"type": "progress", "stage": stage, "fraction": fraction})
+        self.send({"type": "log", "line": stage})
+
+    def iteration(self, level: int, iteration: int, cost: float) -> None:
+        # Optimisation is the 0.5 .. 0.95 part of the job; within a level, iterations count towards max 100.
+        fraction = 0.5 + 0.45 * (level + min(iteration / 100.0, 1.0)) / self.levels
+        self.send({"type": "progress", "stage": f"optimising level {level + 1}/{self.levels}", "fraction": fraction})
+        self.send({"type": "log", "line": f"level {level + 1} iteration {iteration} cost {cost:.6f}"})
+
+
+def _watch_parent(stdin: TextIO) -> None:
+    """Exit when the parent closes our stdin (it died, or it cancels us)."""
+    stdin.read()
+    os._exit(EXIT_PARENT_GONE)
+
+
+def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
+    dataset = open_dataset(Path(job["dataset"]))
+    reporter.levels = len(job["sigmas_deg"])
+    reporter.progress("hashing the dataset", 0.0)
+    digest = content_hash(dataset)
+    request = CalibrationRequest(
+        dataset=dataset.root,
+        out_dir=Path(job["out_dir"]),
+        initial=Transform.from_matrix(np.asarray(job["initial_matrix"], dtype=np.float64)),
+        sigmas_deg=tuple(float(s) for s in job["sigmas_deg"]),
+    )
+    outcome = run_calibration(request, reporter.progress, reporter.iteration)
+    return {
+        "type": "result",
+        "matrix": outcome.T_camera_lidar.matrix.tolist(),
+        "report": json_safe(outcome.report),
+        "dataset_hash": digest,
+        "pair_numbers": [int(p.name) for p in dataset.pair_dirs],
+    }
+
+
+def main() -> int:
+    job = json.loads(sys.stdin.readline())
+    threading.Thread(target=_watch_parent, args=(sys.stdin,), daemon=True).start()
+    reporter = Reporter(sys.stdout)
+    try:
+        reporter.send(run_job(job, reporter))
+    except (RigdError, DriverError, CalibError) as exc:
+        reporter.send({"type": "error", "message": str(exc)})
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,36 @@
+"""The service's store: jobs and immutable extrinsics versions in SQLite (WAL) in the data directory.
+
+It raises only :mod:`rigd.store.errors` (never anything HTTP); the API maps them to status codes.
+"""
+
+from rigd.store.db import Database
+from rigd.store.errors import ConflictError, NotFoundError, StoreError
+from rigd.store.jobs import JobStore
+from rigd.store.records import (
+    Change,
+    ExtrinsicsVersion,
+    Job,
+    JobKind,
+    JobStatus,
+    NewVersion,
+    VersionStatus,
+)
+from rigd.store.versions import ActivationPolicy, VersionStore, change_between
+
+__all__ = [
+    "ActivationPolicy",
+    "Change",
+    "ConflictError",
+    "Database",
+    "ExtrinsicsVersion",
+    "Job",
+    "JobKind",
+    "JobStatus",
+    "JobStore",
+    "NewVersion",
+    "NotFoundError",
+    "StoreError",
+    "VersionStatus",
+    "VersionStore",
+    "change_between",
+]

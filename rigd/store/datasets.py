@@ -1,0 +1,80 @@
+"""Datasets of the service: directories ``DATA_DIR/datasets/ID``, referenced by id, never by a path."""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rigd.dataset import Dataset, open_dataset
+from rigd.dataset.store import read_yaml_mapping
+from rigd.errors import DatasetError
+from rigd.store.errors import NotFoundError, StoreError
+from rigd.store.jsonsafe import json_safe
+
+# Starts with a letter or digit (so never "." or ".."), no separators: always one folder below the root.
+DATASET_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
+_ID = re.compile(DATASET_ID_PATTERN)
+_HASH_CHUNK = 1 << 20
+
+
+@dataclass(frozen=True)
+class PairInfo:
+    number: int  # the pair folder's number (pairs/NNNN)
+    image: str  # file name of its image
+    meta: dict[str, Any]
+
+
+class DatasetCatalog:
+    def __init__(self, root: Path) -> None:
+        self.root = Path(root)
+
+    def path(self, dataset_id: str) -> Path:
+        """The folder of ``dataset_id`` (which need not exist yet); StoreError for a malformed id."""
+        if not _ID.fullmatch(dataset_id):
+            raise StoreError(f"dataset id {dataset_id!r} is not of the form {DATASET_ID_PATTERN}")
+        return self.root / dataset_id
+
+    def open(self, dataset_id: str) -> Dataset:
+        path = self.path(dataset_id)
+        if not (path / "rig.yaml").is_file():
+            raise NotFoundError(f"dataset {dataset_id} does not exist")
+        return open_dataset(path)
+
+    def ids(self) -> list[str]:
+        if not self.root.is_dir():
+            return []
+        return sorted(p.name for p in self.root.iterdir() if _ID.fullmatch(p.name) and (p / "rig.yaml").is_file())
+
+    def pairs(self, dataset: Dataset) -> list[PairInfo]:
+        infos = []
+        for folder in dataset.pair_dirs:
+            image = next((p.name for p in sorted(folder.glob("image.*"))), "")
+            meta_path = folder / "meta.yaml"
+            meta = read_yaml_mapping(meta_path) if meta_path.is_file() else {}
+            infos.append(PairInfo(int(folder.name), image, json_safe(meta)))
+        return infos
+
+
+def content_hash(dataset: Dataset) -> str:
+    """sha256 over rig.yaml and every complete pair's files (names and bytes), in a fixed order.
+
+    Two datasets with the same hash calibrate identically; unfinished ``.NNNN.tmp`` pairs are left out.
+    """
+    files = [dataset.root / "rig.yaml"]
+    for folder in dataset.pair_dirs:
+        files.extend(sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")))
+    digest = hashlib.sha256()
+    for path in files:
+        name = path.relative_to(dataset.root).as_posix().encode()
+        digest.update(len(name).to_bytes(4, "little") + name)
+        try:
+            digest.update(path.stat().st_size.to_bytes(8, "little"))
+            with path.open("rb") as fh:
+                while chunk := fh.read(_HASH_CHUNK):
+                    digest.update(chunk)
+        except OSError as exc:
+            raise DatasetError(f"{path}: cannot read it for the dataset hash ({exc.strerror})") from exc
+    return "sha256:" + digest.hexdigest()

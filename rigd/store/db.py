@@ -1,0 +1,149 @@
+"""The embedded SQLite database in the data directory: WAL journal, schema migrations by user_version.
+
+Writes share one connection behind a lock, each one ``BEGIN IMMEDIATE`` transaction, so a process killed
+mid-write leaves the database as it was before that transaction. Reads use a connection per thread: in WAL
+mode readers never wait for a writer (``GET /status`` stays fast while a job writes its progress).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from datetime import UTC, datetime
+from pathlib import Path
+
+from rigd.store.errors import StoreError
+
+_VERSION_COLUMNS = ("number", "created_at", "transform", "quality", "dataset_id", "dataset_hash", "method",
+                    "parameters", "code_version", "supersedes", "change", "job_id")
+
+# Migration i (1-based) brings the schema from user_version i-1 to i. Append, never edit a released one.
+MIGRATIONS: tuple[str, ...] = (
+    f"""
+    CREATE TABLE versions (
+        number INTEGER PRIMARY KEY,
+        created_at TEXT NOT NULL,
+        transform TEXT NOT NULL,
+        quality TEXT NOT NULL,
+        dataset_id TEXT,
+        dataset_hash TEXT,
+        method TEXT NOT NULL,
+        parameters TEXT NOT NULL,
+        code_version TEXT NOT NULL,
+        supersedes INTEGER REFERENCES versions(number),
+        change TEXT,
+        job_id INTEGER,
+        status TEXT NOT NULL CHECK (status IN ('candidate', 'active', 'superseded'))
+    );
+    CREATE UNIQUE INDEX versions_one_active ON versions(status) WHERE status = 'active';
+    CREATE TRIGGER versions_immutable BEFORE UPDATE OF {", ".join(_VERSION_COLUMNS)} ON versions
+    BEGIN SELECT RAISE(ABORT, 'extrinsics versions are immutable'); END;
+    CREATE TRIGGER versions_kept BEFORE DELETE ON versions
+    BEGIN SELECT RAISE(ABORT, 'extrinsics versions are never deleted'); END;
+    CREATE TABLE activations (
+        id INTEGER PRIMARY KEY,
+        version INTEGER NOT NULL REFERENCES versions(number),
+        activated_at TEXT NOT NULL
+    );
+    CREATE TABLE jobs (
+        id INTEGER PRIMARY KEY AUTOINCREMENT,
+        kind TEXT NOT NULL,
+        status TEXT NOT NULL,
+        params TEXT NOT NULL,
+        stage TEXT NOT NULL DEFAULT '',
+        fraction REAL NOT NULL DEFAULT 0,
+        created_at TEXT NOT NULL,
+        started_at TEXT,
+        finished_at TEXT,
+        result TEXT,
+        error TEXT
+    );
+    CREATE INDEX jobs_by_status ON jobs(status);
+    """,
+)
+
+
+def utc_now() -> str:
+    """Now as ISO 8601 UTC with milliseconds, e.g. ``2025-01-31T12:00:00.123+00:00``."""
+    return datetime.now(UTC).isoformat(timespec="milliseconds")
+
+
+class Database:
+    """The service's SQLite file. Use :meth:`read` for queries and :meth:`write` for transactions."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._lock = threading.RLock()
+        self._local = threading.local()
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise StoreError(f"{self.path.parent}: cannot create the data directory ({exc.strerror})") from exc
+        self._conn = self._connect(check_same_thread=False)
+        mode = self._conn.execute("PRAGMA journal_mode=WAL").fetchone()[0]
+        if mode.lower() != "wal":
+            raise StoreError(f"{self.path}: the file system does not support SQLite's WAL mode (got {mode})")
+        # FULL: a committed version survives a power cut too (the rig runs on batteries); writes are rare.
+        self._conn.execute("PRAGMA synchronous=FULL")
+        self._migrate()
+
+    def _connect(self, check_same_thread: bool) -> sqlite3.Connection:
+        try:
+            conn = sqlite3.connect(self.path, isolation_level=None, check_same_thread=check_same_thread,
+                                   timeout=10.0)
+            conn.row_factory = sqlite3.Row
+            conn.execute("PRAGMA foreign_keys=ON")
+        except sqlite3.Error as exc:
+            raise StoreError(f"{self.path}: cannot open the database ({exc})") from exc
+        return conn
+
+    def _migrate(self) -> None:
+        with self._lock:
+            current = self._conn.execute("PRAGMA user_version").fetchone()[0]
+            if current > len(MIGRATIONS):
+                raise StoreError(f"{self.path}: schema version {current} is newer than this rigd "
+                                 f"({len(MIGRATIONS)}); upgrade rigd")
+            for number in range(current + 1, len(MIGRATIONS) + 1):
+                try:
+                    # executescript commits first; the script runs as one transaction with its version bump.
+                    self._conn.executescript(f"BEGIN IMMEDIATE; {MIGRATIONS[number - 1]}; "
+                                             f"PRAGMA user_version = {number}; COMMIT;")
+                except sqlite3.Error as exc:
+                    if self._conn.in_transaction:
+                        self._conn.execute("ROLLBACK")
+                    raise StoreError(f"{self.path}: migration to schema {number} failed ({exc})") from exc
+
+    @contextmanager
+    def read(self) -> Iterator[sqlite3.Connection]:
+        """This thread's read connection (each statement sees the last committed state)."""
+        conn = getattr(self._local, "conn", None)
+        if conn is None:
+            conn = self._local.conn = self._connect(check_same_thread=True)
+        try:
+            yield conn
+        except sqlite3.Error as exc:
+            raise StoreError(f"{self.path}: query failed ({exc})") from exc
+
+    @contextmanager
+    def write(self) -> Iterator[sqlite3.Connection]:
+        """One transaction: committed when the block ends, rolled back if it raises."""
+        with self._lock:
+            try:
+                self._conn.execute("BEGIN IMMEDIATE")
+            except sqlite3.Error as exc:
+                raise StoreError(f"{self.path}: cannot start a transaction ({exc})") from exc
+            try:
+                yield self._conn
+                self._conn.execute("COMMIT")
+            except BaseException as exc:
+                self._conn.execute("ROLLBACK")
+                if isinstance(exc, sqlite3.Error):
+                    raise StoreError(f"{self.path}: write failed ({exc})") from exc
+                raise
+
+    def close(self) -> None:
+        """Close the write connection (a thread's read connection closes when the thread ends)."""
+        with self._lock:
+            self._conn.close()

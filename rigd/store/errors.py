@@ -1,0 +1,15 @@
+"""Errors of the store layer; the HTTP layer maps them to status codes (the store knows nothing of HTTP)."""
+
+from rigd.errors import RigdError
+
+
+class StoreError(RigdError):
+    """Base of the store's errors: the database file cannot be opened, migrated or written."""
+
+
+class NotFoundError(StoreError):
+    """A version, job or dataset that does not exist; the message names it."""
+
+
+class ConflictError(StoreError):
+    """The request contradicts the current state (a finished job cancelled, no active version, ...)."""

@@ -1,0 +1,117 @@
+"""Immutable extrinsics versions: store, list, activate. Exactly one is active once any exists."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sqlite3
+from collections.abc import Callable
+
+import numpy as np
+
+from calib.geometry import Transform, rotation_angle_deg
+from rigd.dataset.records import transform_to_yaml
+from rigd.store.db import Database, utc_now
+from rigd.store.errors import NotFoundError
+from rigd.store.jsonsafe import json_safe
+from rigd.store.records import Change, ExtrinsicsVersion, NewVersion, VersionStatus
+
+# Decides, inside the storing transaction, whether a new version becomes active, from its change against
+# the active one (None when there is none; the first version is always activated).
+ActivationPolicy = Callable[[Change | None], bool]
+
+_SELECT = """
+    SELECT v.*, (SELECT max(a.activated_at) FROM activations a WHERE a.version = v.number) AS activated_at
+    FROM versions v
+"""
+
+
+def change_between(active: ExtrinsicsVersion, T: Transform) -> Change:
+    A = active.T_camera_lidar
+    return Change(
+        against=active.number,
+        rotation_deg=rotation_angle_deg(A.rotation, T.rotation),
+        translation_cm=float(np.linalg.norm(T.translation_m - A.translation_m) * 100.0),
+    )
+
+
+def _row_to_version(row: sqlite3.Row) -> ExtrinsicsVersion:
+    change = json.loads(row["change"]) if row["change"] else None
+    return ExtrinsicsVersion(
+        number=row["number"],
+        created_at=row["created_at"],
+        T_camera_lidar=Transform.from_matrix(np.asarray(json.loads(row["transform"])["matrix"])),
+        quality=json.loads(row["quality"]),
+        method=row["method"],
+        parameters=json.loads(row["parameters"]),
+        code_version=row["code_version"],
+        dataset_id=row["dataset_id"],
+        dataset_hash=row["dataset_hash"],
+        job_id=row["job_id"],
+        supersedes=row["supersedes"],
+        change=Change(**change) if change else None,
+        status=VersionStatus(row["status"]),
+        activated_at=row["activated_at"],
+    )
+
+
+class VersionStore:
+    def __init__(self, db: Database) -> None:
+        self.db = db
+
+    def add(self, new: NewVersion, activate: ActivationPolicy) -> ExtrinsicsVersion:
+        """Store ``new`` as the next version; make it active if ``activate`` says so or none is active."""
+        with self.db.write() as conn:
+            active = self._active(conn)
+            change = change_between(active, new.T_camera_lidar) if active else None
+            cursor = conn.execute(
+                "INSERT INTO versions (created_at, transform, quality, dataset_id, dataset_hash, method, parameters,"
+                " code_version, supersedes, change, job_id, status) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (utc_now(), json.dumps(transform_to_yaml(new.T_camera_lidar)), json.dumps(json_safe(new.quality)),
+                 new.dataset_id, new.dataset_hash, new.method, json.dumps(json_safe(new.parameters)), new.code_version,
+                 active.number if active else None, json.dumps(dataclasses.asdict(change)) if change else None,
+                 new.job_id, VersionStatus.CANDIDATE.value),
+            )
+            number = int(cursor.lastrowid or 0)
+            if active is None or activate(change):
+                self._activate(conn, number)
+            return self._get(conn, number)
+
+    def get(self, number: int) -> ExtrinsicsVersion:
+        with self.db.read() as conn:
+            return self._get(conn, number)
+
+    def list(self) -> list[ExtrinsicsVersion]:
+        with self.db.read() as conn:
+            return [_row_to_version(r) for r in conn.execute(_SELECT + " ORDER BY v.number")]
+
+    def active(self) -> ExtrinsicsVersion | None:
+        with self.db.read() as conn:
+            return self._active(conn)
+
+    def activate(self, number: int) -> ExtrinsicsVersion:
+        """Make ``number`` the active version (the previous one becomes superseded); idempotent."""
+        with self.db.write() as conn:
+            version = self._get(conn, number)
+            if version.status is not VersionStatus.ACTIVE:
+                self._activate(conn, number)
+            return self._get(conn, number)
+
+    @staticmethod
+    def _activate(conn: sqlite3.Connection, number: int) -> None:
+        conn.execute("UPDATE versions SET status = ? WHERE status = ?",
+                     (VersionStatus.SUPERSEDED.value, VersionStatus.ACTIVE.value))
+        conn.execute("UPDATE versions SET status = ? WHERE number = ?", (VersionStatus.ACTIVE.value, number))
+        conn.execute("INSERT INTO activations (version, activated_at) VALUES (?, ?)", (number, utc_now()))
+
+    @staticmethod
+    def _get(conn: sqlite3.Connection, number: int) -> ExtrinsicsVersion:
+        row = conn.execute(_SELECT + " WHERE v.number = ?", (number,)).fetchone()
+        if row is None:
+            raise NotFoundError(f"extrinsics version {number} does not exist")
+        return _row_to_version(row)
+
+    @staticmethod
+    def _active(conn: sqlite3.Connection) -> ExtrinsicsVersion | None:
+        row = conn.execute(_SELECT + " WHERE v.status = ?", (VersionStatus.ACTIVE.value,)).fetchone()
+        return _row_to_version(row) if row else None
