@@ -145,6 +145,7 @@ class JobRunner:
             if job.id in self._cancelled or self._stopping:
                 proc.terminate()
         assert proc.stdin is not None and proc.stdout is not None
+        self.jobs.log(job.id, f"worker process {proc.pid} started")
         with contextlib.suppress(BrokenPipeError):  # terminated before it read the job: its exit code tells
             proc.stdin.write(json.dumps(payload) + "\n")
             proc.stdin.flush()
