@@ -7,6 +7,8 @@ from contextlib import asynccontextmanager
 from http import HTTPStatus
 
 from fastapi import FastAPI, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
 
@@ -17,6 +19,7 @@ from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
 from rigd.errors import DatasetError, RigdError
 from rigd.store import ConflictError, NotFoundError, StoreError
+from rigd.store.jsonsafe import json_safe
 
 # Most specific first: the first class an error is an instance of decides its status.
 ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
@@ -33,6 +36,12 @@ ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
 async def _error_response(request: Request, exc: Exception) -> JSONResponse:
     code = next(code for kind, code in ERROR_STATUS if isinstance(exc, kind))
     return JSONResponse({"detail": str(exc)}, status_code=int(code))
+
+
+async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
+    # FastAPI's own handler echoes the input, and an input NaN would make that reply invalid JSON (a 500).
+    return JSONResponse({"detail": json_safe(jsonable_encoder(exc.errors()))},
+                        status_code=int(HTTPStatus.UNPROCESSABLE_ENTITY))
 
 
 class BodyLimit:
@@ -78,6 +87,7 @@ def create_app(service: Service) -> FastAPI:
     app.state.service = service
     for kind, _ in ERROR_STATUS:
         app.add_exception_handler(kind, _error_response)
+    app.add_exception_handler(RequestValidationError, _validation_error)  # type: ignore[arg-type]
     app.add_middleware(BodyLimit, max_bytes=service.settings.max_body_bytes)
     for module in (status_routes, jobs, calibrate, datasets, extrinsics):
         app.include_router(module.router)

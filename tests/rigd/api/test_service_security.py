@@ -1,0 +1,96 @@
+"""Listen address and token, request validation and bounds, datasets only by id."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from api_helpers import REPO, Server, simulated_dataset
+
+TOKEN = "correct-horse-battery-staple"
+
+
+def serve(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "rigd", "serve", *args], capture_output=True, text=True,
+                          timeout=60, cwd=REPO, env={"PATH": "/usr/bin:/bin", **(env or {})})
+
+
+def test_refuses_a_public_address_without_a_token(tmp_path):
+    proc = serve("--host", "0.0.0.0", "--data-dir", str(tmp_path))
+    assert proc.returncode == 2
+    assert "rigd: error: refusing to listen on 0.0.0.0 without an API token" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_refuses_a_short_token_and_bad_settings(tmp_path):
+    proc = serve("--data-dir", str(tmp_path), env={"RIGD_TOKEN": "short"})
+    assert proc.returncode == 2 and "at least 16 characters" in proc.stderr
+    proc = serve("--data-dir", str(tmp_path), env={"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "zero"})
+    assert proc.returncode == 2 and "auto_activate_min_pairs" in proc.stderr
+
+
+@pytest.fixture(scope="module")
+def guarded(tmp_path_factory):
+    data = tmp_path_factory.mktemp("secure") / "data"
+    simulated_dataset(data, "ds", pairs=1)
+    server = Server(data, env={"RIGD_TOKEN": TOKEN}).start()
+    yield server
+    server.stop()
+
+
+@pytest.mark.parametrize("method, path, body", [
+    ("POST", "/calibrate", {"dataset": "ds", "init": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}}),
+    ("POST", "/extrinsics/versions", {"T_camera_lidar": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}}),
+    ("POST", "/extrinsics/versions/1/activate", None),
+    ("DELETE", "/jobs/1", None),
+])
+def test_mutating_endpoints_need_the_token(guarded, method, path, body):
+    with guarded.client() as anonymous, guarded.client("wrong-token-of-enough-length") as wrong:
+        for client in (anonymous, wrong):
+            response = client.request(method, path, json=body)
+            assert response.status_code == 401 and response.headers["WWW-Authenticate"] == "Bearer"
+
+
+def test_reading_is_open_and_the_token_admits_writes(guarded):
+    with guarded.client() as anonymous, guarded.client(TOKEN) as client:
+        assert anonymous.get("/status").status_code == 200
+        assert anonymous.get("/datasets").status_code == 200
+        created = client.post("/extrinsics/versions", json={
+            "T_camera_lidar": {"rpy_deg": [0, 15, -55], "xyz_m": [0.09, 0.06, -0.17]}, "note": "tape measure"})
+        assert created.status_code == 201 and created.headers["Location"].startswith("/extrinsics/versions/")
+        assert anonymous.get(created.headers["Location"]).json()["parameters"]["note"] == "tape measure"
+
+
+@pytest.mark.parametrize("body, field", [
+    ({"dataset": "../etc", "init": "rig"}, "dataset"),  # an id, never a path
+    ({"dataset": "/var/lib/rigd", "init": "rig"}, "dataset"),
+    ({"dataset": "ds", "init": "rig", "out_dir": "/tmp"}, "out_dir"),  # unknown keys are refused
+    ({"dataset": "ds", "init": {"rpy_deg": [0, 0], "xyz_m": [0, 0, 0]}}, "rpy_deg"),
+    ({"dataset": "ds", "init": {"matrix": [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}}, "init"),
+    ({"dataset": "ds", "sigmas_deg": [1.0] * 7}, "sigmas_deg"),
+    ({"dataset": "ds", "sigmas_deg": [-1.0]}, "sigmas_deg"),
+])
+def test_calibrate_bodies_are_validated(guarded, body, field):
+    with guarded.client(TOKEN) as client:
+        response = client.post("/calibrate", json=body)
+    assert response.status_code == 422, response.text
+    assert field in response.text
+
+
+def test_non_finite_numbers_and_oversized_bodies_are_refused(guarded):
+    with guarded.client(TOKEN) as client:
+        nan = client.post("/calibrate", content=b'{"dataset": "ds", "sigmas_deg": [NaN]}',
+                          headers={"Content-Type": "application/json"})
+        assert nan.status_code == 422
+        huge = client.post("/extrinsics/versions", content=b'{"note": "' + b"x" * 100_000 + b'"}',
+                           headers={"Content-Type": "application/json"})
+        assert huge.status_code == 413
+
+
+def test_dataset_paths_stay_inside_the_data_dir(guarded):
+    with guarded.client() as client:
+        assert client.get("/datasets/ds").status_code == 200
+        for path in ("/datasets/..%2F..%2Fetc", "/datasets/.hidden", "/datasets/" + "a" * 65):
+            assert client.get(path).status_code in (404, 422), path
+        assert client.get("/datasets/missing").status_code == 404
