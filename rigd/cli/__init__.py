@@ -12,7 +12,7 @@ from drivers.errors import DriverError
 from rigd.errors import RigdError
 
 # Each module defines register(subparsers) and sets a handler with parser.set_defaults(func=...).
-COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "evaluate", "serve")
+COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "evaluate", "serve", "capture")
 
 
 def build_parser() -> argparse.ArgumentParser:

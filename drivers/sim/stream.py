@@ -1,0 +1,161 @@
+"""The simulated rig with motion running in real time: a VLP-16 that sends real UDP packets, and a camera.
+
+:class:`LidarEmitter` scans one VLP-16 turn at a time at the rig's pose, encodes it into data packets with
+``drivers.vlp16``'s encoder and sends them with its paced sender at the sensor's own rate (754 packets/s,
+one turn per 1800 firing sequences = 99.53 ms), plus one position packet per turn (PPS absent, as a
+VLP-16 without GPS reports). Its device clock is the host clock (only microseconds past the hour are in
+the packets), as on a sensor synchronised by PTP or GPS. A turn is scanned from one pose, the rig's pose
+at the middle of the turn: there is no motion distortion within a turn (0.1 s).
+
+:class:`CameraStream` renders the panorama seen at the rig's pose at the instant the frame starts, as
+often as ``frame_period_s`` allows (rendering is slower than a real camera: see MotionRigSpec). Frames
+carry their exposure instant on the host clock and the camera's own clock (seconds since the rig
+started).
+
+Both follow one :class:`drivers.sim.motion.MotionRigSpec`; its ``start_host_s`` is time 0 of the
+trajectory, so a LiDAR emitter in one process and a camera stream in another simulate the same rig.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.sim.camera import render_panorama
+from drivers.sim.errors import SimError
+from drivers.sim.lidar import FIRINGS_PER_TURN, LidarConfig, scan
+from drivers.sim.motion import MotionRigSpec, Trajectory
+from drivers.sim.scene import Scene
+from drivers.vlp16 import PpsStatus, encode_data_packets, encode_position_packet, send_datagrams
+from drivers.vlp16.layout import HOUR_US, SEQUENCE_US
+
+TURN_S = FIRINGS_PER_TURN * SEQUENCE_US * 1e-6  # one simulated turn: 1800 firing sequences
+FIRING_AZIMUTH_DEG = 360.0 * np.arange(FIRINGS_PER_TURN) / FIRINGS_PER_TURN  # as drivers.sim.lidar fires
+START_LEAD_S = 0.2  # time 0 is set this far ahead, so the first turn is ready when it is due
+_STREAM_LIDAR, _STREAM_CAMERA = 7, 11  # random streams of the moving rig's noise
+
+
+def _require_started(spec: MotionRigSpec) -> float:
+    if spec.start_host_s is None:
+        raise SimError("the moving sim rig has no start time (start the LiDAR emitter first)")
+    return spec.start_host_s
+
+
+class LidarEmitter:
+    """Send the moving rig's VLP-16 stream to ``host``: data packets to ``data_port``, position packets to
+    ``position_port`` (None: none sent). Use as a context manager; ``spec`` holds the start time."""
+
+    def __init__(self, spec: MotionRigSpec, host: str, data_port: int, position_port: int | None = None,
+                 scene_and_trajectory: tuple[Scene, Trajectory] | None = None) -> None:
+        self.scene, self.trajectory = scene_and_trajectory or spec.build()
+        self.spec = spec
+        self.host = host
+        self.data_port = data_port
+        self.position_port = position_port
+        self.lidar = LidarConfig(range_noise_m=spec.range_noise_m)
+        self.sent = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._error: BaseException | None = None
+
+    def start(self) -> LidarEmitter:
+        if self._thread is not None:
+            raise SimError("LiDAR emitter: start() may be called once")
+        if self.spec.start_host_s is None:
+            self.spec = self.spec.started(time.time() + START_LEAD_S)
+        self._thread = threading.Thread(target=self._run, name="sim-vlp16-emitter", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+
+    def __enter__(self) -> LidarEmitter:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def error(self) -> BaseException | None:
+        """What ended the sending thread early, if anything (a socket error)."""
+        return self._error
+
+    def _run(self) -> None:
+        try:
+            self.sent = send_datagrams(self._datagrams(), self.host, speed=1.0)
+        except OSError as exc:
+            self._error = exc
+
+    def _datagrams(self) -> Iterator[tuple[float, int, bytes]]:
+        start = _require_started(self.spec)
+        first = self.turn_datagrams(0)
+        # The sender paces every datagram from the moment datagram 0 leaves: that must be time 0 itself.
+        self._stop.wait(max(0.0, start - time.time()))
+        yield from first
+        turn = 1
+        while not self._stop.is_set():
+            yield from self.turn_datagrams(turn)
+            turn += 1
+
+    def turn_datagrams(self, turn: int) -> list[tuple[float, int, bytes]]:
+        """The datagrams (host send time s, port, payload) of turn ``turn``: one position packet, 75 data packets."""
+        start = _require_started(self.spec)
+        t_turn = turn * TURN_S
+        pose_lidar = self.trajectory.pose_at(t_turn + TURN_S / 2).compose(self.spec.T_camera_lidar)
+        rng = np.random.default_rng([self.spec.seed, turn, _STREAM_LIDAR])
+        sweep = scan(self.scene, pose_lidar, rng, self.lidar)
+        packets = encode_data_packets(sweep.ranges_m, sweep.reflectivity, FIRING_AZIMUTH_DEG, start + t_turn)
+        out: list[tuple[float, int, bytes]] = []
+        if self.position_port is not None:
+            stamp_us = round((start + t_turn) * 1e6) % HOUR_US
+            out.append((start + t_turn, self.position_port, encode_position_packet(stamp_us, PpsStatus.ABSENT)))
+        out.extend((float(t), self.data_port, p.tobytes()) for t, p in zip(packets.time_s, packets.payloads,
+                                                                              strict=True))
+        return out
+
+
+@dataclass(frozen=True)
+class SimFrame:
+    """A rendered panorama ``image`` (H,W) uint8 grey, exposed at ``exposure_host_s`` (UNIX s) =
+    ``device_time_s`` (the camera's clock: s since the rig started) + the rig's start time."""
+
+    image: NDArray[np.uint8]
+    exposure_host_s: float
+    device_time_s: float
+    sequence: int
+
+
+class CameraStream:
+    """The moving rig's panorama camera; ``frames()`` renders until ``close()`` (from any thread)."""
+
+    def __init__(self, spec: MotionRigSpec, scene_and_trajectory: tuple[Scene, Trajectory] | None = None) -> None:
+        self.start_host_s = _require_started(spec)
+        self.spec = spec
+        self.scene, self.trajectory = scene_and_trajectory or spec.build()
+        self._stop = threading.Event()
+
+    def frames(self) -> Iterator[SimFrame]:
+        sequence = 0
+        while not self._stop.is_set():
+            now = time.time()
+            if now < self.start_host_s:
+                self._stop.wait(self.start_host_s - now)
+                continue
+            t = now - self.start_host_s
+            rng = np.random.default_rng([self.spec.seed, sequence, _STREAM_CAMERA])
+            image = render_panorama(self.scene, self.trajectory.pose_at(t), self.spec.width, self.spec.height, rng,
+                                    self.spec.image_noise_grey)
+            yield SimFrame(image, now, t, sequence)
+            sequence += 1
+            self._stop.wait(max(0.0, now + self.spec.frame_period_s - time.time()))
+
+    def close(self) -> None:
+        self._stop.set()

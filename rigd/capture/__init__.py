@@ -1,0 +1,31 @@
+"""The capture daemon: still, synchronised camera/LiDAR pairs at a dozen places (docs/capture.md).
+
+Used by ``rigd capture`` and the HTTP service::
+
+    from rigd.capture import CaptureRequest, run_capture
+    summary = run_capture(CaptureRequest(out=Path("ds"), n=12, lidar="udp", camera="sdk"), print, stop_event)
+"""
+
+from rigd.capture.engine import CaptureRequest, CaptureState, CaptureStatus, CaptureSummary, run_capture
+from rigd.capture.errors import (
+    CaptureError,
+    ConfigError,
+    DiskFullError,
+    SensorSilenceError,
+    SourceEndedError,
+    SourceSpecError,
+)
+
+__all__ = [
+    "CaptureError",
+    "CaptureRequest",
+    "CaptureState",
+    "CaptureStatus",
+    "CaptureSummary",
+    "ConfigError",
+    "DiskFullError",
+    "SensorSilenceError",
+    "SourceEndedError",
+    "SourceSpecError",
+    "run_capture",
+]

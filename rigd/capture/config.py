@@ -1,0 +1,164 @@
+"""The rig configuration file (``rig.yaml`` / ``/etc/rigd/rig.yaml``): sensors, initial guess, capture defaults.
+
+It is also a valid dataset ``rig.yaml`` (camera, lidar.model, initial_guess are read by
+:class:`rigd.dataset.RigConfig`); the keys only capture uses are documented in docs/configuration.md.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from calib.geometry import Transform
+from drivers.ladybug5.sdk import DEFAULT_LIBRARY
+from drivers.ladybug5.stitch import DEFAULT_RADIUS_M
+from rigd.capture.errors import ConfigError
+from rigd.dataset import CameraKind, RigConfig
+from rigd.dataset.store import read_yaml_mapping
+from rigd.errors import DatasetError
+
+CONFIG_ENV = "RIGD_CONFIG"
+SEARCH_PATHS = (Path("rig.yaml"), Path("/etc/rigd/rig.yaml"))
+DEFAULT_LAYOUT_FILE = Path("/etc/rigd/ladybug_layout.yaml")
+
+
+@dataclass(frozen=True)
+class CaptureDefaults:
+    """The ``capture:`` section: defaults of ``rigd capture``'s options (same names)."""
+
+    n: int = 12
+    still_seconds: float = 2.0
+    sweeps: int = 5
+    min_move: float = 0.5
+    silence_timeout_s: float = 5.0
+    out: Path | None = None
+
+
+@dataclass(frozen=True)
+class SdkSettings:
+    """The ``camera.sdk:`` section: what the live Ladybug5 source needs (docs/ladybug5.md)."""
+
+    layout: Path = DEFAULT_LAYOUT_FILE  # written by `rigd camera sdk-layout`
+    library: str = DEFAULT_LIBRARY
+    rig_file: Path | None = None  # None: the nominal head of drivers.ladybug5 (not a factory calibration)
+    radius_m: float = DEFAULT_RADIUS_M  # stitching sphere
+
+
+@dataclass(frozen=True)
+class RigSettings:
+    """What capture takes from the rig file; ``path`` is None when no file was found (built-in defaults)."""
+
+    path: Path | None = None
+    width: int = 2048
+    height: int = 1024
+    camera_source: str = "sdk"
+    lidar_model: str = "VLP-16"
+    lidar_source: str = "udp"
+    initial_guess: Transform | None = None
+    sdk: SdkSettings = field(default_factory=SdkSettings)
+    capture: CaptureDefaults = field(default_factory=CaptureDefaults)
+
+
+def find_config(explicit: Path | None = None) -> Path | None:
+    """``explicit`` (must exist), else ``$RIGD_CONFIG`` (must exist), else ./rig.yaml, else /etc/rigd/rig.yaml."""
+    if explicit is not None:
+        if not Path(explicit).is_file():
+            raise ConfigError(f"{explicit}: rig configuration file does not exist")
+        return Path(explicit)
+    env = os.environ.get(CONFIG_ENV)
+    if env:
+        if not Path(env).is_file():
+            raise ConfigError(f"{env}: rig configuration file (from ${CONFIG_ENV}) does not exist")
+        return Path(env)
+    return next((p for p in SEARCH_PATHS if p.is_file()), None)
+
+
+def load_settings(path: Path | None) -> RigSettings:
+    """Read the rig file at ``path`` (None: built-in defaults); errors name the file and the key."""
+    if path is None:
+        return RigSettings()
+    where = str(path)
+    try:
+        data = read_yaml_mapping(Path(path))
+        rig = RigConfig.from_yaml(data, where) if "camera" in data else None
+    except DatasetError as exc:
+        raise ConfigError(str(exc)) from exc
+    camera = _section(data, "camera", where)
+    lidar = _section(data, "lidar", where)
+    if rig is not None and rig.camera.kind is not CameraKind.EQUIRECTANGULAR:
+        raise ConfigError(f"{where}: camera.model must be equirectangular (capture writes Ladybug5 panoramas)")
+    defaults = RigSettings()
+    return RigSettings(
+        path=Path(path),
+        width=rig.camera.width if rig else defaults.width,
+        height=rig.camera.height if rig else defaults.height,
+        camera_source=str(camera.get("source", defaults.camera_source)),
+        lidar_model=rig.lidar_model if rig else str(lidar.get("model", defaults.lidar_model)),
+        lidar_source=str(lidar.get("source", defaults.lidar_source)),
+        initial_guess=rig.initial_guess if rig else None,
+        sdk=_sdk(_section(camera, "sdk", f"{where}: camera"), where),
+        capture=_capture(_section(data, "capture", where), where),
+    )
+
+
+def _section(data: dict[str, Any], key: str, where: str) -> dict[str, Any]:
+    value = data.get(key) or {}
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where}: '{key}' must be a mapping, got {value!r}")
+    return value
+
+
+def _unknown(section: dict[str, Any], known: set[str], where: str) -> None:
+    unknown = set(section) - known
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)} (known: {sorted(known)})")
+
+
+def _number(section: dict[str, Any], key: str, default: float, where: str, minimum: float, strict: bool,
+            infinite: bool = False) -> float:
+    value = section.get(key, default)
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where}.{key}: not a number: {value!r}") from exc
+    bad_inf = math.isinf(number) and not infinite
+    if math.isnan(number) or bad_inf or number < minimum or (strict and number == minimum):
+        raise ConfigError(f"{where}.{key}: must be {'>' if strict else '>='} {minimum}, got {value!r}")
+    return number
+
+
+def _integer(section: dict[str, Any], key: str, default: int, where: str) -> int:
+    value = section.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ConfigError(f"{where}.{key}: must be a positive integer, got {value!r}")
+    return value
+
+
+def _capture(section: dict[str, Any], where: str) -> CaptureDefaults:
+    base = CaptureDefaults()
+    _unknown(section, set(CaptureDefaults.__dataclass_fields__), f"{where}: capture")
+    here = f"{where}: capture"
+    out = section.get("out")
+    return CaptureDefaults(
+        n=_integer(section, "n", base.n, here),
+        still_seconds=_number(section, "still_seconds", base.still_seconds, here, 0.0, strict=True),
+        sweeps=_integer(section, "sweeps", base.sweeps, here),
+        min_move=_number(section, "min_move", base.min_move, here, 0.0, strict=False),
+        silence_timeout_s=_number(section, "silence_timeout_s", base.silence_timeout_s, here, 0.0, strict=True),
+        out=Path(str(out)) if out is not None else None,
+    )
+
+
+def _sdk(section: dict[str, Any], where: str) -> SdkSettings:
+    base = SdkSettings()
+    _unknown(section, set(SdkSettings.__dataclass_fields__), f"{where}: camera.sdk")
+    rig_file = section.get("rig_file")
+    return SdkSettings(
+        layout=Path(str(section.get("layout", base.layout))),
+        library=str(section.get("library", base.library)),
+        rig_file=Path(str(rig_file)) if rig_file is not None else None,
+        radius_m=_number(section, "radius_m", base.radius_m, f"{where}: camera.sdk", 0.0, strict=True, infinite=True),
+    )

@@ -1,0 +1,396 @@
+"""The capture loop: wait until the rig stands still at a new place, take a pair, repeat until ``n`` pairs.
+
+Per complete LiDAR sweep: update the still window (rigd.capture.gate), read the camera frames received,
+then decide: not moved since the last pair -> "move to the next place"; camera or LiDAR motion -> "waiting
+for the rig to stop"; still for less than ``still_seconds`` -> "hold still"; still long enough and a
+camera frame exposed inside the window -> fuse the ``sweeps`` sweeps nearest that frame and write the
+pair atomically (rigd.dataset.write_pair). ``stop`` is looked at between sweeps and never while a pair is
+being taken, so a pair is either written whole or not begun.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import math
+import shutil
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import Enum
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from calib.geometry import Transform
+from drivers.ladybug5 import PanoramaFrame
+from drivers.sim.motion import MotionRigSpec
+from drivers.vlp16 import StreamStats, Sweep
+from rigd.capture.config import RigSettings, load_settings
+from rigd.capture.errors import CaptureError, DiskFullError, SensorSilenceError
+from rigd.capture.fuse import fuse_sweeps
+from rigd.capture.gate import FrameSample, StillnessGate, SweepSample, range_change_m, range_image, thumbnail
+from rigd.capture.sources import Sources, frame_time, open_sources
+from rigd.capture.specs import parse_camera, parse_lidar
+from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
+from rigd.dataset.store import read_yaml
+from rigd.errors import DatasetError
+
+STILL_RANGE_M = 0.05  # LiDAR: 90th-percentile range change that still counts as standing still (docs/capture.md)
+CAMERA_CHANGE_GREY = 2.5  # camera: thumbnail change that still counts as standing still (docs/capture.md)
+DEFAULT_MIN_MOVE_M = 0.5
+MOVING_SWEEPS = 3  # a window shorter than this many sweeps is motion, not the start of a stop
+SIM_STOP_MARGIN_S = 4.0  # the default simulated rig stands still_seconds + this (two 1024x512 renders)
+SIM_MOVE_S = 2.0
+STATUS_PERIOD_S = 0.5
+RECENT_SWEEPS = 100  # 10 s of sweeps kept with their points for fusing
+_POLL_S = 0.1
+
+
+@dataclass(frozen=True)
+class CaptureRequest:
+    """A capture job: ``n`` pairs in the dataset ``out`` (counting pairs already there).
+
+    Sources as in ``rigd capture`` (docs/capture.md); ``config``: the rig file for the dataset's rig.yaml
+    (camera size, initial guess) and the SDK settings; None: built-in defaults.
+    """
+
+    out: Path
+    n: int
+    lidar: str = "sim"
+    camera: str = "sim"
+    still_seconds: float = 2.0
+    sweeps: int = 5
+    min_move: float = DEFAULT_MIN_MOVE_M
+    silence_timeout_s: float = 5.0
+    config: Path | None = None
+
+
+class CaptureState(Enum):
+    STARTING = "starting"
+    WAITING_FOR_STOP = "waiting_for_stop"
+    HOLDING_STILL = "holding_still"
+    WAITING_FOR_FRAME = "waiting_for_frame"
+    NEED_MOVE = "need_move"
+    CAPTURING = "capturing"
+    CAPTURED = "captured"
+    DONE = "done"
+    STOPPED = "stopped"
+
+
+@dataclass(frozen=True)
+class CaptureStatus:
+    """Passed to the progress callback on every state change and every 0.5 s; ``state`` is a CaptureState value."""
+
+    state: str
+    pairs_done: int
+    pairs_wanted: int
+    still_for_s: float
+    packet_rate_hz: float
+    packets_lost: int
+    message: str
+
+
+@dataclass(frozen=True)
+class CaptureSummary:
+    """The pairs this run wrote (folders) and the seconds each took (from the start or the previous pair)."""
+
+    out: Path
+    pairs: tuple[Path, ...]
+    seconds_per_pair: tuple[float, ...]
+
+
+Progress = Callable[[CaptureStatus], None]
+
+
+def run_capture(request: CaptureRequest, progress: Progress | None = None,
+                stop: threading.Event | None = None) -> CaptureSummary:
+    """Capture until the dataset has ``request.n`` pairs or ``stop`` is set (then it returns between pairs)."""
+    _validate(request)
+    settings = load_settings(request.config)
+    lidar, camera = parse_lidar(request.lidar), parse_camera(request.camera)
+    out = Path(request.out)
+    existing = existing_pairs(out)
+    if len(existing) >= request.n:
+        if progress:
+            progress(CaptureStatus(CaptureState.DONE.value, len(existing), request.n, 0.0, 0.0, 0,
+                                   f"{out} already has {len(existing)} pairs"))
+        return CaptureSummary(out, (), ())
+    sim_default = MotionRigSpec(stops=request.n - len(existing) + 2, still_s=request.still_seconds + SIM_STOP_MARGIN_S,
+                                move_s=SIM_MOVE_S)
+    with contextlib.ExitStack() as stack:
+        sources = open_sources(stack, lidar, camera, settings, sim_default, places_done=len(existing))
+        return _Session(request, settings, sources, existing, progress, stop or threading.Event()).run()
+
+
+def _validate(request: CaptureRequest) -> None:
+    numbers = {"still_seconds": request.still_seconds, "min_move": request.min_move,
+               "silence_timeout_s": request.silence_timeout_s}
+    for name, value in numbers.items():
+        if not math.isfinite(value):
+            raise CaptureError(f"capture: {name} must be a finite number, got {value}")
+    checks = [
+        (request.n >= 1, f"n must be >= 1, got {request.n}"),
+        (request.still_seconds > 0, f"still_seconds must be > 0, got {request.still_seconds}"),
+        (request.sweeps >= 1, f"sweeps must be >= 1, got {request.sweeps}"),
+        (request.min_move >= 0, f"min_move must be >= 0 m, got {request.min_move}"),
+        (request.silence_timeout_s > 0, f"silence_timeout_s must be > 0, got {request.silence_timeout_s}"),
+    ]
+    for ok, message in checks:
+        if not ok:
+            raise CaptureError(f"capture: {message}")
+
+
+def existing_pairs(out: Path) -> list[Path]:
+    """Complete pairs of the dataset ``out`` in index order (a leftover ``.NNNN.tmp`` is not one)."""
+    pairs_dir = Path(out) / "pairs"
+    if not pairs_dir.is_dir():
+        return []
+    return sorted((p for p in pairs_dir.iterdir() if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
+
+
+def software_version() -> str:
+    try:
+        return version("rigd")
+    except PackageNotFoundError:  # running from a source tree that was never installed
+        return "unknown"
+
+
+class _Session:
+    """One run of the capture loop over open sources."""
+
+    def __init__(self, request: CaptureRequest, settings: RigSettings, sources: Sources, existing: list[Path],
+                 progress: Progress | None, stop: threading.Event) -> None:
+        self.request = request
+        self.settings = settings
+        self.sources = sources
+        self.out = Path(request.out)
+        self.progress = progress
+        self.stop = stop
+        self.done = len(existing)
+        self.reference = _reference_image(existing[-1]) if existing else None
+        self.gate = StillnessGate(STILL_RANGE_M, CAMERA_CHANGE_GREY)
+        self.recent: deque[tuple[SweepSample, Sweep]] = deque(maxlen=RECENT_SWEEPS)
+        self.frames: deque[tuple[float, PanoramaFrame]] = deque(maxlen=8)
+        self.rates: deque[tuple[float, float, int]] = deque(maxlen=20)  # (start, end, packets) of sweeps
+        self.stats: StreamStats | None = None
+        self.written: list[Path] = []
+        self.seconds: list[float] = []
+        self.state = CaptureState.STARTING
+        self.message = ""
+        self._last_emit = -math.inf
+        self._since = time.monotonic()
+
+    # -- loop ----------------------------------------------------------------------------------------------
+    def run(self) -> CaptureSummary:
+        self._set(CaptureState.STARTING, f"waiting for the LiDAR ({self.sources.lidar.describe}) and the camera "
+                                         f"({self.sources.camera.describe})")
+        last_data = time.monotonic()
+        while self.done < self.request.n:
+            if self.stop.is_set():
+                self._set(CaptureState.STOPPED, f"stopped after {self.done}/{self.request.n} pairs; rerun the same "
+                                                "command to continue")
+                break
+            item = self.sources.lidar.get(_POLL_S)
+            now = time.monotonic()
+            if item is None:
+                if now - last_data > self.request.silence_timeout_s:
+                    raise SensorSilenceError(self._lidar_silence(now - last_data))
+            else:
+                last_data = now
+                self.stats = item.stats
+                if item.sweep.complete:
+                    self._on_sweep(item.sweep)
+            self._check_camera()
+            self._emit(force=False)
+        else:
+            self._set(CaptureState.DONE, f"captured {self.done}/{self.request.n}: done")
+        return CaptureSummary(self.out, tuple(self.written), tuple(self.seconds))
+
+    def _on_sweep(self, sweep: Sweep) -> None:
+        xyz = np.stack([sweep.points["x"], sweep.points["y"], sweep.points["z"]], axis=1)
+        sample = SweepSample(sweep.start.device + sweep.clock_offset_s, sweep.end.device + sweep.clock_offset_s,
+                             range_image(xyz, sweep.points["ring"]))
+        self.rates.append((sample.t_start, sample.t_end, sweep.packet_count))
+        self.recent.append((sample, sweep))
+        self.gate.add_sweep(sample)
+        for frame in self.sources.camera.poll(sample.t_end):
+            t = frame_time(frame, self.sources.camera.describe)
+            self.gate.add_frame(FrameSample(t, thumbnail(frame.image)))
+            self.frames.append((t, frame))
+        self._decide(sample)
+
+    def _decide(self, sample: SweepSample) -> None:
+        gate, request = self.gate, self.request
+        moved_m = None if self.reference is None else range_change_m(self.reference, sample.image)
+        if moved_m is not None and moved_m < request.min_move:
+            self._set(CaptureState.NEED_MOVE, "move to the next place")
+            return
+        if gate.camera_saw_motion():
+            gate.restart()
+            self._set(CaptureState.WAITING_FOR_STOP, "waiting for the rig to stop (the camera sees motion)")
+            return
+        if gate.sweeps < MOVING_SWEEPS:
+            self._set(CaptureState.WAITING_FOR_STOP, "waiting for the rig to stop")
+            return
+        if gate.still_for_s < request.still_seconds or gate.sweeps < request.sweeps:
+            remaining = max(request.still_seconds - gate.still_for_s, 0.0)
+            self._set(CaptureState.HOLDING_STILL, f"hold still {remaining:.1f} s")
+            return
+        window = gate.window
+        assert window is not None
+        inside = [(t, f) for t, f in self.frames if window[0] <= t <= window[1]]
+        if not inside:
+            self._set(CaptureState.WAITING_FOR_FRAME, "hold still: waiting for a camera frame")
+            return
+        self._take_pair(*inside[-1], window, moved_m)
+
+    # -- a pair --------------------------------------------------------------------------------------------
+    def _take_pair(self, frame_t: float, frame: PanoramaFrame, window: tuple[float, float],
+                   moved_m: float | None) -> None:
+        self._set(CaptureState.CAPTURING, f"capturing pair {self.done + 1}/{self.request.n}")
+        in_window = [(s, sw) for s, sw in self.recent if s.t_start >= window[0] and s.t_end <= window[1]]
+        nearest = sorted(in_window, key=lambda x: abs(0.5 * (x[0].t_start + x[0].t_end) - frame_t))
+        chosen = sorted(nearest[: self.request.sweeps], key=lambda x: x[0].t_start)
+        cloud = fuse_sweeps([sw for _, sw in chosen])
+        meta = self._meta(frame_t, frame, chosen, cloud, window, moved_m)
+        self._ensure_rig(frame.image)
+        index = max((int(p.name) for p in existing_pairs(self.out)), default=-1) + 1
+        self._check_space(frame.image, cloud)
+        path = self._write(index, frame.image, cloud, meta)
+        now = time.monotonic()
+        self.written.append(path)
+        self.seconds.append(now - self._since)
+        self._since = now
+        self.done += 1
+        self.reference = range_image(cloud.points_lidar, cloud.ring)
+        self.gate.restart()
+        self._set(CaptureState.CAPTURED, f"captured {self.done}/{self.request.n}")
+
+    def _meta(self, frame_t: float, frame: PanoramaFrame, chosen: list[tuple[SweepSample, Sweep]], cloud: Cloud,
+              window: tuple[float, float], moved_m: float | None) -> dict[str, Any]:
+        sweeps = [sw for _, sw in chosen]
+        first, last = sweeps[0], sweeps[-1]
+        lidar_mid = 0.5 * (chosen[0][0].t_start + chosen[-1][0].t_end)
+        camera_change = self.gate.camera_change()
+        return {
+            "source": "captured",
+            "software_version": software_version(),
+            "camera": {
+                "source": self.request.camera,
+                "device_time_s": float(frame.device_time_s),
+                "host_time_s": float(frame_t),
+                "sequence_id": int(frame.sequence_id),
+                "time_base": frame.time_base.value,
+                "exposure": {"shutter_s": frame.exposure.shutter_s, "gain_db": frame.exposure.gain_db},
+            },
+            "lidar": {
+                "source": self.request.lidar,
+                "device_time_s": [float(first.start.device), float(last.end.device)],
+                "host_time_s": [float(first.start.host), float(last.end.host)],
+                "sweeps_fused": len(sweeps),
+                "points": len(cloud),
+                "rpm": float(np.median([s.rpm for s in sweeps])),
+                "packets": int(sum(s.packet_count for s in sweeps)),
+                "packets_lost": int(sum(s.missing_packets for s in sweeps)),
+                "pps": last.pps.name.lower() if last.pps is not None else None,
+                "time_source": last.time_source.value,
+            },
+            "clock_offset_s": {"camera": float(frame_t - frame.device_time_s), "lidar": float(last.clock_offset_s)},
+            "camera_minus_lidar_s": float(frame_t - lidar_mid),
+            "still_window_host_s": [float(window[0]), float(window[1])],
+            "motion": {
+                "still_seconds": self.request.still_seconds,
+                "lidar_range_change_m": float(self.gate.lidar_change_m),
+                "lidar_still_threshold_m": STILL_RANGE_M,
+                "camera_change_grey": None if camera_change is None else float(camera_change),
+                "camera_frames_in_window": len(self.gate.window_frames()),
+                "camera_still_threshold_grey": CAMERA_CHANGE_GREY,
+                "moved_since_previous_m": None if moved_m is None else float(moved_m),
+                "min_move_m": self.request.min_move,
+            },
+            "stream": {"packets_lost_total": self._packets_lost()},
+        }
+
+    def _ensure_rig(self, image: np.ndarray) -> None:
+        """Write rig.yaml (and the simulator's ground truth) with the first pair; check it on a resumed one."""
+        height, width = image.shape[:2]
+        rig_path = self.out / "rig.yaml"
+        if rig_path.is_file():
+            rig = RigConfig.from_yaml(read_yaml(rig_path), str(rig_path))
+            if (rig.camera.width, rig.camera.height) != (width, height):
+                raise DatasetError(f"{rig_path}: says {rig.camera.width}x{rig.camera.height} but the camera gives "
+                                   f"{width}x{height}: capture into a new dataset")
+            return
+        camera = CameraConfig(CameraKind.EQUIRECTANGULAR, width, height)
+        write_rig(self.out, RigConfig(camera, self.settings.lidar_model, self.settings.initial_guess))
+        spec = self.sources.sim_spec
+        if spec is not None and not (self.out / "ground_truth.yaml").is_file():
+            write_ground_truth(self.out, Transform.from_matrix(spec.T_camera_lidar.matrix))
+
+    def _check_space(self, image: np.ndarray, cloud: Cloud) -> None:
+        needed = image.nbytes + 20 * len(cloud) + (1 << 20)  # uncompressed image and cloud, and metadata
+        free = shutil.disk_usage(self.out).free
+        if free < 2 * needed:
+            raise DiskFullError(f"{self.out}: only {free / 1e6:.1f} MB free, a pair needs up to {needed / 1e6:.1f} "
+                                f"MB; free some space and rerun (the {self.done} pairs written are complete)")
+
+    def _write(self, index: int, image: np.ndarray, cloud: Cloud, meta: dict[str, Any]) -> Path:
+        try:
+            return write_pair(self.out, index, image, cloud, meta)
+        except DatasetError as exc:
+            cause = exc.__cause__
+            if isinstance(cause, OSError) and cause.errno in (errno.ENOSPC, errno.EDQUOT):
+                raise DiskFullError(f"{self.out}: disk full while writing pair {index:04d}; it was not written, the "
+                                    f"{self.done} pairs before it are complete: free some space and rerun") from exc
+            raise
+
+    # -- sensors' health and status ------------------------------------------------------------------------
+    def _lidar_silence(self, silent_s: float) -> str:
+        describe = self.sources.lidar.describe
+        if self.stats is not None and self.stats.bad_packets:
+            faults = ", ".join(f"{k.name} {v}" for k, v in self.stats.faults.items())
+            return (f"no usable VLP-16 sweep from {describe} for {silent_s:.1f} s; bad packets: {faults} "
+                    "(docs/vlp16.md, Validation)")
+        return (f"no VLP-16 data from {describe} for {silent_s:.1f} s: check the sensor's power and cable, and "
+                "that it sends to this host's address and port (deploy/network)")
+
+    def _check_camera(self) -> None:
+        silent = self.sources.camera.seconds_since_frame()
+        if silent is not None and silent > self.request.silence_timeout_s:
+            raise SensorSilenceError(f"no camera frame from {self.sources.camera.describe} for {silent:.1f} s: check "
+                                     "the camera's power and USB 3 link (rigd camera info)")
+
+    def _packets_lost(self) -> int:
+        return 0 if self.stats is None else int(self.stats.missing_packets + self.stats.overruns)
+
+    def _packet_rate(self) -> float:
+        if not self.rates:
+            return 0.0
+        latest = self.rates[-1][1]
+        recent = [r for r in self.rates if r[1] >= latest - 1.0]
+        span = latest - recent[0][0]
+        return sum(r[2] for r in recent) / span if span > 0 else 0.0
+
+    def _set(self, state: CaptureState, message: str) -> None:
+        changed = state is not self.state or state is CaptureState.CAPTURED
+        self.state, self.message = state, message
+        self._emit(force=changed or state is CaptureState.STARTING)
+
+    def _emit(self, force: bool) -> None:
+        now = time.monotonic()
+        if self.progress is None or (not force and now - self._last_emit < STATUS_PERIOD_S):
+            return
+        self._last_emit = now
+        self.progress(CaptureStatus(self.state.value, self.done, self.request.n, round(self.gate.still_for_s, 3),
+                                    round(self._packet_rate(), 1), self._packets_lost(), self.message))
+
+
+def _reference_image(pair_dir: Path) -> np.ndarray | None:
+    """The range image of a written pair's cloud: a resumed capture must move on from it too."""
+    cloud = read_pcd(pair_dir / "cloud.pcd")
+    return None if cloud.ring is None else range_image(cloud.points_lidar, cloud.ring)

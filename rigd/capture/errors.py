@@ -1,0 +1,27 @@
+"""Errors of the capture daemon; all are RigdError, so the CLI prints them and exits with code 2."""
+
+from rigd.errors import RigdError
+
+
+class CaptureError(RigdError):
+    """Base of every capture error."""
+
+
+class SourceSpecError(CaptureError):
+    """A ``--lidar`` / ``--camera`` source string (or the config file's ``source``) is not understood."""
+
+
+class ConfigError(CaptureError):
+    """The rig configuration file is missing, unreadable or has a bad value (the message names the key)."""
+
+
+class SensorSilenceError(CaptureError):
+    """A sensor sent nothing usable for longer than the silence timeout."""
+
+
+class SourceEndedError(CaptureError):
+    """A recorded source (pcap, replay directory) ran out before the dataset had all its pairs."""
+
+
+class DiskFullError(CaptureError):
+    """Not enough free space for the next pair; the pairs already written are complete."""

@@ -1,0 +1,322 @@
+"""Sensor feeds for the capture loop: the LiDAR's sweeps and the camera's panoramas, each from its own thread.
+
+A live source (UDP, the SDK, the simulated rig) is read by a thread that hands items over through a
+bounded buffer, so the capture loop never blocks on a sensor and can check its stop flag and the sensors'
+silence. Recorded sources are read as fast as the loop consumes them: a pcap through the same thread
+(the bounded queue holds it back), a camera replay directory pulled up to the LiDAR's time (both were
+recorded on one host clock).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import cv2
+
+from drivers.errors import DriverError
+from drivers.ladybug5 import (
+    DirectoryFrameSource,
+    Exposure,
+    LadybugLibrary,
+    PanoramaFrame,
+    PanoramaSpec,
+    SdkCamera,
+    SdkFrameSource,
+    SdkLayout,
+    Stitcher,
+    TimeBase,
+    default_ladybug5_rig,
+    load_rig,
+)
+from drivers.sim.motion import MotionRigSpec, load_spec
+from drivers.sim.stream import CameraStream, LidarEmitter, SimFrame
+from drivers.vlp16 import PcapReplay, Ports, StreamStats, Sweep, UdpReceiver, Vlp16Config
+from rigd.capture.config import RigSettings
+from rigd.capture.errors import CaptureError, SourceEndedError, SourceSpecError
+from rigd.capture.specs import CameraKind, CameraSpec, LidarKind, LidarSpec
+
+_POLL_S = 0.1
+_CAMERA_BUFFER = 8  # frames kept for the loop (the newest win): 0.5 s of a 15 fps camera
+_JOIN_S = 30.0  # a simulated frame may take a few seconds to finish rendering
+
+
+@dataclass(frozen=True)
+class SweepItem:
+    """A sweep and the LiDAR source's statistics right after it (taken in the thread that decodes)."""
+
+    sweep: Sweep
+    stats: StreamStats
+
+
+class LidarFeed:
+    """Iterates ``sweeps()`` in a thread; :meth:`get` hands the sweeps over. ``describe`` names the source."""
+
+    def __init__(self, describe: str, sweeps: Callable[[], Iterable[Sweep]], stats: Callable[[], StreamStats],
+                 on_close: Callable[[], None] | None = None, queue_sweeps: int = 50) -> None:
+        self.describe = describe
+        self._sweeps = sweeps
+        self._stats = stats
+        self._on_close = on_close
+        self._queue: queue.Queue[SweepItem] = queue.Queue(maxsize=queue_sweeps)
+        self._closed = threading.Event()
+        self._ended = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="capture-lidar", daemon=True)
+
+    def start(self) -> LidarFeed:
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        try:
+            for sweep in self._sweeps():
+                item = SweepItem(sweep, self._stats())
+                while not self._closed.is_set():
+                    with contextlib.suppress(queue.Full):
+                        self._queue.put(item, timeout=_POLL_S)
+                        break
+                if self._closed.is_set():
+                    return
+        except DriverError as exc:  # a bad file, a failed socket: raised again in the capture loop
+            self._error = exc
+        finally:
+            self._ended.set()
+
+    def get(self, timeout_s: float) -> SweepItem | None:
+        """The next sweep, or None after ``timeout_s``; raises what stopped the source."""
+        try:
+            return self._queue.get(timeout=timeout_s)
+        except queue.Empty:
+            if self._error is not None:
+                raise self._error from None
+            if self._ended.is_set() and self._queue.empty():
+                raise SourceEndedError(f"LiDAR source {self.describe} ended") from None
+            return None
+
+    def close(self) -> None:
+        self._closed.set()
+        if self._on_close is not None:
+            self._on_close()
+        if self._thread.is_alive():
+            self._thread.join(_JOIN_S)
+
+
+class CameraFeed(Protocol):
+    describe: str
+
+    def poll(self, until_host_s: float) -> list[PanoramaFrame]:
+        """Frames received since the last poll (recorded sources: those up to ``until_host_s``)."""
+        ...
+
+    def seconds_since_frame(self) -> float | None:
+        """Wall-clock seconds since the last frame (or since the start) for a live camera; None if recorded."""
+        ...
+
+    def close(self) -> None: ...
+
+
+class ThreadedCameraFeed:
+    """A live camera: ``frames()`` iterated in a thread; the newest frames are kept for :meth:`poll`."""
+
+    def __init__(self, describe: str, frames: Callable[[], Iterator[PanoramaFrame]],
+                 on_close: Callable[[], None] | None = None) -> None:
+        self.describe = describe
+        self._frames = frames
+        self._on_close = on_close
+        self._buffer: deque[PanoramaFrame] = deque(maxlen=_CAMERA_BUFFER)
+        self._lock = threading.Lock()
+        self._closed = threading.Event()
+        self._ended = threading.Event()
+        self._error: BaseException | None = None
+        self._last = time.monotonic()
+        self._thread = threading.Thread(target=self._run, name="capture-camera", daemon=True)
+
+    def start(self) -> ThreadedCameraFeed:
+        self._last = time.monotonic()
+        self._thread.start()
+        return self
+
+    def _run(self) -> None:
+        stream = self._frames()
+        try:
+            for frame in stream:
+                if self._closed.is_set():
+                    return
+                with self._lock:
+                    self._buffer.append(frame)
+                    self._last = time.monotonic()
+        except DriverError as exc:
+            self._error = exc
+        finally:
+            close = getattr(stream, "close", None)
+            if close is not None:
+                close()  # a generator holding the SDK camera releases it here, in its own thread
+            self._ended.set()
+
+    def poll(self, until_host_s: float) -> list[PanoramaFrame]:
+        with self._lock:
+            frames = list(self._buffer)
+            self._buffer.clear()
+        if not frames:
+            if self._error is not None:
+                raise self._error
+            if self._ended.is_set() and not self._closed.is_set():
+                raise SourceEndedError(f"camera source {self.describe} ended")
+        return frames
+
+    def seconds_since_frame(self) -> float | None:
+        with self._lock:
+            return time.monotonic() - self._last
+
+    def close(self) -> None:
+        self._closed.set()
+        if self._on_close is not None:
+            self._on_close()
+        if self._thread.is_alive():
+            self._thread.join(_JOIN_S)
+
+
+class PulledCameraFeed:
+    """A recorded camera: frames are read up to the LiDAR's host time, so the two replays stay in step."""
+
+    def __init__(self, describe: str, frames: Iterator[PanoramaFrame]) -> None:
+        self.describe = describe
+        self._frames = frames
+        self._pending: PanoramaFrame | None = None
+        self._ended = False
+
+    def poll(self, until_host_s: float) -> list[PanoramaFrame]:
+        if self._ended:
+            raise SourceEndedError(f"camera source {self.describe} has no more frames")
+        out = []
+        while True:
+            if self._pending is None:
+                self._pending = next(self._frames, None)
+                if self._pending is None:
+                    self._ended = True
+                    return out
+            if frame_time(self._pending, self.describe) > until_host_s:
+                return out
+            out.append(self._pending)
+            self._pending = None
+
+    def seconds_since_frame(self) -> float | None:
+        return None
+
+    def close(self) -> None:
+        close = getattr(self._frames, "close", None)
+        if close is not None:
+            close()
+
+
+def frame_time(frame: PanoramaFrame, describe: str) -> float:
+    """The frame's exposure on the host clock; capture cannot place a frame without it."""
+    if frame.host_time_s is None:
+        raise CaptureError(f"camera source {describe}: frame {frame.sequence_id} has no host time; capture "
+                           "needs it to match frames with LiDAR sweeps (timestamps.csv column host_time_s)")
+    return frame.host_time_s
+
+
+def sim_panorama(frame: SimFrame) -> PanoramaFrame:
+    """A simulated frame as the Ladybug5 sources give it: BGR, camera clock and host time."""
+    bgr = cv2.cvtColor(frame.image, cv2.COLOR_GRAY2BGR)
+    return PanoramaFrame(bgr, frame.device_time_s, frame.exposure_host_s, frame.sequence, Exposure(), TimeBase.CAMERA)
+
+
+@dataclass
+class Sources:
+    """The open feeds; ``sim_spec`` is the simulated rig the camera follows (None for a real camera)."""
+
+    lidar: LidarFeed
+    camera: CameraFeed
+    sim_spec: MotionRigSpec | None
+
+
+def open_sources(stack: contextlib.ExitStack, lidar: LidarSpec, camera: CameraSpec, settings: RigSettings,
+                 sim_default: MotionRigSpec, places_done: int) -> Sources:
+    """Start both feeds; everything started is closed when ``stack`` closes (also after an error).
+
+    ``sim_default`` is the rig simulated here for ``--lidar sim`` without a file. A rig simulated here
+    starts ``places_done`` places further on, so a resumed capture does not go back to places it has.
+    """
+    if lidar.kind is LidarKind.SIM:
+        if camera.kind is not CameraKind.SIM or camera.path not in (None, lidar.path):
+            raise SourceSpecError(f"--lidar {lidar}: the simulated rig's LiDAR goes with its own camera: "
+                                  "use --camera sim")
+        spec = load_spec(lidar.path) if lidar.path is not None else sim_default
+        return _sim_rig(stack, replace(spec, first_place=spec.first_place + places_done, start_host_s=None))
+    feed = _lidar_feed(stack, lidar)
+    if camera.kind is CameraKind.SIM:
+        if camera.path is None:
+            raise SourceSpecError("--camera sim follows the rig simulated in this process (--lidar sim); to follow "
+                                  "a simulated rig emitting elsewhere give its file: --camera sim:FILE")
+        spec = load_spec(camera.path)
+        if spec.start_host_s is None:
+            raise SourceSpecError(f"--camera {camera}: {camera.path} has no start_host_s: it is not the file of a "
+                                  "running simulated rig")
+        stream = CameraStream(spec)
+        return Sources(feed, _start_camera(stack, ThreadedCameraFeed(
+            str(camera), lambda: (sim_panorama(f) for f in stream.frames()), stream.close)), spec)
+    if camera.kind is CameraKind.REPLAY:
+        assert camera.path is not None
+        pulled = PulledCameraFeed(str(camera), DirectoryFrameSource(camera.path).frames())
+        stack.callback(pulled.close)
+        return Sources(feed, pulled, None)
+    return Sources(feed, _start_camera(stack, _sdk_feed(settings)), None)
+
+
+def _start_camera(stack: contextlib.ExitStack, feed: ThreadedCameraFeed) -> ThreadedCameraFeed:
+    feed.start()
+    stack.callback(feed.close)
+    return feed
+
+
+def _sim_rig(stack: contextlib.ExitStack, spec: MotionRigSpec) -> Sources:
+    """The moving simulated rig in this process: its VLP-16 sends real UDP packets to a receiver on loopback."""
+    scene_and_trajectory = spec.build()
+    receiver = UdpReceiver(Vlp16Config(), host="127.0.0.1", ports=Ports(0, 0)).start()
+    stack.callback(receiver.close)
+    emitter = LidarEmitter(spec, "127.0.0.1", receiver.ports.data, receiver.ports.position,
+                           scene_and_trajectory).start()
+    stack.callback(emitter.close)
+    describe = f"sim (udp 127.0.0.1:{receiver.ports.data})"
+    lidar = LidarFeed(describe, lambda: receiver.sweeps(timeout_s=float("inf")), lambda: receiver.stats,
+                      receiver.close).start()
+    stack.callback(lidar.close)
+    stream = CameraStream(emitter.spec, scene_and_trajectory)
+    camera = _start_camera(stack, ThreadedCameraFeed("sim", lambda: (sim_panorama(f) for f in stream.frames()),
+                                                     stream.close))
+    return Sources(lidar, camera, emitter.spec)
+
+
+def _lidar_feed(stack: contextlib.ExitStack, spec: LidarSpec) -> LidarFeed:
+    if spec.kind is LidarKind.PCAP:
+        assert spec.path is not None
+        replay = PcapReplay(spec.path, Vlp16Config())
+        feed = LidarFeed(str(spec), lambda: replay, lambda: replay.stats).start()
+    else:
+        receiver = UdpReceiver(Vlp16Config(), host=spec.host, ports=Ports(spec.data_port, spec.position_port))
+        receiver.start()
+        stack.callback(receiver.close)
+        feed = LidarFeed(str(spec), lambda: receiver.sweeps(timeout_s=float("inf")), lambda: receiver.stats,
+                         receiver.close).start()
+    stack.callback(feed.close)
+    return feed
+
+
+def _sdk_feed(settings: RigSettings) -> ThreadedCameraFeed:
+    """The live Ladybug5 through FLIR's SDK, stitched to the rig file's panorama size."""
+    sdk = settings.sdk
+    library = LadybugLibrary(SdkLayout.load(sdk.layout), sdk.library)
+    rig = load_rig(sdk.rig_file) if sdk.rig_file is not None else default_ladybug5_rig()
+    stitcher = Stitcher(rig, PanoramaSpec(settings.width, settings.height, sdk.radius_m))
+    source = SdkFrameSource(SdkCamera(library), stitcher)
+    return ThreadedCameraFeed("sdk", source.frames)
+
