@@ -1,8 +1,9 @@
 """The evaluation protocols on a dataset (docs/evaluation.md): many calibrations in parallel processes, their
 statistics (calib.evaluate), a YAML report and a plot.
 
-Each worker process extracts the dataset's edge features once, in its initializer (they are tens of MB per
-pair: sending them with every task would cost more than a calibration), then runs calibrations on them.
+Each worker process extracts the dataset's edge features once, in its initializer (with the field evaluator's
+filtered maps about 170 MB per 1024x512 pair: sending them with every task would cost more than a
+calibration), then runs calibrations on them. Memory therefore grows with --workers times the pairs.
 """
 
 from __future__ import annotations
@@ -38,6 +39,18 @@ from rigd.evaluate_plots import plot_convergence, plot_precision
 class Protocol(Enum):
     CONVERGENCE = "convergence"  # paper 8.5, Fig. 19: random starts around a reference, all pairs
     PRECISION = "precision"  # paper 8.2.2, Table 1: random subsets of pairs, one start
+
+
+class Source(Enum):
+    """Where a reference pose or a start came from."""
+
+    GROUND_TRUTH = "ground_truth"  # the dataset's ground_truth.yaml
+    CALIBRATION = "calibration"  # a calibration with all pairs from the initial guess
+    INITIAL_GUESS = "initial_guess"  # --init or rig.yaml's initial_guess
+
+    @property
+    def label(self) -> str:
+        return self.value.replace("_", " ")
 
 
 @dataclass(frozen=True)
@@ -91,7 +104,7 @@ class EvaluationOutcome:
     stats: RunStats
     runs: tuple[Run, ...]
     reference: Transform
-    reference_source: str  # "ground_truth", "calibration" (from the initial guess) or "start"
+    reference_source: Source
     report: dict[str, Any]
     yaml_path: Path
     plot_path: Path
@@ -191,7 +204,7 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     pairs = tuple(range(len(dataset)))
     with _pool(dataset, params, s.workers) as pool:
         if dataset.ground_truth is not None:
-            reference, source = dataset.ground_truth, "ground_truth"
+            reference, source = dataset.ground_truth, Source.GROUND_TRUTH
         else:
             initial = _initial(s, dataset)
             if initial is None:
@@ -200,7 +213,7 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
             (first,) = _run_all(pool, [_Task(-1, initial, pairs)], "reference calibration", s.progress)
             if first.result is None:
                 raise RigdError(f"{dataset.root}: the reference calibration failed: {first.error}")
-            reference, source = first.result, "calibration"
+            reference, source = first.result, Source.CALIBRATION
         starts = random_starts(reference, request.trials, request.rot_deg, request.trans_m, s.seed)
         runs = _run_all(pool, [_Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
@@ -217,16 +230,17 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     params = calib_params(s.sigmas_deg)
     subsets = random_subsets(len(dataset), request.size, request.subsets, s.seed)
     initial = _initial(s, dataset)
-    start, start_source = (initial, "initial_guess") if initial is not None else (dataset.ground_truth, "ground_truth")
+    start, start_source = ((initial, Source.INITIAL_GUESS) if initial is not None
+                           else (dataset.ground_truth, Source.GROUND_TRUTH))
     if start is None:
         raise RigdError(f"{dataset.root}: no initial_guess in rig.yaml and no ground_truth.yaml; give the start "
                         "with --init 'r,p,y,x,y,z'")
     with _pool(dataset, params, s.workers) as pool:
         runs = _run_all(pool, [_Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
     truth = dataset.ground_truth
-    reference, source = (truth, "ground_truth") if truth is not None else (start, "start")
+    reference, source = (truth, Source.GROUND_TRUTH) if truth is not None else (start, start_source)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
-    setup = {"subsets": request.subsets, "size": request.size, "start": start_source,
+    setup = {"subsets": request.subsets, "size": request.size, "start": start_source.value,
              "start_T_camera_lidar": transform_to_yaml(start)}
     return _finish(Protocol.PRECISION, s, dataset, params, setup, runs, stats, reference, source, started)
 
@@ -282,7 +296,7 @@ def _runs_yaml(runs: Sequence[Run], stats: RunStats, protocol: Protocol) -> list
 
 
 def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params: CalibParams,
-            setup: dict[str, Any], runs: tuple[Run, ...], stats: RunStats, reference: Transform, source: str,
+            setup: dict[str, Any], runs: tuple[Run, ...], stats: RunStats, reference: Transform, source: Source,
             started: float) -> EvaluationOutcome:
     out = Path(s.out_dir) if s.out_dir is not None else dataset.root / "evaluation"
     out.mkdir(parents=True, exist_ok=True)
@@ -290,7 +304,7 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
     if protocol is Protocol.CONVERGENCE:
         starts = parameter_values(reference, [r.start for r in runs])
         plot_convergence(plot_path, starts, stats, parameter_values(reference, [reference])[0],
-                         source.replace("_", " "))
+                         source.label)
     else:
         plot_precision(plot_path, stats)
     report: dict[str, Any] = {
@@ -298,7 +312,7 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
         "dataset": str(dataset.root),
         "pairs_in_dataset": len(dataset),
         "settings": {**setup, "seed": s.seed, "workers": s.workers, "sigmas_deg": list(params.optim.sigmas_deg)},
-        "reference": {"source": source, "T_camera_lidar": transform_to_yaml(reference)},
+        "reference": {"source": source.value, "T_camera_lidar": transform_to_yaml(reference)},
         "summary": _summary_yaml(stats, runs, with_error=dataset.ground_truth is not None),
         "wall_time_s": round(time.monotonic() - started, 2),
         "plot": plot_path.name,

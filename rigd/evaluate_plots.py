@@ -49,7 +49,8 @@ def plot_convergence(path: Path, starts: F64, stats: RunStats, reference: F64, r
         ax.axhline(ref, color="tab:blue", lw=1, label=reference_label)
         ax.set(title=title, xlabel="trial", ylabel=unit, ylim=(lo, hi))
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    axes[0].legend(loc="upper right", fontsize="small")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=4)
     fig.suptitle(f"Convergence: {stats.converged_count}/{stats.runs} runs converged ({stats.converged_percent:.1f} %)")
     fig.savefig(path, dpi=110)
 

@@ -14,6 +14,7 @@ from rigd.evaluate import (
     EvaluationOutcome,
     EvaluationSettings,
     PrecisionRequest,
+    Source,
     run_convergence,
     run_precision,
 )
@@ -102,9 +103,9 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
     s = report["settings"]
     if report["protocol"] == "convergence":
         what = (f"{s['trials']} starts within +-{s['rot_deg']} deg / +-{s['trans_m'] * 100:g} cm of the "
-                f"{outcome.reference_source.replace('_', ' ')}")
+                f"{outcome.reference_source.label}")
     else:
-        what = f"{s['subsets']} random subsets of size {s['size']}, started at the {s['start'].replace('_', ' ')}"
+        what = f"{s['subsets']} random subsets of size {s['size']}, started at the {Source(s['start']).label}"
     times = report["summary"]["calibration_time_s"]
     lines = [
         f"{report['protocol']} on {report['dataset']} ({report['pairs_in_dataset']} pairs): {what}, "
