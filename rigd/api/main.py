@@ -14,7 +14,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from calib.errors import CalibError
 from drivers.errors import DriverError
-from rigd.api.routes import calibrate, datasets, extrinsics, jobs
+from rigd.api.routes import calibrate, capture, datasets, extrinsics, jobs
 from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
 from rigd.errors import DatasetError, RigdError
@@ -89,6 +89,6 @@ def create_app(service: Service) -> FastAPI:
         app.add_exception_handler(kind, _error_response)
     app.add_exception_handler(RequestValidationError, _validation_error)  # type: ignore[arg-type]
     app.add_middleware(BodyLimit, max_bytes=service.settings.max_body_bytes)
-    for module in (status_routes, jobs, calibrate, datasets, extrinsics):
+    for module in (status_routes, jobs, capture, calibrate, datasets, extrinsics):
         app.include_router(module.router)
     return app

@@ -200,3 +200,16 @@ class StatusOut(BaseModel):
 
 class ErrorOut(BaseModel):
     detail: str
+
+
+class CaptureIn(Request):
+    """A capture into ``DATA_DIR/datasets/<dataset>``; absent numbers come from the rig file's ``capture:``."""
+
+    dataset: DatasetId | None = Field(None, description="new or existing dataset (continued at its next pair); "
+                                      "absent: capture-<UTC time>")
+    n: Annotated[int, Field(ge=1, le=200)] | None = Field(None, description="pairs the dataset should hold")
+    still_seconds: Annotated[float, Field(gt=0.0, le=60.0)] | None = None
+    sweeps: Annotated[int, Field(ge=1, le=50)] | None = None
+    min_move: Annotated[float, Field(ge=0.0, le=100.0)] | None = Field(
+        None, description="m the rig must move between pairs")
+    source: Literal["rig", "sim"] = Field("rig", description="rig: the rig file's sensors; sim: the simulated rig")

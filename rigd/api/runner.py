@@ -21,7 +21,9 @@ from typing import Any
 import numpy as np
 
 from calib.geometry import Transform
+from drivers.errors import DriverError
 from rigd.dataset.records import transform_to_yaml
+from rigd.errors import RigdError
 from rigd.store import (
     Change,
     ConflictError,
@@ -113,7 +115,7 @@ class JobRunner:
 
     # -- calibration --------------------------------------------------------------------------------------------
     def submit_calibration(self, plan: CalibrationPlan) -> Job:
-        if plan.dataset_id in self.capturing():
+        if plan.dataset_id in self.capturing():  # a capture may have started since the request was checked
             raise ConflictError(f"dataset {plan.dataset_id} is being captured; calibrate it when the capture ends")
         job = self.jobs.create(JobKind.CALIBRATE, plan.params())
         self.jobs.log(job.id, f"queued: calibrate dataset {plan.dataset_id} from {plan.init} guess")
@@ -252,9 +254,12 @@ class JobRunner:
                                  error="interrupted: the service stopped")
             else:
                 self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result=result)
-        except Exception as exc:  # sensor and dataset errors, and bugs: the job fails with the reason
+        except (RigdError, DriverError) as exc:  # sensors, rig file, disk: the job fails with the reason
+            self.jobs.log(job.id, f"failed: {exc}")
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=str(exc))
+        except Exception as exc:  # a bug: fail the job with its traceback in the log, keep the service up
             self.jobs.log(job.id, traceback.format_exc())
-            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=str(exc) or repr(exc))
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"internal error: {exc!r}")
         finally:
             with self._lock:
                 del self._captures[job.id]

@@ -8,66 +8,42 @@ capture holds the sensors the probe stands aside and the capture's own figures a
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 from drivers.errors import DriverError
 from drivers.ladybug5.usb import find_cameras, health_warnings, read_usbfs_memory_mb
-from drivers.vlp16 import POSITION_PORT, Ports, UdpReceiver
+from drivers.vlp16 import Ports, UdpReceiver
 from rigd.api.models import CameraStatus, LidarStatus
-from rigd.errors import RigdError
+from rigd.capture.specs import CameraKind, LidarKind, LidarSpec, parse_camera, parse_lidar
 from rigd.store.db import utc_now
 
 
-@dataclass(frozen=True)
-class UdpSource:
-    host: str
-    data_port: int
-    position_port: int
-
-
-def parse_udp_source(source: str) -> UdpSource | None:
-    """``udp:HOST:PORT[:POSITION_PORT]`` -> UdpSource; another kind of source -> None."""
-    kind, _, rest = source.partition(":")
-    if kind != "udp":
-        return None
-    parts = rest.split(":")
-    try:
-        ports = [int(p) for p in parts[1:]]
-    except ValueError as exc:
-        raise RigdError(f"LiDAR source {source!r}: ports must be numbers (udp:HOST:PORT[:POSITION_PORT])") from exc
-    if len(ports) not in (1, 2) or not parts[0] or not all(0 < p < 65536 for p in ports):
-        raise RigdError(f"LiDAR source {source!r} is not udp:HOST:PORT[:POSITION_PORT]")
-    return UdpSource(parts[0], ports[0], ports[1] if len(ports) == 2 else POSITION_PORT)
-
-
-def probe_lidar(source: UdpSource, listen_s: float) -> LidarStatus:
+def probe_lidar(source: LidarSpec, listen_s: float) -> LidarStatus:
     """Listen ``listen_s`` seconds to the LiDAR's UDP ports and report what arrived."""
-    name = f"udp:{source.host}:{source.data_port}"
+    name = str(source)
     try:
         with UdpReceiver(host=source.host, ports=Ports(source.data_port, source.position_port)) as receiver:
-            started = time.monotonic()
-            for _ in receiver.sweeps(timeout_s=listen_s):
-                continue  # only the stream statistics matter here
-            elapsed = time.monotonic() - started
+            sweeps = list(receiver.sweeps(timeout_s=listen_s))
             stats = receiver.stats
     except DriverError as exc:
         return LidarStatus(source=name, state="error", checked_at=utc_now(), message=str(exc))
     if stats.data_packets == 0:
         return LidarStatus(source=name, state="silent", packet_rate_hz=0.0, checked_at=utc_now(),
                            message=f"no data packet in {listen_s:.1f} s")
+    # The rate over the time the packets arrived in (host clock), not the listening window, which the
+    # stream may have started or stopped inside of.
+    span_s = sweeps[-1].end.host - sweeps[0].start.host if sweeps else 0.0
+    rate = (stats.data_packets - 1) / span_s if span_s > 0 else None
     return LidarStatus(
-        source=name, state="ok", packet_rate_hz=stats.data_packets / elapsed,
+        source=name, state="ok", packet_rate_hz=rate,
         packets_lost=stats.missing_packets + stats.overruns,
         pps=stats.pps.name.lower() if stats.pps is not None else None, checked_at=utc_now(),
         message=f"{stats.bad_packets} bad packets" if stats.bad_packets else "")
 
 
 def probe_camera(source: str) -> CameraStatus:
-    if source != "sdk":
-        kind = "simulated" if source == "sim" else "replay"
-        return CameraStatus(source=source, checked_at=utc_now(), message=f"{kind} camera: no USB device is used")
+    if parse_camera(source).kind is not CameraKind.SDK:
+        return CameraStatus(source=source, checked_at=utc_now(), message="no USB camera is used by this source")
     try:
         cameras, unidentified = find_cameras()
     except DriverError as exc:
@@ -87,7 +63,8 @@ class SensorMonitor:
                  capture_figures: Callable[[], LidarStatus | None], listen_s: float = 1.0) -> None:
         self.camera_source = camera_source
         self.lidar_source = lidar_source
-        self.udp = parse_udp_source(lidar_source)
+        spec = parse_lidar(lidar_source)
+        self.udp = spec if spec.kind is LidarKind.UDP else None
         self.poll_s = poll_s
         self.listen_s = listen_s
         self.capture_figures = capture_figures
@@ -101,7 +78,7 @@ class SensorMonitor:
     def _passive_state(self) -> str:
         if self.udp is not None:
             return "unknown"
-        return "simulated" if self.lidar_source == "sim" else "replay"
+        return "simulated" if parse_lidar(self.lidar_source).kind is LidarKind.SIM else "replay"
 
     def start(self) -> None:
         self._thread.start()

@@ -10,7 +10,8 @@ from pathlib import Path
 from rigd.api.models import LidarStatus
 from rigd.api.runner import ActivationBounds, JobRunner
 from rigd.api.sensors import SensorMonitor
-from rigd.api.settings import RigSetup, Settings, load_rig_setup
+from rigd.api.settings import Settings
+from rigd.capture.config import RigSettings, load_settings
 from rigd.store import Database, JobStore, VersionStore
 from rigd.store.datasets import DatasetCatalog
 from rigd.store.db import utc_now
@@ -42,7 +43,7 @@ class CaptureFigures:
 @dataclass
 class Service:
     settings: Settings
-    rig: RigSetup
+    rig: RigSettings
     db: Database
     versions: VersionStore
     jobs: JobStore
@@ -69,7 +70,7 @@ class Service:
 
 def build_service(settings: Settings) -> Service:
     """Open the data directory; jobs left unfinished by a previous run are marked failed (interrupted)."""
-    rig = load_rig_setup(settings.config)
+    rig = load_settings(settings.config)
     db = Database(settings.data_dir / "rigd.db")
     jobs = JobStore(db, settings.data_dir / "jobs")
     jobs.fail_unfinished("interrupted: the service stopped while the job was queued or running")

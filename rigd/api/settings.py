@@ -1,19 +1,17 @@
 """Settings of ``rigd serve`` (pydantic-settings): arguments > ``RIGD_*`` environment > the ``service:``
-section of the rig file (``RIGD_CONFIG``) > defaults. Also the rig file's sensor sources and initial guess."""
+section of the rig file (``RIGD_CONFIG``) > defaults. The rest of the rig file (sensor sources, initial guess,
+capture defaults) is read by :func:`rigd.capture.config.load_settings`, as ``rigd capture`` reads it."""
 
 from __future__ import annotations
 
 import ipaddress
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from pydantic import Field, SecretStr, ValidationError
 from pydantic_settings import BaseSettings, InitSettingsSource, PydanticBaseSettingsSource, SettingsConfigDict
 
-from calib.geometry import Transform
-from rigd.dataset import RigConfig
 from rigd.dataset.store import read_yaml_mapping
 from rigd.errors import RigdError
 
@@ -87,29 +85,3 @@ def check_exposure(settings: Settings) -> None:
     if token is None and not is_loopback(settings.host):
         raise RigdError(f"refusing to listen on {settings.host} without an API token: set RIGD_TOKEN (e.g. in "
                         "/etc/rigd/rigd.env) or listen on 127.0.0.1")
-
-
-@dataclass(frozen=True)
-class RigSetup:
-    """What the service takes from the rig file: sensor sources, the initial guess, capture defaults."""
-
-    camera_source: str = "sim"
-    lidar_source: str = "sim"
-    initial_guess: Transform | None = None
-    capture_defaults: dict[str, Any] | None = None
-
-
-def load_rig_setup(config: Path | None) -> RigSetup:
-    if config is None:
-        return RigSetup()
-    data = read_yaml_mapping(config)
-    rig = RigConfig.from_yaml(data, str(config))
-    capture = data.get("capture") or {}
-    if not isinstance(capture, dict):
-        raise RigdError(f"{config}: 'capture' must be a mapping, got {capture!r}")
-    return RigSetup(
-        camera_source=str((data.get("camera") or {}).get("source", "sim")),
-        lidar_source=str((data.get("lidar") or {}).get("source", "sim")),
-        initial_guess=rig.initial_guess,
-        capture_defaults=capture,
-    )

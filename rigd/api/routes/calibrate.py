@@ -17,6 +17,8 @@ router = APIRouter(tags=["calibrate"])
 
 def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
     """Check the dataset and resolve the initial guess now, so a bad request fails before it is queued."""
+    if body.dataset in service.runner.capturing():
+        raise ConflictError(f"dataset {body.dataset} is being captured; calibrate it when the capture ends")
     dataset = service.datasets.open(body.dataset)
     if len(dataset) == 0:
         raise RigdError(f"dataset {body.dataset} has no pairs yet")

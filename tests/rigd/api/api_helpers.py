@@ -13,6 +13,7 @@ from typing import Any
 
 import httpx
 import numpy as np
+import yaml
 
 from rigd.dataset import open_dataset
 from rigd.simulate import write_simulated_dataset
@@ -40,13 +41,35 @@ def perturbed_truth(dataset: Path, rpy_deg: tuple[float, float, float] = (1.0, -
     return {"rpy_deg": (truth.rpy_deg + rpy_deg).tolist(), "xyz_m": (truth.translation_m + xyz_m).tolist()}
 
 
+# The sim rig's T_camera_lidar (drivers.sim.rig.PAPER_T_CAMERA_LIDAR) off by 1.7 deg and 3.5 cm.
+RIG_GUESS = {"rpy_deg": [0.82, 14.47, -54.14], "xyz_m": [0.1134, 0.0397, -0.1459]}
+
+
+def rig_file(path: Path, lidar: str | None = None) -> Path:
+    """A rig file for the simulated rig (small panoramas, short stops; its file beside ``path``) with a
+    perturbed initial guess and quick captures; ``lidar`` replaces the LiDAR source."""
+    sim = path.with_name(f"{path.stem}-sim.yaml")
+    sim.write_text(yaml.safe_dump({"scene": "indoor", "seed": 5, "stops": 6, "still_s": 2.5, "move_s": 1.0,
+                                   "width": 256, "height": 128}))
+    camera = "sim" if lidar else f"sim:{sim}"
+    path.write_text(yaml.safe_dump({
+        "camera": {"model": "equirectangular", "width": 256, "height": 128, "source": camera},
+        "lidar": {"model": "VLP-16", "source": lidar or f"sim:{sim}"},
+        "initial_guess": RIG_GUESS,
+        "capture": {"n": 2, "still_seconds": 0.5, "sweeps": 2},
+    }))
+    return path
+
+
 class Server:
-    """``python -m rigd serve`` as a child process with its own data directory and RIGD_* environment."""
+    """``python -m rigd serve`` as a child process with its own data directory and RIGD_* environment; its rig
+    file is :func:`rig_file`'s unless ``env`` names another (RIGD_CONFIG)."""
 
     def __init__(self, data_dir: Path, env: dict[str, str] | None = None, args: tuple[str, ...] = ()) -> None:
         self.data_dir = Path(data_dir)
         self.env = {k: v for k, v in os.environ.items() if not k.startswith("RIGD_")}
-        self.env.update({"RIGD_DATA_DIR": str(self.data_dir), **(env or {})})
+        config = rig_file(self.data_dir.parent / f"{self.data_dir.name}-rig.yaml")
+        self.env.update({"RIGD_DATA_DIR": str(self.data_dir), "RIGD_CONFIG": str(config), **(env or {})})
         self.args = args
         self.proc: subprocess.Popen[bytes] | None = None
         self.port = 0

@@ -1,27 +1,26 @@
-"""The service end to end over HTTP: dataset -> calibrate -> job polling -> versions -> activate -> export,
-field recalibration from the active version, and a restart that keeps versions and jobs."""
+"""The service end to end over HTTP: capture (simulated rig) -> calibrate -> job polling -> versions ->
+activate -> export, field recalibration from the active version, and a restart that keeps versions and jobs."""
 
 from __future__ import annotations
 
 import json
 import signal
+import time
 
 import cv2
 import numpy as np
 import pytest
 import yaml
-from api_helpers import Server, matrix, perturbed_truth, simulated_dataset, wait_job
+from api_helpers import RIG_GUESS, Server, matrix, wait_job
 from scipy.spatial.transform import Rotation
 
-from rigd.dataset import open_dataset
+from calib.geometry import Transform
 
 
 @pytest.fixture(scope="module")
-def served(tmp_path_factory):
-    data = tmp_path_factory.mktemp("flow") / "data"
-    dataset = simulated_dataset(data, "indoor-a")
-    server = Server(data, env={"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "2"}).start()
-    yield server, dataset
+def server(tmp_path_factory):
+    server = Server(tmp_path_factory.mktemp("flow") / "data", env={"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "2"}).start()
+    yield server
     if server.proc is not None and server.proc.poll() is None:
         server.stop()
 
@@ -35,17 +34,43 @@ def calibrate(client, body):
     return wait_job(client, job["id"])
 
 
-def test_calibrate_then_version_activate_export_and_restart(served):
-    server, dataset = served
-    truth = open_dataset(dataset).ground_truth
+def capture(client):
+    """Capture 2 pairs from the simulated rig (the rig file's sources) into dataset "field"."""
+    response = client.post("/capture", json={"dataset": "field", "n": 2, "still_seconds": 0.5})
+    assert response.status_code == 202, response.text
+    job = response.json()
+    assert response.headers["Location"] == f"/jobs/{job['id']}" and job["kind"] == "capture"
+    # The sensors are taken: a second capture is refused, the first one shows in the status.
+    assert client.post("/capture", json={"dataset": "other"}).status_code == 409
+    status = client.get("/status").json()
+    assert [j["id"] for j in status["running_jobs"]] == [job["id"]]
+    assert status["sensors"]["lidar"]["source"].startswith("sim:")
+    # Once its rig.yaml is written the dataset is listed, and cannot be calibrated until complete.
+    while (listed := client.get("/datasets").json()) == [] and client.get(f"/jobs/{job['id']}").json()[
+            "status"] == "running":
+        time.sleep(0.1)
+    if listed and listed[0]["capturing"]:
+        assert client.post("/calibrate", json={"dataset": "field", "init": "rig"}).status_code == 409
+    done = wait_job(client, job["id"])
+    assert done["status"] == "succeeded", done
+    assert done["result"]["pairs_written"] == 2 and done["result_link"] == "/datasets/field"
+    again = client.post("/capture", json={"dataset": "field", "n": 2})  # the sensors are free again ...
+    assert again.status_code == 202
+    assert wait_job(client, again.json()["id"])["result"]["pairs_written"] == 0  # ... and the dataset complete
+    return done
+
+
+def test_capture_calibrate_version_activate_export_and_restart(server):
     with server.client() as client:
-        listed = client.get("/datasets").json()
-        assert [d["id"] for d in listed] == ["indoor-a"] and listed[0]["pair_count"] == 2
-        assert [p["number"] for p in client.get("/datasets/indoor-a").json()["pairs"]] == [0, 1]
+        capture(client)
+        dataset = client.get("/datasets/field").json()
+        assert dataset["pair_count"] == 2 and [p["number"] for p in dataset["pairs"]] == [0, 1]
+        assert np.allclose(dataset["initial_guess"]["rpy_deg"], RIG_GUESS["rpy_deg"])  # the rig file's guess
+        truth = Transform.from_matrix(matrix(dataset["ground_truth"]))
 
         # No version yet: "active" cannot be the start.
-        assert client.post("/calibrate", json={"dataset": "indoor-a", "init": "active"}).status_code == 409
-        first = calibrate(client, {"dataset": "indoor-a", "init": perturbed_truth(dataset)})
+        assert client.post("/calibrate", json={"dataset": "field", "init": "active"}).status_code == 409
+        first = calibrate(client, {"dataset": "field", "init": "rig"})
         assert first["status"] == "succeeded", first
         assert first["fraction"] == 1.0 and first["started_at"] and first["finished_at"]
         assert any("stored extrinsics version 1" in line for line in first["log_tail"])
@@ -55,11 +80,11 @@ def test_calibrate_then_version_activate_export_and_restart(served):
         assert v1["status"] == "active" and v1["supersedes"] is None and v1["change"] is None
         R = matrix(v1["T_camera_lidar"])[:3, :3]
         assert np.degrees(Rotation.from_matrix(R.T @ truth.rotation).magnitude()) < 1.0
-        assert v1["dataset_id"] == "indoor-a" and v1["dataset_hash"].startswith("sha256:")
+        assert v1["dataset_id"] == "field" and v1["dataset_hash"].startswith("sha256:")
         assert v1["job_id"] == first["id"] and v1["code_version"]
 
         # Field recalibration from the active version: the change against it is reported.
-        second = calibrate(client, {"dataset": "indoor-a", "init": "active", "auto_activate": True})
+        second = calibrate(client, {"dataset": "field", "init": "active", "auto_activate": True})
         v2 = client.get(second["result_link"]).json()
         assert v2["parameters"]["init"] == "active" and v2["parameters"]["init_version"] == 1
         assert v2["supersedes"] == 1 and v2["change"]["against"] == 1
@@ -75,11 +100,9 @@ def test_calibrate_then_version_activate_export_and_restart(served):
         # Restarting from the optimum it found moves it little: within the default bounds (5 deg, 10 cm).
         assert v2["change"]["rotation_deg"] < 5.0 and v2["change"]["translation_cm"] < 10.0
 
-        # A simulated dataset's rig.yaml has no initial guess, nor has this service a rig file.
-        response = client.post("/calibrate", json={"dataset": "indoor-a", "init": "rig"})
-        assert response.status_code == 422 and "initial_guess" in response.json()["detail"]
         # Without auto_activate a result stays a candidate.
-        third = calibrate(client, {"dataset": "indoor-a", "init": perturbed_truth(dataset)})
+        start = {"rpy_deg": (truth.rpy_deg - 1.0).tolist(), "xyz_m": (truth.translation_m + 0.02).tolist()}
+        third = calibrate(client, {"dataset": "field", "init": start})
         assert client.get(third["result_link"]).json()["status"] == "candidate"
 
         # Activate version 1 again: it becomes the active one, the others are not.
