@@ -11,7 +11,7 @@ from typing import Any
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.store import read_yaml_mapping
 from rigd.errors import DatasetError
-from rigd.store.errors import NotFoundError, StoreError
+from rigd.store.errors import NotFoundError
 from rigd.store.jsonsafe import json_safe
 
 # Starts with a letter or digit (so never "." or ".."), no separators: always one folder below the root.
@@ -32,9 +32,9 @@ class DatasetCatalog:
         self.root = Path(root)
 
     def path(self, dataset_id: str) -> Path:
-        """The folder of ``dataset_id`` (which need not exist yet); StoreError for a malformed id."""
+        """The folder of ``dataset_id`` (which need not exist yet); a malformed id names no dataset."""
         if not _ID.fullmatch(dataset_id):
-            raise StoreError(f"dataset id {dataset_id!r} is not of the form {DATASET_ID_PATTERN}")
+            raise NotFoundError(f"dataset id {dataset_id!r} is not of the form {DATASET_ID_PATTERN}")
         return self.root / dataset_id
 
     def open(self, dataset_id: str) -> Dataset:
