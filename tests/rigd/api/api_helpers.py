@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -132,3 +133,17 @@ def wait_job(client: httpx.Client, job_id: int, timeout_s: float = 180.0) -> dic
 
 def matrix(transform: dict[str, Any]) -> np.ndarray:
     return np.asarray(transform["matrix"], dtype=np.float64)
+
+
+def worker_pid(log_tail: list[str]) -> int:
+    pids = [int(m.group(1)) for line in log_tail if (m := re.search(r"worker process (\d+) started", line))]
+    assert pids, log_tail
+    return pids[-1]
+
+
+def gone(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return True
+    return state == "Z"  # exited, waiting to be reaped by whoever adopted it

@@ -3,15 +3,13 @@ failed (interrupted) at the next start, and the orphaned calibration worker exit
 
 from __future__ import annotations
 
-import re
 import sqlite3
 import threading
 import time
-from pathlib import Path
 
 import httpx
 import numpy as np
-from api_helpers import Server, matrix, perturbed_truth, simulated_dataset
+from api_helpers import Server, gone, matrix, perturbed_truth, simulated_dataset, worker_pid
 from scipy.spatial.transform import Rotation
 
 
@@ -77,20 +75,6 @@ def test_sigkill_while_writing_versions_keeps_the_history_intact(tmp_path):
     assert len(active) == 1
     # The active one is the last acknowledged activation or a later one committed just before the kill.
     assert active[0] >= max(activated, default=1)
-
-
-def worker_pid(log_tail: list[str]) -> int:
-    pids = [int(m.group(1)) for line in log_tail if (m := re.search(r"worker process (\d+) started", line))]
-    assert pids, log_tail
-    return pids[-1]
-
-
-def gone(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except FileNotFoundError:
-        return True
-    return state == "Z"  # exited, waiting to be reaped by whoever adopted it
 
 
 def test_sigkill_during_a_calibration_marks_it_interrupted(tmp_path):
