@@ -18,10 +18,16 @@ trajectory, so a LiDAR emitter in one process and a camera stream in another sim
 
 from __future__ import annotations
 
+import contextlib
+import math
+import multiprocessing
+import os
+import signal
 import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,14 +35,14 @@ from numpy.typing import NDArray
 from drivers.sim.camera import render_panorama
 from drivers.sim.errors import SimError
 from drivers.sim.lidar import FIRINGS_PER_TURN, LidarConfig, scan
-from drivers.sim.motion import MotionRigSpec, Trajectory
-from drivers.sim.scene import Scene
+from drivers.sim.motion import MotionRigSpec
 from drivers.vlp16 import PpsStatus, encode_data_packets, encode_position_packet, send_datagrams
 from drivers.vlp16.layout import HOUR_US, SEQUENCE_US
 
 TURN_S = FIRINGS_PER_TURN * SEQUENCE_US * 1e-6  # one simulated turn: 1800 firing sequences
 FIRING_AZIMUTH_DEG = 360.0 * np.arange(FIRINGS_PER_TURN) / FIRINGS_PER_TURN  # as drivers.sim.lidar fires
 START_LEAD_S = 0.2  # time 0 is set this far ahead, so the first turn is ready when it is due
+_SCAN_ALLOWANCE_S = 0.1  # time to scan and encode a turn before it is due
 _STREAM_LIDAR, _STREAM_CAMERA = 7, 11  # random streams of the moving rig's noise
 
 
@@ -50,9 +56,8 @@ class LidarEmitter:
     """Send the moving rig's VLP-16 stream to ``host``: data packets to ``data_port``, position packets to
     ``position_port`` (None: none sent). Use as a context manager; ``spec`` holds the start time."""
 
-    def __init__(self, spec: MotionRigSpec, host: str, data_port: int, position_port: int | None = None,
-                 scene_and_trajectory: tuple[Scene, Trajectory] | None = None) -> None:
-        self.scene, self.trajectory = scene_and_trajectory or spec.build()
+    def __init__(self, spec: MotionRigSpec, host: str, data_port: int, position_port: int | None = None) -> None:
+        self.scene, self.trajectory = spec.build()
         self.spec = spec
         self.host = host
         self.data_port = data_port
@@ -96,14 +101,16 @@ class LidarEmitter:
 
     def _datagrams(self) -> Iterator[tuple[float, int, bytes]]:
         start = _require_started(self.spec)
-        first = self.turn_datagrams(0)
-        # The sender paces every datagram from the moment datagram 0 leaves: that must be time 0 itself.
-        self._stop.wait(max(0.0, start - time.time()))
+        # A sensor started before anyone listens has been turning all along: begin with the first turn not
+        # yet due (scanning it takes a few tens of ms).
+        turn = max(0, math.ceil((time.time() + _SCAN_ALLOWANCE_S - start) / TURN_S))
+        first = self.turn_datagrams(turn)
+        # The sender paces every datagram from the moment the first one leaves: that must be its own time.
+        self._stop.wait(max(0.0, start + turn * TURN_S - time.time()))
         yield from first
-        turn = 1
         while not self._stop.is_set():
-            yield from self.turn_datagrams(turn)
             turn += 1
+            yield from self.turn_datagrams(turn)
 
     def turn_datagrams(self, turn: int) -> list[tuple[float, int, bytes]]:
         """The datagrams (host send time s, port, payload) of turn ``turn``: one position packet, 75 data packets."""
@@ -136,10 +143,10 @@ class SimFrame:
 class CameraStream:
     """The moving rig's panorama camera; ``frames()`` renders until ``close()`` (from any thread)."""
 
-    def __init__(self, spec: MotionRigSpec, scene_and_trajectory: tuple[Scene, Trajectory] | None = None) -> None:
+    def __init__(self, spec: MotionRigSpec) -> None:
         self.start_host_s = _require_started(spec)
         self.spec = spec
-        self.scene, self.trajectory = scene_and_trajectory or spec.build()
+        self.scene, self.trajectory = spec.build()
         self._stop = threading.Event()
 
     def frames(self) -> Iterator[SimFrame]:
@@ -159,3 +166,106 @@ class CameraStream:
 
     def close(self) -> None:
         self._stop.set()
+
+
+# -- the simulated sensors as separate processes ------------------------------------------------------------
+# A real rig's sensors run whatever the capturing program does; in one Python process the simulator's
+# rendering and ray casting would compete with the capture for the interpreter lock and skew both.
+
+_SPAWN = multiprocessing.get_context("spawn")  # safe with threads in the parent (the capture's feeds, a server)
+_JOIN_S = 10.0
+
+
+def _lidar_child(spec: MotionRigSpec, host: str, data_port: int, position_port: int | None, stop: Any,
+                 parent: int) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is for the capture, which stops its sensors itself
+    with LidarEmitter(spec, host, data_port, position_port):
+        while not stop.wait(0.5) and os.getppid() == parent:  # a killed parent leaves no orphan sensor
+            pass
+
+
+def _camera_child(spec: MotionRigSpec, conn: Any, stop: Any, parent: int) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(BrokenPipeError):  # the reader has gone
+        for frame in CameraStream(spec).frames():
+            if stop.is_set() or os.getppid() != parent:
+                return
+            conn.send(frame)
+
+
+class LidarProcess:
+    """:class:`LidarEmitter` in a child process; ``spec`` must be started (``start_host_s`` set)."""
+
+    def __init__(self, spec: MotionRigSpec, host: str, data_port: int, position_port: int | None = None) -> None:
+        _require_started(spec)
+        self.spec = spec
+        self._stop = _SPAWN.Event()
+        args = (spec, host, data_port, position_port, self._stop, os.getpid())
+        self._process = _SPAWN.Process(target=_lidar_child, args=args, name="sim-vlp16", daemon=True)
+
+    def start(self) -> LidarProcess:
+        self._process.start()
+        return self
+
+    def close(self) -> None:
+        _stop_child(self._process, self._stop)
+
+    def __enter__(self) -> LidarProcess:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class CameraProcess:
+    """:class:`CameraStream` in a child process; ``frames()`` yields what it renders until ``close()``."""
+
+    def __init__(self, spec: MotionRigSpec) -> None:
+        _require_started(spec)
+        self.spec = spec
+        self._stop = _SPAWN.Event()
+        self._closed = threading.Event()
+        self._reading = False
+        self._receive, send = _SPAWN.Pipe(duplex=False)
+        args = (spec, send, self._stop, os.getpid())
+        self._process = _SPAWN.Process(target=_camera_child, args=args, name="sim-camera", daemon=True)
+        self._process.start()
+        send.close()  # the child holds the sending end
+
+    def frames(self) -> Iterator[SimFrame]:
+        """Frames as the child renders them; call from one thread (the pipe's only reader)."""
+        self._reading = True
+        try:
+            while not self._closed.is_set():
+                if self._receive.poll(0.1):
+                    try:
+                        yield self._receive.recv()
+                    except EOFError:
+                        break
+                elif not self._process.is_alive():
+                    break
+            if not self._closed.is_set():
+                raise SimError(f"the simulated camera process ended (exit code {self._process.exitcode})")
+        finally:
+            self._stop.set()
+            with contextlib.suppress(EOFError, OSError):
+                while self._process.is_alive():  # a child blocked sending a frame finishes once it is read
+                    if self._receive.poll(0.1):
+                        self._receive.recv()
+            self._receive.close()
+
+    def close(self) -> None:
+        self._closed.set()
+        _stop_child(self._process, self._stop)
+        if not self._reading:
+            self._receive.close()
+
+
+def _stop_child(process: Any, stop: Any) -> None:
+    stop.set()
+    if process.pid is None:
+        return
+    process.join(_JOIN_S)
+    if process.is_alive():  # stuck (e.g. blocked sending a frame nobody reads): it holds nothing worth saving
+        process.terminate()
+        process.join(_JOIN_S)

@@ -44,9 +44,20 @@ STILL_RANGE_M = 0.05  # LiDAR: 90th-percentile range change that still counts as
 CAMERA_CHANGE_GREY = 2.5  # camera: thumbnail change that still counts as standing still (docs/capture.md)
 DEFAULT_MIN_MOVE_M = 0.5
 MOVING_SWEEPS = 3  # a window shorter than this many sweeps is motion, not the start of a stop
-SIM_STOP_MARGIN_S = 4.0  # the default simulated rig stands still_seconds + this (two 1024x512 renders)
+# The simulated rig stands still_seconds + this at each place: a frame exposed in the still window must also
+# have been rendered before the rig leaves, and a 1024x512 render takes 1.5-4 s on a busy 2-core machine.
+SIM_STOP_MARGIN_S = 6.0
 SIM_MOVE_S = 2.0
+
+
+def sim_stops(pairs: int) -> int:
+    """Places for a simulated rig that should yield ``pairs`` pairs: twice as many plus spares, since a stop
+    whose frame rendered too slowly is skipped, and the rig never leaves its last place."""
+    return 2 * pairs + 4
 STATUS_PERIOD_S = 0.5
+# Before its first data a sensor may take this long (the SDK starts the camera, the simulator's sensors start
+# as processes and render a first frame); after it, silence_timeout_s applies.
+STARTUP_S = 15.0
 RECENT_SWEEPS = 100  # 10 s of sweeps kept with their points for fusing
 _POLL_S = 0.1
 
@@ -120,8 +131,8 @@ def run_capture(request: CaptureRequest, progress: Progress | None = None,
             progress(CaptureStatus(CaptureState.DONE.value, len(existing), request.n, 0.0, 0.0, 0,
                                    f"{out} already has {len(existing)} pairs"))
         return CaptureSummary(out, (), ())
-    sim_default = MotionRigSpec(stops=request.n - len(existing) + 2, still_s=request.still_seconds + SIM_STOP_MARGIN_S,
-                                move_s=SIM_MOVE_S)
+    sim_default = MotionRigSpec(stops=sim_stops(request.n - len(existing)),
+                                still_s=request.still_seconds + SIM_STOP_MARGIN_S, move_s=SIM_MOVE_S)
     with contextlib.ExitStack() as stack:
         sources = open_sources(stack, lidar, camera, settings, sim_default, places_done=len(existing))
         return _Session(request, settings, sources, existing, progress, stop or threading.Event()).run()
@@ -189,7 +200,7 @@ class _Session:
     def run(self) -> CaptureSummary:
         self._set(CaptureState.STARTING, f"waiting for the LiDAR ({self.sources.lidar.describe}) and the camera "
                                          f"({self.sources.camera.describe})")
-        last_data = time.monotonic()
+        last_data, any_data = time.monotonic(), False
         while self.done < self.request.n:
             if self.stop.is_set():
                 self._set(CaptureState.STOPPED, f"stopped after {self.done}/{self.request.n} pairs; rerun the same "
@@ -198,10 +209,10 @@ class _Session:
             item = self.sources.lidar.get(_POLL_S)
             now = time.monotonic()
             if item is None:
-                if now - last_data > self.request.silence_timeout_s:
+                if now - last_data > self._silence_limit(any_data):
                     raise SensorSilenceError(self._lidar_silence(now - last_data))
             else:
-                last_data = now
+                last_data, any_data = now, True
                 self.stats = item.stats
                 if item.sweep.complete:
                     self._on_sweep(item.sweep)
@@ -359,11 +370,14 @@ class _Session:
         return (f"no VLP-16 data from {describe} for {silent_s:.1f} s: check the sensor's power and cable, and "
                 "that it sends to this host's address and port (deploy/network)")
 
+    def _silence_limit(self, any_data: bool) -> float:
+        return self.request.silence_timeout_s if any_data else max(self.request.silence_timeout_s, STARTUP_S)
+
     def _check_camera(self) -> None:
-        silent = self.sources.camera.seconds_since_frame()
-        if silent is not None and silent > self.request.silence_timeout_s:
-            raise SensorSilenceError(f"no camera frame from {self.sources.camera.describe} for {silent:.1f} s: check "
-                                     "the camera's power and USB 3 link (rigd camera info)")
+        silence = self.sources.camera.seconds_since_frame()
+        if silence is not None and silence[0] > self._silence_limit(silence[1]):
+            raise SensorSilenceError(f"no camera frame from {self.sources.camera.describe} for {silence[0]:.1f} s: "
+                                     "check the camera's power and USB 3 link (rigd camera info)")
 
     def _packets_lost(self) -> int:
         return 0 if self.stats is None else int(self.stats.missing_packets + self.stats.overruns)

@@ -36,7 +36,7 @@ from drivers.ladybug5 import (
     load_rig,
 )
 from drivers.sim.motion import MotionRigSpec, load_spec
-from drivers.sim.stream import CameraStream, LidarEmitter, SimFrame
+from drivers.sim.stream import START_LEAD_S, CameraProcess, LidarProcess, SimFrame
 from drivers.vlp16 import PcapReplay, Ports, StreamStats, Sweep, UdpReceiver, Vlp16Config
 from rigd.capture.config import RigSettings
 from rigd.capture.errors import CaptureError, SourceEndedError, SourceSpecError
@@ -115,8 +115,9 @@ class CameraFeed(Protocol):
         """Frames received since the last poll (recorded sources: those up to ``until_host_s``)."""
         ...
 
-    def seconds_since_frame(self) -> float | None:
-        """Wall-clock seconds since the last frame (or since the start) for a live camera; None if recorded."""
+    def seconds_since_frame(self) -> tuple[float, bool] | None:
+        """Live camera: wall-clock seconds since the last frame (or the start) and whether any frame came;
+        None for a recorded one."""
         ...
 
     def close(self) -> None: ...
@@ -136,6 +137,7 @@ class ThreadedCameraFeed:
         self._ended = threading.Event()
         self._error: BaseException | None = None
         self._last = time.monotonic()
+        self._frames_seen = False
         self._thread = threading.Thread(target=self._run, name="capture-camera", daemon=True)
 
     def start(self) -> ThreadedCameraFeed:
@@ -152,6 +154,7 @@ class ThreadedCameraFeed:
                 with self._lock:
                     self._buffer.append(frame)
                     self._last = time.monotonic()
+                    self._frames_seen = True
         except DriverError as exc:
             self._error = exc
         finally:
@@ -171,9 +174,9 @@ class ThreadedCameraFeed:
                 raise SourceEndedError(f"camera source {self.describe} ended")
         return frames
 
-    def seconds_since_frame(self) -> float | None:
+    def seconds_since_frame(self) -> tuple[float, bool] | None:
         with self._lock:
-            return time.monotonic() - self._last
+            return time.monotonic() - self._last, self._frames_seen
 
     def close(self) -> None:
         self._closed.set()
@@ -207,7 +210,7 @@ class PulledCameraFeed:
             out.append(self._pending)
             self._pending = None
 
-    def seconds_since_frame(self) -> float | None:
+    def seconds_since_frame(self) -> tuple[float, bool] | None:
         return None
 
     def close(self) -> None:
@@ -261,9 +264,7 @@ def open_sources(stack: contextlib.ExitStack, lidar: LidarSpec, camera: CameraSp
         if spec.start_host_s is None:
             raise SourceSpecError(f"--camera {camera}: {camera.path} has no start_host_s: it is not the file of a "
                                   "running simulated rig")
-        stream = CameraStream(spec)
-        return Sources(feed, _start_camera(stack, ThreadedCameraFeed(
-            str(camera), lambda: (sim_panorama(f) for f in stream.frames()), stream.close)), spec)
+        return Sources(feed, _sim_camera(stack, str(camera), spec), spec)
     if camera.kind is CameraKind.REPLAY:
         assert camera.path is not None
         pulled = PulledCameraFeed(str(camera), DirectoryFrameSource(camera.path).frames())
@@ -279,21 +280,32 @@ def _start_camera(stack: contextlib.ExitStack, feed: ThreadedCameraFeed) -> Thre
 
 
 def _sim_rig(stack: contextlib.ExitStack, spec: MotionRigSpec) -> Sources:
-    """The moving simulated rig in this process: its VLP-16 sends real UDP packets to a receiver on loopback."""
-    scene_and_trajectory = spec.build()
+    """The moving simulated rig, its sensors in child processes: the VLP-16 sends real UDP packets to a
+    receiver on loopback, the camera renders frames at the rig's pose of the moment."""
+    started = spec.started(time.time() + START_LEAD_S)
     receiver = UdpReceiver(Vlp16Config(), host="127.0.0.1", ports=Ports(0, 0)).start()
     stack.callback(receiver.close)
-    emitter = LidarEmitter(spec, "127.0.0.1", receiver.ports.data, receiver.ports.position,
-                           scene_and_trajectory).start()
-    stack.callback(emitter.close)
+    stack.enter_context(LidarProcess(started, "127.0.0.1", receiver.ports.data, receiver.ports.position))
     describe = f"sim (udp 127.0.0.1:{receiver.ports.data})"
     lidar = LidarFeed(describe, lambda: receiver.sweeps(timeout_s=float("inf")), lambda: receiver.stats,
                       receiver.close).start()
     stack.callback(lidar.close)
-    stream = CameraStream(emitter.spec, scene_and_trajectory)
-    camera = _start_camera(stack, ThreadedCameraFeed("sim", lambda: (sim_panorama(f) for f in stream.frames()),
-                                                     stream.close))
-    return Sources(lidar, camera, emitter.spec)
+    return Sources(lidar, _sim_camera(stack, "sim", started), started)
+
+
+def _sim_camera(stack: contextlib.ExitStack, describe: str, spec: MotionRigSpec) -> ThreadedCameraFeed:
+    camera = CameraProcess(spec)
+    stack.callback(camera.close)
+
+    def frames() -> Iterator[PanoramaFrame]:
+        stream = camera.frames()
+        try:
+            for frame in stream:
+                yield sim_panorama(frame)
+        finally:
+            stream.close()
+
+    return _start_camera(stack, ThreadedCameraFeed(describe, frames, camera.close))
 
 
 def _lidar_feed(stack: contextlib.ExitStack, spec: LidarSpec) -> LidarFeed:

@@ -1,4 +1,9 @@
-"""``rigd demo``: the main job end to end on the simulated rig (simulate -> calibrate -> report)."""
+"""``rigd demo``: the main job end to end on the simulated rig (capture -> calibrate -> report).
+
+The simulated rig drives between places and stops at each (drivers.sim.motion); its VLP-16 sends real UDP
+packets on loopback and its camera renders timed frames, and ``rigd capture``'s engine takes a pair at each
+stop, exactly as on a real rig.
+"""
 
 from __future__ import annotations
 
@@ -11,15 +16,21 @@ from typing import Any
 import numpy as np
 
 from calib.geometry import Transform
+from drivers.sim.motion import MotionRigSpec, save_spec
 from rigd.calibration import CalibrationRequest, run_calibration
-from rigd.simulate import write_simulated_dataset
+from rigd.capture import CaptureRequest, run_capture
+from rigd.capture.engine import SIM_MOVE_S, SIM_STOP_MARGIN_S, sim_stops
+from rigd.cli.capture import StatusPrinter
+
+STILL_SECONDS = 2.0  # rigd capture's default
 
 
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "demo",
-        help="simulate a rig, calibrate it from a perturbed guess, report the error",
-        description="Runs the whole job on the simulated rig: writes a simulated dataset, calibrates it "
+        help="capture from a simulated rig, calibrate it from a perturbed guess, report the error",
+        description="Runs the whole job on the simulated rig: captures a dataset while the rig drives from place "
+        "to place and stops (LiDAR over UDP on loopback, a pair at each stop), calibrates it "
         "starting from the ground truth perturbed by a few degrees and centimetres, and prints the error "
         "against the simulator's ground truth and where the overlay images are.",
     )
@@ -35,8 +46,22 @@ def run(args: argparse.Namespace) -> int:
     dataset = args.out / "dataset"
     if dataset.exists():
         shutil.rmtree(dataset)
-    print(f"simulating {args.pairs} {args.scene} pairs into {dataset}", file=sys.stderr)
-    write_simulated_dataset(dataset, args.scene, args.pairs, args.seed, args.width, args.width // 2)
+    args.out.mkdir(parents=True, exist_ok=True)
+    rig_file = args.out / "sim-rig.yaml"
+    save_spec(rig_file, MotionRigSpec(scene=args.scene, seed=args.seed, stops=sim_stops(args.pairs),
+                                      still_s=STILL_SECONDS + SIM_STOP_MARGIN_S, move_s=SIM_MOVE_S,
+                                      width=args.width, height=args.width // 2))
+    print(f"capturing {args.pairs} {args.scene} pairs from the simulated rig (it drives and stops) into {dataset}",
+          file=sys.stderr)
+    printer = StatusPrinter(sys.stderr)
+    try:
+        summary = run_capture(CaptureRequest(out=dataset, n=args.pairs, lidar=f"sim:{rig_file}", camera="sim",
+                                             still_seconds=STILL_SECONDS), printer)
+    finally:
+        printer.finish()
+    total = sum(summary.seconds_per_pair)
+    print(f"captured {len(summary.pairs)} pairs in {total:.1f} s ({total / max(len(summary.pairs), 1):.1f} s a pair)",
+          file=sys.stderr)
     from rigd.dataset import open_dataset
 
     truth = open_dataset(dataset).ground_truth

@@ -1,0 +1,134 @@
+"""The capture loop on a recorded session of the moving simulated rig (pcap + camera replay directory).
+
+Recorded sources are read as fast as the loop goes, so these tests are deterministic and need no waiting;
+the trajectory the session was recorded from says where the rig was at every instant.
+"""
+
+from __future__ import annotations
+
+import errno
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from capture_helpers import START_S, read_meta, record_session, stop_of_pair
+
+from drivers.sim.motion import MotionRigSpec
+from rigd.capture import CaptureRequest, DiskFullError, SourceEndedError, run_capture
+from rigd.capture import engine as capture_engine
+from rigd.capture.engine import STILL_RANGE_M
+from rigd.dataset import open_dataset
+from rigd.errors import DatasetError
+
+SPEC = MotionRigSpec(scene="indoor", seed=5, stops=4, still_s=1.5, move_s=1.0, width=128, height=64,
+                     frame_period_s=0.2)
+DURATION_S = 4 * SPEC.still_s + 3 * SPEC.move_s
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory: pytest.TempPathFactory):
+    folder = tmp_path_factory.mktemp("recorded")
+    return record_session(folder, SPEC, DURATION_S)
+
+
+def request(out: Path, session, n: int, **kwargs) -> CaptureRequest:
+    pcap, camera, _ = session
+    return CaptureRequest(out=out, n=n, lidar=f"pcap:{pcap}", camera=f"replay:{camera}", still_seconds=0.5,
+                          sweeps=3, **kwargs)
+
+
+def test_one_pair_per_stop_and_none_in_motion(tmp_path: Path, session) -> None:
+    statuses = []
+    summary = run_capture(request(tmp_path / "ds", session, 3), statuses.append)
+    _, _, trajectory = session
+    assert [p.name for p in summary.pairs] == ["0000", "0001", "0002"]
+    metas = [read_meta(p) for p in summary.pairs]
+    stops = [stop_of_pair(m, trajectory, START_S) for m in metas]
+    assert stops == [0, 1, 2]  # every stop lasts long enough for a pair, so none is skipped
+    for meta in metas:
+        window = meta["still_window_host_s"]
+        assert window[1] - window[0] >= 0.5
+        assert window[0] <= meta["camera"]["host_time_s"] <= window[1]
+        # The recording's device clock is its host clock (offset ~0, up to float rounding of UNIX times).
+        first, last = meta["lidar"]["device_time_s"]
+        assert window[0] - 1e-3 <= first < last <= window[1] + 1e-3
+        assert meta["lidar"]["sweeps_fused"] == 3 and meta["lidar"]["packets_lost"] == 0
+        assert meta["motion"]["lidar_range_change_m"] <= STILL_RANGE_M
+        assert meta["source"] == "captured" and meta["software_version"]
+    moved = [m["motion"]["moved_since_previous_m"] for m in metas]
+    assert moved[0] is None and min(moved[1:]) >= 0.5
+    states = [s.state for s in statuses]
+    for state in ("starting", "waiting_for_stop", "holding_still", "captured", "need_move", "done"):
+        assert state in states
+    dataset = open_dataset(tmp_path / "ds")
+    assert (dataset.rig.camera.width, dataset.rig.camera.height) == (SPEC.width, SPEC.height)
+    assert dataset.ground_truth is None  # a recorded camera is not the simulator's
+    pair = dataset.load_pair(1)
+    assert pair.cloud.ring is not None and pair.cloud.intensity is not None
+    # Ring is the elevation rank: the fused points' elevations sort by ring (VLP-16: -15..15 deg in 2 deg steps).
+    xyz = pair.cloud.points_lidar
+    elevation = np.degrees(np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1])))
+    np.testing.assert_allclose(elevation, -15.0 + 2.0 * pair.cloud.ring, atol=0.05)
+
+
+def test_rerun_continues_and_does_not_repeat_the_last_place(tmp_path: Path, session) -> None:
+    _, _, trajectory = session
+    first = run_capture(request(tmp_path / "ds", session, 1))
+    assert [p.name for p in first.pairs] == ["0000"]
+    # The replay starts over at stop 0, where pair 0 was taken: the rerun must move on from it.
+    second = run_capture(request(tmp_path / "ds", session, 3))
+    assert [p.name for p in second.pairs] == ["0001", "0002"]
+    stops = [stop_of_pair(read_meta(p), trajectory, START_S) for p in (*first.pairs, *second.pairs)]
+    assert stops == [0, 1, 2]
+    assert run_capture(request(tmp_path / "ds", session, 3)).pairs == ()  # complete: nothing to do
+
+
+def test_stop_event_ends_the_capture_between_pairs(tmp_path: Path, session) -> None:
+    import threading
+
+    stop = threading.Event()
+
+    def progress(status) -> None:
+        if status.state == "captured":
+            stop.set()
+
+    summary = run_capture(request(tmp_path / "ds", session, 3), progress, stop)
+    assert [p.name for p in summary.pairs] == ["0000"]
+    assert sorted(p.name for p in (tmp_path / "ds" / "pairs").iterdir()) == ["0000"]  # no half-written pair
+
+
+def test_recording_too_short_is_a_named_error(tmp_path: Path, session) -> None:
+    with pytest.raises(SourceEndedError, match="ended|no more frames"):
+        run_capture(request(tmp_path / "ds", session, 6))
+    assert len(open_dataset(tmp_path / "ds")) == 4  # what it did capture is complete
+
+
+def test_low_free_space_stops_before_writing(tmp_path: Path, session, monkeypatch: pytest.MonkeyPatch) -> None:
+    class Usage:
+        free = 1_000_000  # 1 MB: less than twice a pair
+
+    monkeypatch.setattr(capture_engine.shutil, "disk_usage", lambda path: Usage)
+    with pytest.raises(DiskFullError, match="MB free"):
+        run_capture(request(tmp_path / "ds", session, 2))
+    assert not (tmp_path / "ds" / "pairs").exists() or not any((tmp_path / "ds" / "pairs").iterdir())
+
+
+def test_disk_full_while_writing_is_a_named_error(tmp_path: Path, session, monkeypatch: pytest.MonkeyPatch) -> None:
+    def full(root, index, image, cloud, meta):
+        raise DatasetError(f"{root}: could not write pair") from OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(capture_engine, "write_pair", full)
+    with pytest.raises(DiskFullError, match="disk full while writing pair 0000"):
+        run_capture(request(tmp_path / "ds", session, 1))
+
+
+@pytest.mark.parametrize("field, value", [("n", 0), ("sweeps", 0), ("still_seconds", 0.0), ("min_move", -1.0),
+                                          ("silence_timeout_s", math.nan)])
+def test_bad_request_values_are_refused(tmp_path: Path, session, field: str, value: float) -> None:
+    from dataclasses import replace
+
+    from rigd.capture import CaptureError
+
+    with pytest.raises(CaptureError, match=field):
+        run_capture(replace(request(tmp_path / "ds", session, 1), **{field: value}))
