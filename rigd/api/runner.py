@@ -157,6 +157,7 @@ class JobRunner:
         with self._lock:
             del self._procs[job.id]
             cancelled = job.id in self._cancelled
+            self._cancelled.discard(job.id)
         if cancelled:
             self.jobs.finish(job.id, JobStatus.CANCELLED, "cancelled")
         elif self._stopping:
@@ -247,7 +248,10 @@ class JobRunner:
                      ) -> None:
         try:
             result = work(job, stop)
-            if job.id in self._cancelled:
+            with self._lock:
+                cancelled = job.id in self._cancelled
+                self._cancelled.discard(job.id)
+            if cancelled:
                 self.jobs.finish(job.id, JobStatus.CANCELLED, "cancelled", result=result)
             elif self._stopping:
                 self.jobs.finish(job.id, JobStatus.FAILED, "interrupted", result=result,
