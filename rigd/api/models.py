@@ -8,7 +8,6 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 from calib.errors import CalibError
 from calib.geometry import Transform
-from rigd.calibration.service import PAPER_SIGMAS_DEG
 from rigd.dataset.records import transform_to_yaml
 from rigd.store.datasets import DATASET_ID_PATTERN
 
@@ -54,8 +53,9 @@ class CalibrateIn(Request):
     init: Literal["active", "rig"] | TransformIn = Field(
         "active", description="initial guess: the active extrinsics version, the rig file's (the dataset's "
         "rig.yaml, else the service's rig file), or an explicit transform")
-    sigmas_deg: Annotated[list[Annotated[float, Field(gt=0.0, le=30.0)]], Field(min_length=1, max_length=6)] = Field(
-        default_factory=lambda: list(PAPER_SIGMAS_DEG), description="sigma_in per coarse-to-fine level, deg at 1 m")
+    sigmas_deg: Annotated[list[Annotated[float, Field(gt=0.0, le=30.0)]], Field(min_length=1, max_length=6)] | None = (
+        Field(None, description="sigma_in per coarse-to-fine level, deg at 1 m; absent: the calibration's default "
+              "schedule (the levels used are in the version's quality figures)"))
     auto_activate: bool = Field(False, description="activate the result if its quality passes the service's bounds")
 
 

@@ -72,12 +72,13 @@ class CalibrationPlan:
     initial: Transform
     init: str  # active | rig | explicit
     init_version: int | None
-    sigmas_deg: tuple[float, ...]
+    sigmas_deg: tuple[float, ...] | None  # None: the calibration's default schedule
     auto_activate: bool
 
     def params(self) -> dict[str, Any]:
         return {"dataset": self.dataset_id, "init": self.init, "init_version": self.init_version,
-                "initial": transform_to_yaml(self.initial), "sigmas_deg": list(self.sigmas_deg),
+                "initial": transform_to_yaml(self.initial),
+                "sigmas_deg": list(self.sigmas_deg) if self.sigmas_deg is not None else None,
                 "auto_activate": self.auto_activate}
 
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from calib.errors import CalibError
 from calib.geometry import Transform
+from calib.pipeline import CalibParams
 from drivers.errors import DriverError
 from rigd.calibration import CalibrationRequest, run_calibration
 from rigd.dataset import open_dataset
@@ -65,14 +66,17 @@ def _watch_parent(stdin: TextIO) -> None:
 
 def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
     dataset = open_dataset(Path(job["dataset"]))
-    reporter.levels = len(job["sigmas_deg"])
+    sigmas = job["sigmas_deg"]
+    reporter.levels = len(sigmas if sigmas is not None else CalibParams().optim.sigmas_deg)
     reporter.progress("hashing the dataset", 0.0)
     digest = content_hash(dataset)
+    # Without sigmas the request keeps run_calibration's own default schedule.
+    schedule = {"sigmas_deg": tuple(float(s) for s in sigmas)} if sigmas is not None else {}
     request = CalibrationRequest(
         dataset=dataset.root,
         out_dir=Path(job["out_dir"]),
         initial=Transform.from_matrix(np.asarray(job["initial_matrix"], dtype=np.float64)),
-        sigmas_deg=tuple(float(s) for s in job["sigmas_deg"]),
+        **schedule,
     )
     outcome = run_calibration(request, reporter.progress, reporter.iteration)
     return {

@@ -36,7 +36,8 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
         initial, init = guess, "rig"
     else:
         initial, init = body.init.transform, "explicit"
-    return CalibrationPlan(body.dataset, initial, init, init_version, tuple(body.sigmas_deg), body.auto_activate)
+    sigmas = tuple(body.sigmas_deg) if body.sigmas_deg is not None else None
+    return CalibrationPlan(body.dataset, initial, init, init_version, sigmas, body.auto_activate)
 
 
 @router.post("/calibrate", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, dependencies=[Authorized],

@@ -110,8 +110,10 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
 
         # Without auto_activate a result stays a candidate.
         start = {"rpy_deg": (truth.rpy_deg - 1.0).tolist(), "xyz_m": (truth.translation_m + 0.02).tolist()}
-        third = calibrate(client, {"dataset": "field", "init": start})
-        assert client.get(third["result_link"]).json()["status"] == "candidate"
+        third = calibrate(client, {"dataset": "field", "init": start, "sigmas_deg": [4.0, 2.0]})
+        v3 = client.get(third["result_link"]).json()
+        assert v3["status"] == "candidate"
+        assert [level["sigma_in_deg"] for level in v3["quality"]["levels"]] == [4.0, 2.0]  # the schedule asked for
 
         # Activate version 1 again: it becomes the active one, the others are not.
         response = client.post("/extrinsics/versions/1/activate")
