@@ -143,11 +143,12 @@ class SimFrame:
 class CameraStream:
     """The moving rig's panorama camera; ``frames()`` renders until ``close()`` (from any thread)."""
 
-    def __init__(self, spec: MotionRigSpec) -> None:
+    def __init__(self, spec: MotionRigSpec, stop: Any = None) -> None:
+        """``stop``: an event (threading or multiprocessing) that ends ``frames()``; by default its own."""
         self.start_host_s = _require_started(spec)
         self.spec = spec
         self.scene, self.trajectory = spec.build()
-        self._stop = threading.Event()
+        self._stop = stop if stop is not None else threading.Event()
 
     def frames(self) -> Iterator[SimFrame]:
         sequence = 0
@@ -187,8 +188,8 @@ def _lidar_child(spec: MotionRigSpec, host: str, data_port: int, position_port: 
 def _camera_child(spec: MotionRigSpec, conn: Any, stop: Any, parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     with contextlib.suppress(BrokenPipeError):  # the reader has gone
-        for frame in CameraStream(spec).frames():
-            if stop.is_set() or os.getppid() != parent:
+        for frame in CameraStream(spec, stop).frames():
+            if os.getppid() != parent:
                 return
             conn.send(frame)
 

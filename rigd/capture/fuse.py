@@ -1,7 +1,10 @@
 """Fusing K sweeps of a still rig into one cloud: per beam, the return with the median range.
 
-A beam is a (ring, firing azimuth) cell one firing step wide (0.2 degrees at 600 rpm); a still rig's
-beams repeat from turn to turn (within that step: the head's phase drifts between turns). Per beam the
+A beam is a (ring, firing azimuth) cell one firing step wide (0.2 degrees at 600 rpm), centred on the
+firing sequence's azimuth: a laser's own azimuth is later by its delay in the sequence (laser k fires
+k * 2.304 us after laser 0, up to 0.12 degrees), which is taken off so that every ring of one firing lands
+in the same cell. A still rig's beams repeat from turn to turn within that step (the head's phase drifts
+between turns unless phase-locked). Per beam the
 return whose range is the median of the K turns' is kept whole (its point, intensity and ring), so no
 point is invented between a foreground and a background surface: a beam on a depth edge keeps one of its
 real returns. The median of K ranges has about 1.25 / sqrt(K) of one return's noise for Gaussian noise.
@@ -15,8 +18,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from drivers.vlp16 import ReturnMode, ReturnType, Sweep
-from drivers.vlp16.layout import SEQUENCE_US
+from drivers.vlp16.layout import FIRING_US, NOMINAL_ELEVATION_DEG, SEQUENCE_US
 from rigd.dataset import Cloud
+
+LASER_OF_RING = np.argsort(NOMINAL_ELEVATION_DEG)  # (16,) firing order of each ring (0 = lowest beam)
 
 
 def firing_step_deg(rpm: float) -> float:
@@ -36,7 +41,9 @@ def fuse_sweeps(sweeps: Sequence[Sweep]) -> Cloud:
     points = np.concatenate([_single_return(s) for s in sweeps])
     rpm = float(np.median([s.rpm for s in sweeps]))
     beams = max(int(round(360.0 / firing_step_deg(rpm))), 1)
-    column = np.rint(points["azimuth"].astype(np.float64) * (beams / 360.0)).astype(np.int64) % beams
+    laser_delay_deg = LASER_OF_RING * FIRING_US * 1e-6 * rpm / 60.0 * 360.0
+    firing_azimuth = points["azimuth"].astype(np.float64) - laser_delay_deg[points["ring"]]
+    column = np.rint(firing_azimuth * (beams / 360.0)).astype(np.int64) % beams
     key = points["ring"].astype(np.int64) * beams + column
     xyz = np.stack([points["x"], points["y"], points["z"]], axis=1).astype(np.float64)
     rng = np.sqrt(np.einsum("ij,ij->i", xyz, xyz))

@@ -4,6 +4,7 @@ replay directory of its camera), made without waiting in real time, and checks a
 from __future__ import annotations
 
 import csv
+import socket
 from pathlib import Path
 
 import cv2
@@ -66,3 +67,15 @@ def stop_of_pair(meta: dict, trajectory: Trajectory, start_s: float, still_toler
         stops.add(nearest)
     assert len(stops) == 1, f"pair spans several places: {stops}"
     return stops.pop()
+
+
+def free_udp_ports(count: int) -> list[int]:
+    """``count`` UDP ports free on 127.0.0.1 right now (bound to port 0 together, then released)."""
+    sockets = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(count)]
+    try:
+        for sock in sockets:
+            sock.bind(("127.0.0.1", 0))
+        return [sock.getsockname()[1] for sock in sockets]
+    finally:
+        for sock in sockets:
+            sock.close()

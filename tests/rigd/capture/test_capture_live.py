@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -15,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from capture_helpers import read_meta, stop_of_pair
+from capture_helpers import free_udp_ports, read_meta, stop_of_pair
 
 from drivers.sim.motion import MotionRigSpec, save_spec
 from drivers.sim.stream import LidarEmitter
@@ -23,17 +22,6 @@ from rigd.cli import main
 from rigd.dataset import open_dataset
 
 REPO = Path(__file__).resolve().parents[3]
-
-
-def free_udp_ports(count: int) -> list[int]:
-    sockets = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(count)]
-    try:
-        for sock in sockets:
-            sock.bind(("127.0.0.1", 0))
-        return [sock.getsockname()[1] for sock in sockets]
-    finally:
-        for sock in sockets:
-            sock.close()
 
 
 def rig_config(path: Path) -> Path:

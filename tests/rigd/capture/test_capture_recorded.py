@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import errno
 import math
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from capture_helpers import START_S, read_meta, record_session, stop_of_pair
+from capture_helpers import START_S, free_udp_ports, read_meta, record_session, stop_of_pair
 
-from drivers.sim.motion import MotionRigSpec
-from rigd.capture import CaptureRequest, DiskFullError, SourceEndedError, run_capture
+from drivers.sim.motion import MotionRigSpec, save_spec
+from drivers.sim.stream import LidarEmitter
+from rigd.capture import CaptureRequest, DiskFullError, SensorSilenceError, SourceEndedError, run_capture
 from rigd.capture import engine as capture_engine
 from rigd.capture.engine import STILL_RANGE_M
 from rigd.dataset import open_dataset
@@ -132,3 +134,23 @@ def test_bad_request_values_are_refused(tmp_path: Path, session, field: str, val
 
     with pytest.raises(CaptureError, match=field):
         run_capture(replace(request(tmp_path / "ds", session, 1), **{field: value}))
+
+
+def test_lidar_silence_is_a_named_error(tmp_path: Path, session, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(capture_engine, "STARTUP_S", 0.5)  # no sensor-start allowance for this test
+    data, position = free_udp_ports(2)
+    _, camera, _ = session
+    with pytest.raises(SensorSilenceError, match=f"no VLP-16 data from udp:127.0.0.1:{data}:{position} for 0.5"):
+        run_capture(CaptureRequest(tmp_path / "ds", 1, lidar=f"udp:127.0.0.1:{data}:{position}",
+                                   camera=f"replay:{camera}", silence_timeout_s=0.3))
+
+
+def test_camera_silence_is_a_named_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(capture_engine, "STARTUP_S", 1.0)
+    data, position = free_udp_ports(2)
+    silent = tmp_path / "camera-rig.yaml"
+    save_spec(silent, SPEC.started(time.time() + 3600.0))  # its camera starts in an hour
+    with LidarEmitter(SPEC, "127.0.0.1", data, position):
+        with pytest.raises(SensorSilenceError, match=f"no camera frame from sim:{silent} for 1"):
+            run_capture(CaptureRequest(tmp_path / "ds", 1, lidar=f"udp:127.0.0.1:{data}:{position}",
+                                       camera=f"sim:{silent}", silence_timeout_s=0.5))
