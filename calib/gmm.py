@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 
 from calib.camera import CameraModel, Equirectangular
 from calib.edges_image import EdgePixels
-from calib.edges_points import EdgePoints
+from calib.edges_points import FOLD, EdgePoints
 from calib.fields import SOFT_REACH, EdgeFields, gaussian_kernel, soft_disk
 from calib.geometry import left_jacobian, so3_exp
 
@@ -72,6 +72,8 @@ class GmmOptions:
     kernel_norm: KernelNorm = KernelNorm.LEVEL
     evaluator: Evaluator = Evaluator.AUTO
     exact_below_deg: float = 2.5  # with AUTO: levels with sigma_in below this use EXACT
+    sigma_range_cap_m: float = 5.0  # eq. 23's 1/r uses min(r, cap) on all levels but the finest
+    use_folds: bool = True  # False: fold edge points are left out of the cost
     sigma_floor_px: float = 0.7
     sigma_floor_deg: float = 0.2
     sigma_ceiling_px: float = 48.0
@@ -135,7 +137,7 @@ def point_sigmas(
         sigma = np.full(len(points_lidar), sigma_in_px)
     else:
         r = np.linalg.norm(points_lidar, axis=1)
-        sigma = sigma_in_px * camera.pixel_area_ratio(uv) / np.maximum(r, 1e-6)
+        sigma = sigma_in_px * camera.pixel_area_ratio(uv) / np.clip(r, 1e-6, opts.sigma_range_cap_m)
     floor = max(opts.sigma_floor_px, np.radians(opts.sigma_floor_deg) * camera.pixels_per_radian)
     return np.asarray(np.minimum(np.sqrt(sigma**2 + floor**2), opts.sigma_ceiling_px), dtype=np.float64)
 
@@ -233,7 +235,7 @@ def cost_and_gradient(
         uv, valid = feat.camera.project(p_cam)
         # Points just outside the image still see edge pixels inside it; taking every valid projection
         # (not only those inside) keeps the cost continuous when a point crosses the image border.
-        sel = np.flatnonzero(valid)
+        sel = np.flatnonzero(valid & (opts.use_folds | (feat.points.kind != FOLD)))
         if sel.size == 0:
             continue
         value, d_centre = _point_terms(feat, uv[sel], frz.sigma_px[sel], s_in, opts, feat.points.score[sel])

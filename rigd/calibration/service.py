@@ -6,6 +6,7 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -15,8 +16,7 @@ import numpy as np
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
-from calib.optimize import OptimOptions
-from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features
+from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features, paper_params
 from rigd.calibration.visuals import overlay, write_coloured_ply
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import transform_to_yaml
@@ -24,7 +24,13 @@ from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 
 # Paper defaults: sigma_in = 15, 10, 5 px of a 1024-wide panorama, as angles at 1 m.
-PAPER_SIGMAS_DEG = (5.27, 3.52, 1.76)
+PAPER_SIGMAS_DEG = paper_params().optim.sigmas_deg
+DEFAULT_SIGMAS_DEG = CalibParams().optim.sigmas_deg
+
+
+class Method(Enum):
+    RIGD = "rigd"  # the paper's method with the changes of docs/method.md (default)
+    PAPER = "paper"  # the paper's settings as printed (section 8.2), for comparison
 
 
 @dataclass(frozen=True)
@@ -32,8 +38,9 @@ class CalibrationRequest:
     dataset: Path
     out_dir: Path
     initial: Transform | None = None  # None: the dataset's rig.yaml initial_guess
-    sigmas_deg: tuple[float, ...] = PAPER_SIGMAS_DEG
+    sigmas_deg: tuple[float, ...] | None = None  # None: the method's own schedule
     write_visuals: bool = True
+    method: Method = Method.RIGD
 
 
 @dataclass(frozen=True)
@@ -116,9 +123,12 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     started = time.monotonic()
     dataset = open_dataset(request.dataset)
     initial = _initial(request, dataset)
-    if not request.sigmas_deg or any(s <= 0 for s in request.sigmas_deg):
-        raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
-    params = CalibParams(optim=dataclasses.replace(OptimOptions(), sigmas_deg=tuple(request.sigmas_deg)))
+    params = paper_params() if request.method is Method.PAPER else CalibParams()
+    if request.sigmas_deg is not None:
+        if not request.sigmas_deg or any(not np.isfinite(s) or s <= 0 for s in request.sigmas_deg):
+            raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
+        params = dataclasses.replace(params, optim=dataclasses.replace(params.optim,
+                                                                       sigmas_deg=tuple(request.sigmas_deg)))
     feats = _features(dataset, params, progress)
     if progress:
         progress("optimising", 0.5)
@@ -127,6 +137,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     except CalibError as exc:
         raise RigdError(f"{dataset.root}: {exc}") from exc
     report = _report(result, initial, dataset, time.monotonic() - started)
+    report["method"] = {"name": request.method.value, "sigmas_deg": list(params.optim.sigmas_deg)}
     out = Path(request.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_yaml(out / "extrinsics.yaml", report)

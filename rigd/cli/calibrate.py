@@ -12,7 +12,7 @@ import numpy as np
 
 from calib.geometry import Transform
 from rigd.calibration import CalibrationRequest, run_calibration
-from rigd.calibration.service import PAPER_SIGMAS_DEG
+from rigd.calibration.service import DEFAULT_SIGMAS_DEG, PAPER_SIGMAS_DEG, Method
 from rigd.errors import RigdError
 
 
@@ -45,9 +45,13 @@ def register(subparsers: Any) -> None:
     parser.add_argument("dataset", type=Path, metavar="DATASET")
     parser.add_argument("--init", type=str, default=None,
                         help="initial guess 'roll,pitch,yaw,x,y,z' in deg and m (default: rig.yaml initial_guess)")
-    parser.add_argument("--sigmas", type=str, default=",".join(str(s) for s in PAPER_SIGMAS_DEG),
-                        help="sigma_in per coarse-to-fine level, degrees at 1 m (default: the paper's "
-                        "15,10,5 px of a 1024-wide panorama)")
+    parser.add_argument("--sigmas", type=str, default=None,
+                        help="sigma_in per coarse-to-fine level, degrees at 1 m (default: "
+                        f"{','.join(map(str, DEFAULT_SIGMAS_DEG))}; with --method paper the paper's 15,10,5 px of a "
+                        f"1024-wide panorama = {','.join(map(str, PAPER_SIGMAS_DEG))})")
+    parser.add_argument("--method", choices=[m.value for m in Method], default=Method.RIGD.value,
+                        help="rigd (default): the paper with the changes in docs/method.md; paper: the paper's "
+                        "settings as printed, for comparison")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
     parser.add_argument("--no-visuals", action="store_true", help="skip overlays and PLY clouds")
@@ -67,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
         dataset=args.dataset,
         out_dir=args.out or args.dataset / "calibration",
         initial=parse_init(args.init) if args.init else None,
-        sigmas_deg=parse_sigmas(args.sigmas),
+        sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
+        method=Method(args.method),
         write_visuals=not args.no_visuals,
     )
     outcome = run_calibration(request, _progress, _on_iter)
