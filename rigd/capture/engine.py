@@ -375,7 +375,7 @@ class _Session:
 
     def _check_camera(self) -> None:
         silence = self.sources.camera.seconds_since_frame()
-        if silence is not None and silence[0] > self._silence_limit(silence[1]):
+        if silence is not None and silence[0] > max(self._silence_limit(silence[1]), self.sources.camera.frame_gap_s):
             raise SensorSilenceError(f"no camera frame from {self.sources.camera.describe} for {silence[0]:.1f} s: "
                                      "check the camera's power and USB 3 link (rigd camera info)")
 

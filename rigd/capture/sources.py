@@ -45,6 +45,8 @@ from rigd.capture.specs import CameraKind, CameraSpec, LidarKind, LidarSpec
 _POLL_S = 0.1
 _CAMERA_BUFFER = 8  # frames kept for the loop (the newest win): 0.5 s of a 15 fps camera
 _JOIN_S = 30.0  # a simulated frame may take a few seconds to finish rendering
+# The simulated camera renders a 1024x512 frame in 1.5-4 s on a busy 2-core machine (2048x1024: 4x that).
+SIM_FRAME_GAP_S = 20.0
 
 
 @dataclass(frozen=True)
@@ -110,6 +112,7 @@ class LidarFeed:
 
 class CameraFeed(Protocol):
     describe: str
+    frame_gap_s: float  # the longest normal gap between two frames; silence shorter than this is no error
 
     def poll(self, until_host_s: float) -> list[PanoramaFrame]:
         """Frames received since the last poll (recorded sources: those up to ``until_host_s``)."""
@@ -127,8 +130,9 @@ class ThreadedCameraFeed:
     """A live camera: ``frames()`` iterated in a thread; the newest frames are kept for :meth:`poll`."""
 
     def __init__(self, describe: str, frames: Callable[[], Iterator[PanoramaFrame]],
-                 on_close: Callable[[], None] | None = None) -> None:
+                 on_close: Callable[[], None] | None = None, frame_gap_s: float = 0.0) -> None:
         self.describe = describe
+        self.frame_gap_s = frame_gap_s
         self._frames = frames
         self._on_close = on_close
         self._buffer: deque[PanoramaFrame] = deque(maxlen=_CAMERA_BUFFER)
@@ -191,6 +195,7 @@ class PulledCameraFeed:
 
     def __init__(self, describe: str, frames: Iterator[PanoramaFrame]) -> None:
         self.describe = describe
+        self.frame_gap_s = 0.0
         self._frames = frames
         self._pending: PanoramaFrame | None = None
         self._ended = False
@@ -305,7 +310,7 @@ def _sim_camera(stack: contextlib.ExitStack, describe: str, spec: MotionRigSpec)
         finally:
             stream.close()
 
-    return _start_camera(stack, ThreadedCameraFeed(describe, frames, camera.close))
+    return _start_camera(stack, ThreadedCameraFeed(describe, frames, camera.close, SIM_FRAME_GAP_S))
 
 
 def _lidar_feed(stack: contextlib.ExitStack, spec: LidarSpec) -> LidarFeed:

@@ -19,6 +19,7 @@ from drivers.sim.motion import MotionRigSpec, save_spec
 from drivers.sim.stream import LidarEmitter
 from rigd.capture import CaptureRequest, DiskFullError, SensorSilenceError, SourceEndedError, run_capture
 from rigd.capture import engine as capture_engine
+from rigd.capture import sources as capture_sources
 from rigd.capture.engine import STILL_RANGE_M
 from rigd.dataset import open_dataset
 from rigd.errors import DatasetError
@@ -147,6 +148,7 @@ def test_lidar_silence_is_a_named_error(tmp_path: Path, session, monkeypatch: py
 
 def test_camera_silence_is_a_named_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(capture_engine, "STARTUP_S", 1.0)
+    monkeypatch.setattr(capture_sources, "SIM_FRAME_GAP_S", 0.0)  # no allowance for slow simulated renders
     data, position = free_udp_ports(2)
     silent = tmp_path / "camera-rig.yaml"
     save_spec(silent, SPEC.started(time.time() + 3600.0))  # its camera starts in an hour
