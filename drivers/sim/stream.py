@@ -63,10 +63,8 @@ class LidarEmitter:
         self.data_port = data_port
         self.position_port = position_port
         self.lidar = LidarConfig(range_noise_m=spec.range_noise_m)
-        self.sent = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._error: BaseException | None = None
 
     def start(self) -> LidarEmitter:
         if self._thread is not None:
@@ -88,16 +86,8 @@ class LidarEmitter:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    @property
-    def error(self) -> BaseException | None:
-        """What ended the sending thread early, if anything (a socket error)."""
-        return self._error
-
     def _run(self) -> None:
-        try:
-            self.sent = send_datagrams(self._datagrams(), self.host, speed=1.0)
-        except OSError as exc:
-            self._error = exc
+        send_datagrams(self._datagrams(), self.host, speed=1.0)
 
     def _datagrams(self) -> Iterator[tuple[float, int, bytes]]:
         start = _require_started(self.spec)

@@ -87,8 +87,10 @@ class StatusPrinter:
         text = (f"[{status.pairs_done:>2}/{status.pairs_wanted}] {now - self.started:6.1f} s  {status.message:<40} "
                 f"{status.packet_rate_hz:4.0f} packets/s, {status.packets_lost} lost")
         if self.tty:
-            prefix = "\n" if self.key is not None and key != self.key else "\r"
-            self.stream.write(prefix + text.ljust(self.width))
+            if self.key is not None and key != self.key:
+                self.stream.write("\n" + text)
+            else:  # rewrite the line, blanking what a longer previous text left
+                self.stream.write("\r" + text.ljust(self.width))
             self.width = len(text)
         elif key != self.key or now - self.last_line >= LOG_PERIOD_S:
             self.stream.write(text + "\n")

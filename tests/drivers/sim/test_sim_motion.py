@@ -107,7 +107,8 @@ def test_camera_frames_show_the_pose_at_their_exposure() -> None:
     stream = CameraStream(spec)
     frames = stream.frames()
     frame = next(frames)
-    frames.close()
+    stream.close()
+    assert next(frames, None) is None  # close() ends the stream
     assert frame.exposure_host_s - spec.start_host_s == pytest.approx(frame.device_time_s)
     expected = render_panorama(stream.scene, stream.trajectory.pose_at(frame.device_time_s), 64, 32,
                                np.random.default_rng([spec.seed, 0, 11]), spec.image_noise_grey)
