@@ -42,7 +42,7 @@ from drivers.vlp16.layout import HOUR_US, SEQUENCE_US
 TURN_S = FIRINGS_PER_TURN * SEQUENCE_US * 1e-6  # one simulated turn: 1800 firing sequences
 FIRING_AZIMUTH_DEG = 360.0 * np.arange(FIRINGS_PER_TURN) / FIRINGS_PER_TURN  # as drivers.sim.lidar fires
 START_LEAD_S = 0.2  # time 0 is set this far ahead, so the first turn is ready when it is due
-_SCAN_ALLOWANCE_S = 0.1  # time to scan and encode a turn before it is due
+_SCAN_ALLOWANCE_S = 0.2  # time to scan and encode the first turn before it is due
 _STREAM_LIDAR, _STREAM_CAMERA = 7, 11  # random streams of the moving rig's noise
 
 
@@ -92,10 +92,12 @@ class LidarEmitter:
     def _datagrams(self) -> Iterator[tuple[float, int, bytes]]:
         start = _require_started(self.spec)
         # A sensor started before anyone listens has been turning all along: begin with the first turn not
-        # yet due (scanning it takes a few tens of ms).
-        turn = max(0, math.ceil((time.time() + _SCAN_ALLOWANCE_S - start) / TURN_S))
-        first = self.turn_datagrams(turn)
-        # The sender paces every datagram from the moment the first one leaves: that must be its own time.
+        # yet due. The sender paces every datagram from the moment the first one leaves, so that must be its
+        # own time: a turn whose scan finished too late (a busy machine) is dropped for a later one.
+        turn, first = -1, []
+        while not self._stop.is_set() and (turn < 0 or time.time() > start + turn * TURN_S):
+            turn = max(0, math.ceil((time.time() + _SCAN_ALLOWANCE_S - start) / TURN_S))
+            first = self.turn_datagrams(turn)
         self._stop.wait(max(0.0, start + turn * TURN_S - time.time()))
         yield from first
         while not self._stop.is_set():

@@ -93,13 +93,15 @@ def test_packets_arrive_at_the_sensors_rate_and_time() -> None:
             sweeps = [s for s in receiver.sweeps(timeout_s=1.5) if s.complete]
         start = emitter.spec.start_host_s
     assert len(sweeps) >= 8
-    span_host = sweeps[-1].end.host - sweeps[0].start.host
+    span_device = sweeps[-1].end.device - sweeps[0].start.device
     packets = sum(s.packet_count for s in sweeps)
-    assert packets / span_host == pytest.approx(1 / 1327.104e-6, rel=0.1)  # ~754 packets/s, not faster
+    assert packets / span_device == pytest.approx(1 / 1327.104e-6, rel=0.02)  # the VLP-16's 754 packets/s
+    # ... and they arrive at that pace, not faster: the first may be late by the scan of its turn.
+    assert sweeps[-1].end.host - sweeps[0].start.host > span_device - 0.15
     assert all(s.missing_packets == 0 for s in sweeps)
-    for s in sweeps:  # each turn starts on the turn grid of the rig's clock; received within 0.1 s
+    for s in sweeps:  # each turn starts on the turn grid of the rig's clock, and is never received early
         k = (s.start.device - start) / TURN_S
-        assert abs(k - round(k)) < 1e-3 and 0 <= s.start.host - s.start.device < 0.1
+        assert abs(k - round(k)) < 1e-3 and 0 <= s.start.host - s.start.device < 0.3
 
 
 def test_camera_frames_show_the_pose_at_their_exposure() -> None:

@@ -83,7 +83,7 @@ def complete_pairs(out: Path) -> list[str]:
 
 
 def test_killed_or_stopped_capture_keeps_complete_pairs_and_a_rerun_finishes(tmp_path: Path) -> None:
-    spec = MotionRigSpec(scene="indoor", seed=2, stops=14, still_s=2.5, move_s=1.0, width=128, height=64,
+    spec = MotionRigSpec(scene="indoor", seed=2, stops=20, still_s=2.5, move_s=1.0, width=128, height=64,
                          frame_period_s=0.2)
     data_port, position_port = free_udp_ports(2)
     out = tmp_path / "dataset"
