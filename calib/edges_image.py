@@ -24,8 +24,10 @@ class ImageEdgeParams:
     """``l0_lambda``: L0 smoothing weight (Xu et al. 2011; 0 disables smoothing). ``threshold``: on the
     normalised score (paper 0.15). ``normalise_percentile``: the score is divided by this percentile of the
     non-zero NMS responses (100 = the paper's max), which keeps one very strong edge (a lamp) from
-    silencing the rest."""
+    silencing the rest. ``clahe_clip``: contrast-limited adaptive histogram equalisation before smoothing
+    (0 disables), so an edge's score follows local contrast rather than global exposure or haze."""
 
+    clahe_clip: float = 0.0
     l0_lambda: float = 0.01
     l0_kappa: float = 2.0
     l0_beta_max: float = 1e5
@@ -42,11 +44,13 @@ class EdgePixels:
     score: F64
 
 
-def to_grey(image: NDArray[np.uint8]) -> F64:
-    """(H,W) or (H,W,3) BGR uint8 -> (H,W) float64 in [0, 1]."""
+def to_grey(image: NDArray[np.uint8], clahe_clip: float = 0.0) -> F64:
+    """(H,W) or (H,W,3) BGR uint8 -> (H,W) float64 in [0, 1], optionally CLAHE-equalised."""
     grey = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY) if image.ndim == 3 else image
     if grey.ndim != 2:
         raise CalibError(f"image must be (H,W) or (H,W,3), got shape {image.shape}")
+    if clahe_clip > 0:
+        grey = cv2.createCLAHE(clipLimit=clahe_clip, tileGridSize=(8, 8)).apply(np.ascontiguousarray(grey))
     return np.asarray(grey, dtype=np.float64) / 255.0
 
 
@@ -136,7 +140,7 @@ def subpixel_offsets(magnitude: F64, gx: F64, gy: F64, wrap_u: bool) -> F64:
 
 
 def _edge_maps(image: NDArray[np.uint8], params: ImageEdgeParams, wrap_u: bool) -> tuple[F64, F64, F64, F64]:
-    grey = to_grey(image)
+    grey = to_grey(image, params.clahe_clip)
     if params.l0_lambda > 0:
         grey = l0_smooth(grey, params.l0_lambda, params.l0_kappa, params.l0_beta_max)
     gx, gy = _sobel(grey, wrap_u)
