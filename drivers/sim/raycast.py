@@ -72,6 +72,8 @@ def _cast_raw(scene: Scene, o: F64, d: F64, chunk_rays: int) -> _Raw:
     n = len(d)
     t = np.full(n, np.inf)
     box, axis, recess = np.full(n, -1, np.int64), np.zeros(n, np.int64), np.full(n, -1, np.int64)
+    if n == 0:  # e.g. no shadow rays to trace in a chunk: nothing to order or cast
+        return _Raw(t, box, axis, recess)
     # No exact zeros: 1/d must be finite-signed so the slab test never computes 0 * inf.
     d_safe = np.where(np.abs(d) < 1e-12, np.where(d < 0, -1e-12, 1e-12), d)
     order = _coherent_order(o, d)

@@ -128,3 +128,11 @@ def test_bad_rays_are_rejected_with_a_clear_error():
         cast(scene, np.zeros(3), np.zeros((2, 2)))
     with pytest.raises(SimError, match="non-zero"):
         cast(scene, np.zeros(3), np.zeros((2, 3)))
+
+
+
+def test_cast_of_no_rays_returns_no_hits():
+    from drivers.sim import make_scene
+
+    hits = cast(make_scene(SceneKind.OUTDOOR, 11, 0), np.zeros(3), np.zeros((0, 3)))
+    assert len(hits.depth_m) == 0 and hits.normal.shape == (0, 3)
