@@ -9,6 +9,7 @@ calibration), then runs calibrations on them. Memory therefore grows with --work
 from __future__ import annotations
 
 import dataclasses
+import multiprocessing
 import sys
 import time
 from collections.abc import Sequence
@@ -176,7 +177,10 @@ def _initial(settings: EvaluationSettings, dataset: Dataset) -> Transform | None
 
 
 def _pool(dataset: Dataset, params: CalibParams, workers: int) -> ProcessPoolExecutor:
-    return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(dataset.root, params))
+    # spawn, not fork: a child forked from a process whose OpenCV/BLAS threads hold locks can deadlock on
+    # its first cv2 call (seen: the test suite's process hung in cv2.setNumThreads in every forked worker).
+    return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(dataset.root, params),
+                               mp_context=multiprocessing.get_context("spawn"))
 
 
 def _run_all(pool: ProcessPoolExecutor, tasks: Sequence[_Task], desc: str, progress: bool) -> tuple[Run, ...]:
