@@ -29,7 +29,7 @@ from calib.evaluate import OutlierRule, Params6, RunStats, parameter_values, ran
 from calib.geometry import Transform
 from calib.gmm import PairFeatures
 from calib.pipeline import CalibParams, calibrate
-from rigd.calibration.service import _features
+from rigd.calibration.service import dataset_features
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import transform_to_yaml
 from rigd.dataset.store import write_yaml
@@ -132,7 +132,7 @@ def _init_worker(root: Path, params: CalibParams) -> None:
     global _STATE
     cv2.setNumThreads(1)  # the pool already runs one process per core
     try:
-        feats = tuple(_features(open_dataset(root), params, None))
+        feats = tuple(dataset_features(open_dataset(root), params, None))
     except (RigdError, CalibError) as exc:
         _STATE = _WorkerState((), params, f"{root}: {exc}")
         return

@@ -62,7 +62,8 @@ def _initial(request: CalibrationRequest, dataset: Dataset) -> Transform:
     raise RigdError(f"{dataset.root / 'rig.yaml'}: no initial_guess; give one with --init 'r,p,y,x,y,z'")
 
 
-def _features(dataset: Dataset, params: CalibParams, progress: Progress | None) -> list[PairFeatures]:
+def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None) -> list[PairFeatures]:
+    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges)."""
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
     camera = dataset.rig.camera.model()
@@ -129,7 +130,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
         params = dataclasses.replace(params, optim=dataclasses.replace(params.optim,
                                                                        sigmas_deg=tuple(request.sigmas_deg)))
-    feats = _features(dataset, params, progress)
+    feats = dataset_features(dataset, params, progress)
     if progress:
         progress("optimising", 0.5)
     try:
