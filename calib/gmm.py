@@ -222,6 +222,34 @@ def _point_terms(
     return value, grad
 
 
+@dataclass(frozen=True)
+class PointTerms:
+    """Per-point pieces of the cost of one pair at one pose: ``index`` (K,) of the active edge points,
+    ``value`` (K,) V_i >= 0 (the cost is -sum V_i), ``d_pcam`` (K,3) d cost_i / d p_cam (1/m), ``rotated``
+    (K,3) R p_i in m, ``uv`` (K,2) px of the projections."""
+
+    index: I64
+    value: F64
+    d_pcam: F64
+    rotated: F64
+    uv: F64
+
+
+def point_terms(feat: PairFeatures, frz: Frozen, tau: F64, sigma_in_px: float, opts: GmmOptions) -> PointTerms:
+    """Eqs. 8-10 and 28-29 point by point for one pair (the frozen model at ``tau``)."""
+    p_cam, rotated = transform_points(tau, feat.points.points_lidar)
+    uv, valid = feat.camera.project(p_cam)
+    # Points just outside the image still see edge pixels inside it; taking every valid projection
+    # (not only those inside) keeps the cost continuous when a point crosses the image border.
+    sel = np.flatnonzero(valid & (opts.use_folds | (feat.points.kind != FOLD)))
+    if sel.size == 0:
+        return PointTerms(sel, np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2)))
+    value, d_centre = _point_terms(feat, uv[sel], frz.sigma_px[sel], sigma_in_px, opts, feat.points.score[sel])
+    # eqs. 28-29: d cost / d p_cam = - dV/d(u,v) . d(u,v)/d p_cam
+    d_pcam = -np.einsum("ni,nij->nj", d_centre, feat.camera.project_jacobian(p_cam[sel]))
+    return PointTerms(sel, value, d_pcam, rotated[sel], uv[sel])
+
+
 def cost_and_gradient(
     feats: list[PairFeatures], frozen: list[Frozen], tau: F64, sigma_in_px: list[float], opts: GmmOptions
 ) -> CostGrad:
@@ -231,20 +259,13 @@ def cost_and_gradient(
     n_active = 0
     jac_l = left_jacobian(tau[:3])
     for feat, frz, s_in in zip(feats, frozen, sigma_in_px, strict=True):
-        p_cam, rotated = transform_points(tau, feat.points.points_lidar)
-        uv, valid = feat.camera.project(p_cam)
-        # Points just outside the image still see edge pixels inside it; taking every valid projection
-        # (not only those inside) keeps the cost continuous when a point crosses the image border.
-        sel = np.flatnonzero(valid & (opts.use_folds | (feat.points.kind != FOLD)))
-        if sel.size == 0:
+        terms = point_terms(feat, frz, tau, s_in, opts)
+        if terms.index.size == 0:
             continue
-        value, d_centre = _point_terms(feat, uv[sel], frz.sigma_px[sel], s_in, opts, feat.points.score[sel])
-        total -= float(value.sum())
-        n_active += int(np.count_nonzero(value))
-        # eqs. 28-29: d cost / d p_cam = - dV/d(u,v) . d(u,v)/d p_cam
-        d_pcam = -np.einsum("ni,nij->nj", d_centre, feat.camera.project_jacobian(p_cam[sel]))
+        total -= float(terms.value.sum())
+        n_active += int(np.count_nonzero(terms.value))
         # eq. 30: d p_cam / d omega = -(R p)^ J (left Jacobian, eq. 31);  d p_cam / d t = I.
         # a^T (-(Rp)^) = (Rp x a)^T.
-        grad[3:] += d_pcam.sum(axis=0)
-        grad[:3] += np.cross(rotated[sel], d_pcam).sum(axis=0) @ jac_l
+        grad[3:] += terms.d_pcam.sum(axis=0)
+        grad[:3] += np.cross(terms.rotated, terms.d_pcam).sum(axis=0) @ jac_l
     return CostGrad(total, grad, n_active)

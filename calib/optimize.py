@@ -22,6 +22,8 @@ from numpy.typing import NDArray
 
 from calib.errors import CalibError
 from calib.gmm import CostGrad, Evaluator, Frozen, GmmOptions, PairFeatures, cost_and_gradient, freeze
+from calib.prior import Prior
+from calib.uncertainty import LevelModel, clusters_at, hessian, local_gradient, nll_scale, scatter, symmetric
 
 F64 = NDArray[np.float64]
 
@@ -44,6 +46,7 @@ class OptimOptions:
     fold_levels: int = 2  # fold edge points take part in the first this-many levels only
     alternative_schedules: int = 1  # also run without the first 1..k levels; keep the lowest final cost
     numerical_gradient: bool = False
+    cluster_cell_deg: float = 5.0  # edge points in one angular image cell of one pair share their errors
 
 
 @dataclass(frozen=True)
@@ -69,12 +72,21 @@ class _Problem:
     gmm: GmmOptions
     sigma_in_px: list[float]
     numerical: bool
+    prior: Prior | None = None
+    kappa: float = 1.0  # the GMM cost's scale in NLL units: the prior's weight
     frozen: list[Frozen] = field(default_factory=list)
 
     def refreeze(self, tau: F64) -> None:
         self.frozen = [freeze(f, tau, s, self.gmm) for f, s in zip(self.feats, self.sigma_in_px, strict=True)]
 
     def evaluate(self, tau: F64) -> CostGrad:
+        cg = self._evaluate_gmm(tau)
+        if self.prior is None or not self.prior.active:
+            return cg
+        nll, grad = self.prior.nll_and_gradient(tau)  # the MAP term
+        return CostGrad(cg.cost + self.kappa * nll, cg.gradient + self.kappa * grad, cg.n_active)
+
+    def _evaluate_gmm(self, tau: F64) -> CostGrad:
         cg = cost_and_gradient(self.feats, self.frozen, tau, self.sigma_in_px, self.gmm)
         if not self.numerical:
             return cg
@@ -167,26 +179,62 @@ def _level_gmm(gmm: GmmOptions, sigma_deg: float) -> GmmOptions:
     return replace(gmm, evaluator=Evaluator.FIELD if sigma_deg >= gmm.exact_below_deg else Evaluator.EXACT)
 
 
+def level_model(feats: list[PairFeatures], opts: OptimOptions, gmm: GmmOptions, level: int) -> LevelModel:
+    """The cost of level ``level`` of ``opts.sigmas_deg`` (its evaluator, sigma cap and edge kinds)."""
+    sigma_deg = opts.sigmas_deg[level]
+    level_gmm = _level_gmm(gmm, sigma_deg)
+    if level == len(opts.sigmas_deg) - 1:  # the finest level keeps eq. 23's full 1/r
+        level_gmm = replace(level_gmm, sigma_range_cap_m=1e9)
+    if level >= opts.fold_levels:
+        level_gmm = replace(level_gmm, use_folds=False)
+    sigma_rad = float(np.radians(sigma_deg))
+    return LevelModel(tuple(feats), tuple(sigma_rad * f.camera.pixels_per_radian for f in feats), level_gmm)
+
+
+def hessian_steps(feats: list[PairFeatures], gmm: GmmOptions) -> F64:
+    """Finite-difference steps (6,) in local coordinates: a twentieth of the narrowest Gaussian, as an angle
+    and as the translation that moves an edge at the typical range by that angle."""
+    h_rot = 0.05 * max(float(np.radians(gmm.sigma_floor_deg)),
+                       gmm.sigma_floor_px / min(f.camera.pixels_per_radian for f in feats))
+    return np.array([h_rot] * 3 + [h_rot * _typical_range(feats)] * 3)
+
+
+def estimate_kappa(model: LevelModel, tau: F64, steps: F64, cell_deg: float) -> float:
+    """The level cost's scale in NLL units at ``tau`` (:func:`calib.uncertainty.nll_scale`)."""
+    frozen = model.freeze(tau)
+    clusters = clusters_at(model, tau, cell_deg)
+    h = symmetric(hessian(model, frozen, tau, steps, clusters).sum(axis=0))
+    b = scatter(local_gradient(model, frozen, tau, np.zeros(6), clusters))
+    return nll_scale(h, b) if np.all(np.isfinite(b)) else 1.0
+
+
+def tail_options(opts: OptimOptions, k: int) -> OptimOptions:
+    """``opts`` reduced to its last ``k`` levels, each level keeping the edge kinds it had."""
+    drop = len(opts.sigmas_deg) - k
+    return replace(opts, sigmas_deg=opts.sigmas_deg[drop:],
+                   rotation_only_levels=max(0, opts.rotation_only_levels - drop),
+                   fold_levels=max(0, opts.fold_levels - drop), alternative_schedules=0)
+
+
 def _coarse_to_fine(
     feats: list[PairFeatures], tau0: F64, opts: OptimOptions, gmm: GmmOptions,
-    on_iter: Callable[[int, int, float], None] | None,
+    on_iter: Callable[[int, int, float], None] | None, prior: Prior | None = None,
 ) -> OptimResult:
-    """Algorithm 1: coarse-to-fine over ``opts.sigmas_deg``."""
+    """Algorithm 1: coarse-to-fine over ``opts.sigmas_deg`` (with the prior's MAP term if given)."""
     tau = np.asarray(tau0, dtype=np.float64).copy()
     r_typ = _typical_range(feats) if opts.precondition else 1.0
     scale = np.array([1.0, 1.0, 1.0, r_typ**2, r_typ**2, r_typ**2])
+    fixed_t = prior is not None and prior.fix_translation
+    steps = hessian_steps(feats, gmm) if prior is not None and prior.active else None
     levels = []
     for level, sigma_deg in enumerate(opts.sigmas_deg):
         sigma_rad = float(np.radians(sigma_deg))
-        level_gmm = _level_gmm(gmm, sigma_deg)
-        if level == len(opts.sigmas_deg) - 1:  # the finest level keeps eq. 23's full 1/r
-            level_gmm = replace(level_gmm, sigma_range_cap_m=1e9)
-        if level >= opts.fold_levels:
-            level_gmm = replace(level_gmm, use_folds=False)
-        prob = _Problem(feats, level_gmm, [sigma_rad * f.camera.pixels_per_radian for f in feats],
-                        opts.numerical_gradient)
+        model = level_model(feats, opts, gmm, level)
+        kappa = estimate_kappa(model, tau, steps, opts.cluster_cell_deg) if steps is not None else 1.0
+        prob = _Problem(feats, model.gmm, list(model.sigma_in_px), opts.numerical_gradient, prior, kappa)
         cb = (lambda i, c, lv=level: on_iter(lv, i, c)) if on_iter else None
-        level_scale = scale * ([1.0] * 3 + [0.0 if level < opts.rotation_only_levels else 1.0] * 3)
+        moves_t = not fixed_t and level >= opts.rotation_only_levels
+        level_scale = scale * ([1.0] * 3 + [1.0 if moves_t else 0.0] * 3)
         tau, trace = _run_level(prob, tau, opts, level_scale, sigma_rad, cb)
         levels.append(trace)
     return OptimResult(tau, tuple(levels), all(t.converged for t in levels), levels[-1].costs[-1])
@@ -198,6 +246,7 @@ def optimise(
     opts: OptimOptions,
     gmm: GmmOptions,
     on_iter: Callable[[int, int, float], None] | None = None,
+    prior: Prior | None = None,
 ) -> OptimResult:
     """Coarse-to-fine from ``tau0``, also run with the first ``opts.alternative_schedules`` levels left out;
     the run ending at the lowest finest-level cost wins. ``on_iter(level, iteration, cost)``.
@@ -206,10 +255,10 @@ def optimise(
     +-10 cm) but on a small set (2 pairs) it can also pull a good start into a far minimum; every schedule
     ends on the same finest level, whose cost decides, so the extra run can only lower the objective.
     """
-    best = _coarse_to_fine(feats, tau0, opts, gmm, on_iter)
+    best = _coarse_to_fine(feats, tau0, opts, gmm, on_iter, prior)
     for k in range(1, min(opts.alternative_schedules, len(opts.sigmas_deg) - 1) + 1):
         shorter = replace(opts, sigmas_deg=opts.sigmas_deg[k:], rotation_only_levels=0)
-        other = _coarse_to_fine(feats, tau0, shorter, gmm, None)
+        other = _coarse_to_fine(feats, tau0, shorter, gmm, None, prior)
         if other.final_cost < best.final_cost:
             best = other
     return best

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from calib.assess import Assessment, TrustOptions, assess
 from calib.camera import CameraModel, Equirectangular
 from calib.edges_image import ImageEdgeParams, image_edge_pixels
 from calib.edges_points import (
@@ -25,6 +26,7 @@ from calib.fields import EdgeFields
 from calib.geometry import Transform
 from calib.gmm import Evaluator, GmmOptions, KernelNorm, PairFeatures, in_image, transform_points
 from calib.optimize import OptimOptions, OptimResult, optimise
+from calib.prior import Prior
 
 F64 = NDArray[np.float64]
 
@@ -65,9 +67,12 @@ class PairStats:
 
 @dataclass(frozen=True)
 class CalibResult:
+    """The solution; ``assessment`` (restarts, uncertainty, verdict) unless the caller skipped it."""
+
     T_camera_lidar: Transform
     optim: OptimResult
     pairs: tuple[PairStats, ...]
+    assessment: Assessment | None = None
 
 
 def paper_params() -> CalibParams:
@@ -121,7 +126,13 @@ def calibrate(
     initial: Transform,
     params: CalibParams,
     on_iter: Callable[[int, int, float], None] | None = None,
+    prior: Prior | None = None,
+    trust: TrustOptions | None = None,
 ) -> CalibResult:
+    """Algorithm 1 from ``initial`` (with the prior's MAP term if given), then, with ``trust``, the restarts,
+    per-axis uncertainty and verdict of :mod:`calib.assess` (a restart that ends lower is the solution)."""
+    if prior is not None and prior.fix_translation and prior.xyz_m is not None:
+        initial = Transform(initial.rotation, prior.xyz_m)
     tau0 = initial.tau
     if float(np.linalg.norm(initial.translation_m)) > params.max_translation_m:
         raise InitialGuessError(
@@ -134,6 +145,9 @@ def calibrate(
         # Too few occlusion edges to pin the finest levels alone (measured: 152 in 2 small pairs put the
         # finest cost's minimum 9.7 deg off); fold edges are biased (~0.3 deg) but keep it anchored.
         optim = replace(optim, fold_levels=len(optim.sigmas_deg))
-    result = optimise(feats, tau0, optim, params.gmm, on_iter)
+    result = optimise(feats, tau0, optim, params.gmm, on_iter, prior)
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
-    return CalibResult(Transform.from_tau(result.tau), result, stats)
+    if trust is None:
+        return CalibResult(Transform.from_tau(result.tau), result, stats)
+    assessment = assess(feats, result, optim, params.gmm, prior, trust)
+    return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment)

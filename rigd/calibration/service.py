@@ -13,13 +13,16 @@ from typing import Any
 import cv2
 import numpy as np
 
+from calib.assess import Assessment, TrustOptions
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
 from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features, paper_params
+from calib.prior import Prior
+from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.visuals import overlay, write_coloured_ply
 from rigd.dataset import Dataset, open_dataset
-from rigd.dataset.records import transform_to_yaml
+from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 
@@ -41,6 +44,9 @@ class CalibrationRequest:
     sigmas_deg: tuple[float, ...] | None = None  # None: the method's own schedule
     write_visuals: bool = True
     method: Method = Method.RIGD
+    prior: Prior | None = None  # None: the dataset's rig.yaml prior (if any)
+    fix_translation: bool = False  # hold the translation at the prior's (or the initial guess's) lever arm
+    tolerance: TrustOptions | None = None  # None: rig.yaml's tolerance, else 0.2 deg / 2 cm
 
 
 @dataclass(frozen=True)
@@ -62,6 +68,15 @@ def _initial(request: CalibrationRequest, dataset: Dataset) -> Transform:
     raise RigdError(f"{dataset.root / 'rig.yaml'}: no initial_guess; give one with --init 'r,p,y,x,y,z'")
 
 
+def _prior(request: CalibrationRequest, dataset: Dataset) -> Prior | None:
+    prior = request.prior if request.prior is not None else dataset.rig.prior
+    if not request.fix_translation:
+        return prior
+    if prior is None:
+        return Prior(fix_translation=True)
+    return dataclasses.replace(prior, fix_translation=True)
+
+
 def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None) -> list[PairFeatures]:
     """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges)."""
     if len(dataset) == 0:
@@ -75,6 +90,33 @@ def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress |
         feats.append(extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring), camera,
                                       params, index=i))
     return feats
+
+
+def _finite(values: Any) -> Any:
+    """Nested lists of numbers with non-finite entries as None (JSON has no infinity)."""
+    arr = np.asarray(values, dtype=np.float64)
+    return [_finite(v) for v in arr] if arr.ndim else (float(arr) if np.isfinite(arr) else None)
+
+
+def assessment_yaml(a: Assessment) -> dict[str, Any]:
+    """The ``uncertainty`` and ``verdict`` sections of a report (docs/trust.md)."""
+    u, v = a.uncertainty, a.verdict
+    cov_display = u.covariance * np.outer(TO_DISPLAY, TO_DISPLAY)
+    return {
+        "uncertainty": {
+            "rpy_deg": _finite(u.sigma[:3]),
+            "xyz_cm": _finite(u.sigma[3:]),
+            "covariance": _finite(cov_display),
+            "weakest": u.weakest,
+            "laplace": {"rpy_deg": _finite(u.laplace[:3]), "xyz_cm": _finite(u.laplace[3:]), "nll_scale": u.kappa},
+            "jackknife": None if u.jackknife is None else {
+                "rpy_deg": _finite(u.jackknife[:3]), "xyz_cm": _finite(u.jackknife[3:]), "groups": u.jackknife_groups},
+            "matched_share": u.matched_share,
+            "restarts": [{"offset_rpy_deg": _finite(r.offset[:3]), "offset_xyz_cm": _finite(r.offset[3:]),
+                          "delta_nll": r.delta_nll} for r in a.restarts],
+        },
+        "verdict": {"status": v.status.value, "weak_axes": list(v.weak_axes), "reasons": list(v.reasons)},
+    }
 
 
 def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: float) -> dict[str, Any]:
@@ -102,7 +144,11 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
             "translation_cm": float(np.linalg.norm(T.translation_m - gt.translation_m) * 100.0),
             "rpy_deg": (T.rpy_deg - gt.rpy_deg).tolist(),
             "xyz_cm": ((T.translation_m - gt.translation_m) * 100.0).tolist(),
+            # the same error in the uncertainty's axes (rotation about the LiDAR's x, y, z: docs/trust.md)
+            "local_deg_cm": (xi_of(gt.tau, T.tau) * TO_DISPLAY).tolist(),
         }
+    if result.assessment is not None:
+        report.update(assessment_yaml(result.assessment))
     return report
 
 
@@ -130,15 +176,20 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
         params = dataclasses.replace(params, optim=dataclasses.replace(params.optim,
                                                                        sigmas_deg=tuple(request.sigmas_deg)))
+    prior = _prior(request, dataset)
+    trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
     feats = dataset_features(dataset, params, progress)
     if progress:
         progress("optimising", 0.5)
     try:
-        result = calibrate(feats, initial, params, on_iter)
+        result = calibrate(feats, initial, params, on_iter, prior, trust)
     except CalibError as exc:
         raise RigdError(f"{dataset.root}: {exc}") from exc
     report = _report(result, initial, dataset, time.monotonic() - started)
     report["method"] = {"name": request.method.value, "sigmas_deg": list(params.optim.sigmas_deg)}
+    if prior is not None:
+        report["prior"] = prior_to_yaml(prior)
+    report["tolerance"] = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm}
     out = Path(request.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_yaml(out / "extrinsics.yaml", report)

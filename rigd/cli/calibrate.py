@@ -10,7 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from calib.geometry import Transform
+from calib.assess import Status, TrustOptions
+from calib.errors import CalibError
+from calib.geometry import Transform, rpy_deg_to_matrix
+from calib.prior import Prior
 from rigd.calibration import CalibrationRequest, run_calibration
 from rigd.calibration.service import DEFAULT_SIGMAS_DEG, PAPER_SIGMAS_DEG, Method
 from rigd.errors import RigdError
@@ -34,6 +37,44 @@ def parse_sigmas(text: str) -> tuple[float, ...]:
         raise RigdError(f"--sigmas must be comma-separated numbers, got {text!r}") from exc
 
 
+# Exit codes of rigd calibrate by verdict (docs/trust.md); 2 is an error (bad input, featureless scene).
+EXIT_CODES = {Status.TRUSTED: 0, Status.WEAK: 3, Status.FAILED: 4}
+
+
+def _numbers(text: str, option: str, count: int) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError as exc:
+        raise RigdError(f"{option} must be {count} comma-separated numbers, got {text!r}") from exc
+    if len(values) != count or not np.all(np.isfinite(values)):
+        raise RigdError(f"{option} must be {count} finite comma-separated numbers, got {text!r}")
+    return values
+
+
+def parse_prior(xyz_text: str | None, rotation_text: str | None) -> Prior | None:
+    """--prior 'x,y,z,sigma_cm' and --prior-rotation 'roll,pitch,yaw,sigma_deg' -> Prior (or None)."""
+    if xyz_text is None and rotation_text is None:
+        return None
+    xyz = sigma_t = rotation = sigma_r = None
+    if xyz_text is not None:
+        v = _numbers(xyz_text, "--prior", 4)
+        xyz, sigma_t = np.array(v[:3]), np.full(3, v[3] / 100.0)
+    if rotation_text is not None:
+        v = _numbers(rotation_text, "--prior-rotation", 4)
+        rotation, sigma_r = rpy_deg_to_matrix(np.array(v[:3])), np.full(3, np.radians(v[3]))
+    try:
+        return Prior(xyz, sigma_t, rotation, sigma_r)
+    except CalibError as exc:
+        raise RigdError(str(exc)) from exc
+
+
+def parse_tolerance(text: str) -> TrustOptions:
+    rot, trans = _numbers(text, "--tolerance", 2)
+    if rot <= 0 or trans <= 0:
+        raise RigdError(f"--tolerance must be positive 'rotation_deg,translation_cm', got {text!r}")
+    return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)
+
+
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "calibrate",
@@ -55,6 +96,15 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
     parser.add_argument("--no-visuals", action="store_true", help="skip overlays and PLY clouds")
+    parser.add_argument("--prior", type=str, default=None, metavar="X,Y,Z,SIGMA_CM",
+                        help="Gaussian prior on the lever arm (t of T_camera_lidar, m) with its sigma in cm, e.g. "
+                        "from the rig's drawing (default: rig.yaml prior)")
+    parser.add_argument("--prior-rotation", type=str, default=None, metavar="ROLL,PITCH,YAW,SIGMA_DEG",
+                        help="Gaussian prior on the rotation (deg) with its sigma in deg")
+    parser.add_argument("--fix", choices=["translation"], default=None,
+                        help="hold the translation at the prior's lever arm (or the initial guess's)")
+    parser.add_argument("--tolerance", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
+                        help="field tolerance of the verdict (default: rig.yaml tolerance, else 0.2,2)")
     parser.set_defaults(func=run)
 
 
@@ -74,15 +124,34 @@ def run(args: argparse.Namespace) -> int:
         sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
         method=Method(args.method),
         write_visuals=not args.no_visuals,
+        prior=parse_prior(args.prior, args.prior_rotation),
+        fix_translation=args.fix == "translation",
+        tolerance=parse_tolerance(args.tolerance) if args.tolerance else None,
     )
     outcome = run_calibration(request, _progress, _on_iter)
+    verdict = outcome.report["verdict"]
     if args.json:
         print(json.dumps(outcome.report))
     else:
         T = outcome.T_camera_lidar
         print(f"T_camera_lidar rpy_deg {np.round(T.rpy_deg, 3).tolist()} xyz_m {np.round(T.translation_m, 4).tolist()}")
         print(f"written: {outcome.out_dir / 'extrinsics.yaml'}")
+        _print_trust(outcome.report)
         err = outcome.report.get("error_vs_ground_truth")
         if err:
             print(f"error vs ground truth: {err['rotation_deg']:.3f} deg, {err['translation_cm']:.2f} cm")
-    return 0
+    return EXIT_CODES[Status(verdict["status"])]
+
+
+def _fmt(values: list[float | None]) -> str:
+    return ", ".join("unknown" if v is None else f"{v:.3g}" for v in values)
+
+
+def _print_trust(report: dict[str, Any]) -> None:
+    u, v = report["uncertainty"], report["verdict"]
+    print(f"sigma roll, pitch, yaw: {_fmt(u['rpy_deg'])} deg; x, y, z: {_fmt(u['xyz_cm'])} cm")
+    print(f"weakest: {u['weakest']}")
+    axes = f" ({', '.join(v['weak_axes'])})" if v["weak_axes"] else ""
+    print(f"verdict: {v['status'].upper()}{axes}")
+    for reason in v["reasons"]:
+        print(f"  - {reason}")

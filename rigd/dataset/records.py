@@ -9,9 +9,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.assess import TrustOptions
 from calib.camera import CameraModel, Equirectangular, Pinhole
 from calib.errors import CalibError
-from calib.geometry import Transform
+from calib.geometry import Transform, rpy_deg_to_matrix
+from calib.prior import Prior
 from rigd.errors import DatasetError
 
 
@@ -82,13 +84,75 @@ def transform_from_yaml(data: Any, where: str) -> Transform:
         raise DatasetError(f"{where}: bad transform ({exc!r})") from exc
 
 
+def _three(value: Any, name: str, where: str) -> NDArray[np.float64]:
+    """One number or three, as (3,) float64."""
+    try:
+        arr = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,)).copy()
+    except (TypeError, ValueError) as exc:
+        raise DatasetError(f"{where}: prior {name} must be one number or three, got {value!r}") from exc
+    return arr
+
+
+def prior_from_yaml(data: Any, where: str) -> Prior:
+    """``prior: {xyz_m: [x, y, z], sigma_cm: 1.0, rpy_deg: [r, p, y], sigma_deg: 2.0, fix_translation: false}``
+    (every key optional; a sigma is one number or one per axis)."""
+    if not isinstance(data, dict):
+        raise DatasetError(f"{where}: 'prior' must be a mapping (xyz_m, sigma_cm, rpy_deg, sigma_deg), got {data!r}")
+    unknown = set(data) - {"xyz_m", "sigma_cm", "rpy_deg", "sigma_deg", "fix_translation"}
+    if unknown:
+        raise DatasetError(f"{where}: unknown prior keys {sorted(unknown)}")
+    fix = bool(data.get("fix_translation", False))
+    xyz = _three(data["xyz_m"], "xyz_m", where) if "xyz_m" in data else None
+    sigma_t = _three(data["sigma_cm"], "sigma_cm", where) / 100.0 if "sigma_cm" in data else None
+    if xyz is not None and sigma_t is None and not fix:
+        raise DatasetError(f"{where}: prior xyz_m needs sigma_cm (or fix_translation: true)")
+    rotation = rpy_deg_to_matrix(_three(data["rpy_deg"], "rpy_deg", where)) if "rpy_deg" in data else None
+    sigma_r = np.radians(_three(data["sigma_deg"], "sigma_deg", where)) if "sigma_deg" in data else None
+    try:
+        return Prior(xyz, sigma_t, rotation, sigma_r, fix)
+    except CalibError as exc:
+        raise DatasetError(f"{where}: {exc}") from exc
+
+
+def prior_to_yaml(prior: Prior) -> dict[str, Any]:
+    """The ``prior`` section of rig.yaml (inverse of :func:`prior_from_yaml`)."""
+    out: dict[str, Any] = {}
+    if prior.xyz_m is not None:
+        out["xyz_m"] = prior.xyz_m.tolist()
+    if prior.sigma_xyz_m is not None:
+        out["sigma_cm"] = (prior.sigma_xyz_m * 100.0).tolist()
+    if prior.rotation is not None and prior.sigma_rot_rad is not None:
+        out["rpy_deg"] = Transform(prior.rotation, np.zeros(3)).rpy_deg.tolist()
+        out["sigma_deg"] = np.degrees(prior.sigma_rot_rad).tolist()
+    if prior.fix_translation:
+        out["fix_translation"] = True
+    return out
+
+
+def tolerance_from_yaml(data: Any, where: str) -> TrustOptions:
+    """``tolerance: {rotation_deg: 0.2, translation_cm: 2.0}``: the field tolerance of the verdict."""
+    if not isinstance(data, dict) or set(data) - {"rotation_deg", "translation_cm"}:
+        raise DatasetError(f"{where}: 'tolerance' must be a mapping with rotation_deg and/or translation_cm")
+    try:
+        rot = float(data.get("rotation_deg", TrustOptions.tolerance_rot_deg))
+        trans = float(data.get("translation_cm", TrustOptions.tolerance_trans_cm))
+    except (TypeError, ValueError) as exc:
+        raise DatasetError(f"{where}: tolerance values must be numbers ({exc})") from exc
+    if not (np.isfinite(rot) and np.isfinite(trans) and rot > 0 and trans > 0):
+        raise DatasetError(f"{where}: tolerance values must be positive, got {rot} deg, {trans} cm")
+    return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)
+
+
 @dataclass(frozen=True)
 class RigConfig:
-    """``rig.yaml``: the camera, the LiDAR model and an optional initial guess of T_camera_lidar."""
+    """``rig.yaml``: the camera, the LiDAR model, an optional initial guess of T_camera_lidar, an optional
+    prior from the rig's drawing and the field tolerance of the verdict."""
 
     camera: CameraConfig
     lidar_model: str = "VLP-16"
     initial_guess: Transform | None = None
+    prior: Prior | None = None
+    tolerance: TrustOptions | None = None
 
     def to_yaml(self) -> dict[str, Any]:
         out: dict[str, Any] = {"camera": self.camera.to_yaml(), "lidar": {"model": self.lidar_model}}
@@ -97,6 +161,11 @@ class RigConfig:
                 "rpy_deg": self.initial_guess.rpy_deg.tolist(),
                 "xyz_m": self.initial_guess.translation_m.tolist(),
             }
+        if self.prior is not None:
+            out["prior"] = prior_to_yaml(self.prior)
+        if self.tolerance is not None:
+            out["tolerance"] = {"rotation_deg": self.tolerance.tolerance_rot_deg,
+                                "translation_cm": self.tolerance.tolerance_trans_cm}
         return out
 
     @classmethod
@@ -109,4 +178,6 @@ class RigConfig:
             raise DatasetError(f"{where}: 'lidar' must be a mapping with a 'model' key, got {lidar!r}")
         guess = data.get("initial_guess")
         initial = transform_from_yaml(guess, where) if guess else None
-        return cls(camera, str(lidar.get("model", "VLP-16")), initial)
+        prior = prior_from_yaml(data["prior"], where) if data.get("prior") is not None else None
+        tolerance = tolerance_from_yaml(data["tolerance"], where) if data.get("tolerance") is not None else None
+        return cls(camera, str(lidar.get("model", "VLP-16")), initial, prior, tolerance)

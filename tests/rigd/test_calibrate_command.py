@@ -26,8 +26,14 @@ def test_calibrate_json_prints_one_object_and_writes_outputs(small_dataset, tmp_
     proc = subprocess.run(
         [sys.executable, "-m", "rigd", "calibrate", str(small_dataset), "--init", ",".join(map(str, init)),
          "--out", str(out), "--json"], capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)  # stdout holds exactly one JSON object
+    verdict = report["verdict"]
+    assert proc.returncode == {"trusted": 0, "weak": 3, "failed": 4}[verdict["status"]], proc.stderr
+    assert set(verdict["weak_axes"]) <= {"roll", "pitch", "yaw", "x", "y", "z"} and verdict["reasons"]
+    assert (verdict["status"] == "trusted") == (not verdict["weak_axes"])
+    unc = report["uncertainty"]
+    assert len(unc["rpy_deg"]) == 3 and len(unc["xyz_cm"]) == 3 and isinstance(unc["weakest"], str)
+    assert np.array(unc["covariance"], dtype=float).shape == (6, 6)
     assert set(report["T_camera_lidar"]) == {"matrix", "quaternion_xyzw", "rpy_deg", "xyz_m"}
     assert len(report["quality"]["pairs"]) == 2
     written = yaml.safe_load((out / "extrinsics.yaml").read_text())

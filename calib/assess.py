@@ -1,0 +1,265 @@
+"""Is a calibration to be trusted? Restarts, jackknife, Laplace covariance and a verdict (docs/trust.md).
+
+After the coarse-to-fine solve:
+1. Restarts: the last levels rerun from poses around the solution. One that ends lower replaces the
+   solution (the objective decides); one that ends elsewhere at a cost the data cannot tell apart from the
+   solution's (a log-likelihood difference below ``ambiguity_nll``, with the cost's NLL scale kappa) makes
+   the axes it moved ambiguous.
+2. Uncertainty: the sandwich covariance of the finest level (calib.uncertainty) and a delete-a-group
+   jackknife (the finest level rerun from the solution without each pair, or, with fewer pairs than
+   ``jackknife_min_pairs``, without each of ``jackknife_groups`` random groups of angular image cells). Each
+   axis takes the larger of the two sigmas; correlations come from the sandwich.
+3. Verdict: ``trusted`` when every axis is known to within the field tolerance (``2 sigma <= tolerance``) and
+   no restart found a different, equally good pose; ``weak`` naming the axes that are not; ``failed`` when
+   the solution is not a minimum, is ambiguous by several tolerances, or most axes are far from known.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.edges_points import FOLD
+from calib.gmm import GmmOptions, PairFeatures, in_image, transform_points
+from calib.optimize import OptimOptions, OptimResult, hessian_steps, level_model, optimise, tail_options
+from calib.prior import Prior
+from calib.uncertainty import (
+    AXES,
+    TO_DISPLAY,
+    Clusters,
+    clusters_at,
+    hessian,
+    local_gradient,
+    matched_points,
+    nll_scale,
+    positive_part,
+    sandwich,
+    scatter,
+    sigmas_display,
+    symmetric,
+    tau_at,
+    weakest_direction,
+    xi_of,
+)
+
+F64 = NDArray[np.float64]
+
+
+class Status(Enum):
+    TRUSTED = "trusted"
+    WEAK = "weak"
+    FAILED = "failed"
+
+
+@dataclass(frozen=True)
+class TrustOptions:
+    """``tolerance_rot_deg`` / ``tolerance_trans_cm``: the field tolerance per axis (the rig file may change
+    it). ``sigma_factor``: an axis is known when ``sigma_factor * sigma`` is within tolerance (2: ~95 %)."""
+
+    tolerance_rot_deg: float = 0.2
+    tolerance_trans_cm: float = 2.0
+    sigma_factor: float = 2.0
+    restarts: int = 4
+    restart_levels: int = 2
+    restart_rot_deg: float = 0.5
+    restart_trans_m: float = 0.03
+    ambiguity_nll: float = 4.5  # 2 * delta NLL < 9: within 3 sigma of the best, statistically a tie
+    jackknife_min_pairs: int = 4  # fewer pairs: the jackknife leaves out groups of image cells instead
+    jackknife_groups: int = 8
+    failed_tolerances: float = 5.0  # ambiguity or sigma beyond this many tolerances on most axes: failed
+    seed: int = 0
+
+    @property
+    def tolerance_display(self) -> F64:
+        return np.array([self.tolerance_rot_deg] * 3 + [self.tolerance_trans_cm] * 3)
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """``covariance`` (6,6) of the local coordinates [rad, rad, rad, m, m, m] (calib.uncertainty);
+    ``sigma`` (6,) deg/cm the reported per-axis sigma; ``laplace`` and ``jackknife`` (6,) deg/cm its two
+    sources (``jackknife`` None when it could not be formed); ``kappa`` the cost's NLL scale."""
+
+    covariance: F64
+    sigma: F64
+    laplace: F64
+    jackknife: F64 | None
+    jackknife_groups: int
+    weakest: str
+    is_minimum: bool
+    kappa: float
+    matched_share: float
+
+
+@dataclass(frozen=True)
+class Restart:
+    """One restart: its offset from the solution in deg/cm (6,) and the NLL above the best (>= 0 unless it
+    replaced the solution)."""
+
+    offset: F64
+    delta_nll: float
+
+
+@dataclass(frozen=True)
+class Verdict:
+    status: Status
+    weak_axes: tuple[str, ...]
+    reasons: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Assessment:
+    tau: F64
+    optim: OptimResult
+    uncertainty: Uncertainty
+    restarts: tuple[Restart, ...]
+    verdict: Verdict
+
+
+def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptions, gmm: GmmOptions,
+                  prior: Prior | None, trust: TrustOptions) -> tuple[OptimResult, list[OptimResult]]:
+    """Rerun the last levels from ``trust.restarts`` poses around the solution; returns the best run (the
+    solution itself unless a restart ended lower) and every restart."""
+    rng = np.random.default_rng(trust.seed)
+    tail = tail_options(opts, min(trust.restart_levels, len(opts.sigmas_deg)))
+    fixed_t = prior is not None and prior.fix_translation
+    runs = []
+    for _ in range(trust.restarts):
+        offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
+                                 np.zeros(3) if fixed_t else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
+        runs.append(optimise(feats, tau_at(best.tau, offset), tail, gmm, None, prior))
+    winner = min([best, *runs], key=lambda r: r.final_cost)
+    return winner, runs
+
+
+def _groups(clusters: Clusters, n_pairs: int, trust: TrustOptions) -> tuple[NDArray[np.int64], int]:
+    """Jackknife group (C,) of each cluster, and the number of groups: the pair, or (few pairs) a random
+    group of angular image cells."""
+    if n_pairs >= trust.jackknife_min_pairs:
+        return clusters.pair, n_pairs
+    rng = np.random.default_rng(trust.seed)
+    return rng.permutation(clusters.count) % trust.jackknife_groups, trust.jackknife_groups
+
+
+def _jackknife(grads: F64, hessians: F64, extra_h: F64, groups: NDArray[np.int64], n_groups: int,
+               free: NDArray[np.bool_]) -> F64 | None:
+    """Delete-a-group jackknife covariance (6,6) of the local coordinates. Each left-out solve is one Newton
+    step of the finest level from the solution (the finite-difference Hessian is per cluster, so this costs
+    no further evaluation): xi_g = -(H - H_g)^-1 (g - g_g). ``free`` masks the estimated coordinates."""
+    offsets = []
+    total_g, total_h = grads.sum(axis=0), hessians.sum(axis=0)
+    for g in range(n_groups):
+        mine = groups == g
+        if not mine.any():
+            continue
+        h_rest, _ = positive_part(symmetric(total_h - hessians[mine].sum(axis=0) + extra_h)[np.ix_(free, free)])
+        step = np.zeros(6)
+        step[free] = -np.linalg.solve(h_rest, (total_g - grads[mine].sum(axis=0))[free])
+        offsets.append(step)
+    if len(offsets) < 3:
+        return None
+    xs = np.array(offsets)
+    centred = xs - xs.mean(axis=0)
+    k = len(offsets)
+    return np.asarray((k - 1.0) / k * centred.T @ centred, dtype=np.float64)
+
+
+def _in_image_count(feats: tuple[PairFeatures, ...], tau: F64, use_folds: bool) -> int:
+    """Edge points of the finest level that project into their image at ``tau``."""
+    total = 0
+    for f in feats:
+        uv, valid = f.camera.project(transform_points(tau, f.points.points_lidar)[0])
+        total += int(np.count_nonzero(in_image(f.camera, uv, valid) & (use_folds | (f.points.kind != FOLD))))
+    return total
+
+
+def _combine(cov_l: F64, sigma: F64) -> F64:
+    """The covariance with per-axis ``sigma`` (deg/cm) and the sandwich's correlations."""
+    d_l = np.sqrt(np.maximum(np.diag(cov_l), 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = np.where(np.outer(d_l, d_l) > 0, cov_l / np.outer(d_l, d_l), 0.0)
+    corr = np.nan_to_num(corr) + np.diag(np.where(d_l > 0, 0.0, 1.0))
+    d = sigma / TO_DISPLAY
+    return np.asarray(corr * np.outer(d, d) if np.all(np.isfinite(d)) else np.diag(d**2), dtype=np.float64)
+
+
+def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: GmmOptions, prior: Prior | None,
+                 trust: TrustOptions) -> Uncertainty:
+    model = level_model(feats, opts, gmm, len(opts.sigmas_deg) - 1)
+    frozen = model.freeze(tau)
+    clusters = clusters_at(model, tau, opts.cluster_cell_deg)
+    grads = local_gradient(model, frozen, tau, np.zeros(6), clusters)
+    hessians = hessian(model, frozen, tau, hessian_steps(feats, gmm), clusters)
+    free = np.array([True] * 3 + [not (prior is not None and prior.fix_translation)] * 3)
+    h = symmetric(hessians.sum(axis=0))[np.ix_(free, free)]
+    b = scatter(grads[:, free])
+    prior_info = (prior.information() if prior is not None else np.zeros((6, 6)))[np.ix_(free, free)]
+    known = bool(np.all(np.isfinite(b)))
+    kappa = nll_scale(h, b) if known else 1.0
+    _, is_min = positive_part(h + kappa * prior_info)
+    cov_l = np.zeros((6, 6))
+    cov_l[np.ix_(free, free)] = sandwich(h, b, prior_info) if known else np.diag(np.full(int(free.sum()), np.inf))
+    groups, n_groups = _groups(clusters, len(feats), trust)
+    extra = np.zeros((6, 6))
+    extra[np.ix_(free, free)] = kappa * prior_info
+    jack = _jackknife(grads, hessians, extra, groups, n_groups, free)
+    laplace = sigmas_display(cov_l)
+    jack_sigma = None if jack is None else sigmas_display(jack)
+    sigma = laplace if jack_sigma is None else np.maximum(laplace, jack_sigma)
+    if not is_min:
+        sigma = np.where(free, np.inf, 0.0)
+    cov = _combine(cov_l, sigma)
+    weakest = weakest_direction(cov, trust.tolerance_display) if np.all(np.isfinite(cov)) else \
+        "the solution is not a minimum of the cost: no axis is known"
+    share = matched_points(model, frozen, tau) / max(_in_image_count(model.feats, tau, model.gmm.use_folds), 1)
+    return Uncertainty(cov, sigma, laplace, jack_sigma, n_groups if jack is not None else 0, weakest, is_min,
+                       kappa, share)
+
+
+def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> Verdict:
+    tol = trust.tolerance_display
+    reasons: list[str] = []
+    weak = set()
+    if not unc.is_minimum:
+        return Verdict(Status.FAILED, AXES, ("the solution is not a minimum of the finest-level cost",))
+    over = trust.sigma_factor * unc.sigma > tol
+    for k in np.flatnonzero(over):
+        weak.add(AXES[k])
+        reasons.append(f"{AXES[k]}: {trust.sigma_factor:g} sigma = {trust.sigma_factor * unc.sigma[k]:.3g} "
+                       f"> tolerance {tol[k]:g}")
+    ambiguous_far = False
+    for i, r in enumerate(restarts):
+        if r.delta_nll >= trust.ambiguity_nll:
+            continue
+        moved = np.abs(r.offset) > tol
+        if moved.any():
+            names = [AXES[k] for k in np.flatnonzero(moved)]
+            weak.update(names)
+            where = ", ".join(f"{AXES[k]} {r.offset[k]:+.3g}" for k in np.flatnonzero(moved))
+            reasons.append(f"restart {i + 1} ended {where} away at a cost the data cannot tell apart "
+                           f"(delta NLL {r.delta_nll:.2f})")
+            ambiguous_far |= bool((np.abs(r.offset) > trust.failed_tolerances * tol).any())
+    far = trust.sigma_factor * unc.sigma > trust.failed_tolerances * tol
+    if ambiguous_far or int(far.sum()) >= 3:
+        reasons.append("the pose is not determined: several axes are off by more than "
+                       f"{trust.failed_tolerances:g} tolerances")
+        return Verdict(Status.FAILED, tuple(a for a in AXES if a in weak), tuple(reasons))
+    if weak:
+        return Verdict(Status.WEAK, tuple(a for a in AXES if a in weak), tuple(reasons))
+    return Verdict(Status.TRUSTED, (), (f"every axis within tolerance at {trust.sigma_factor:g} sigma; "
+                                        f"{len(restarts)} restarts agree",))
+
+
+def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions,
+           prior: Prior | None, trust: TrustOptions) -> Assessment:
+    """Restarts, uncertainty and verdict of ``result`` (the coarse-to-fine solution on ``feats``)."""
+    best, runs = _run_restarts(feats, result, opts, gmm, prior, trust)
+    unc = _uncertainty(feats, best.tau, opts, gmm, prior, trust)
+    restarts = tuple(
+        Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (r.final_cost - best.final_cost) / unc.kappa)
+        for r in [result, *runs] if r is not best
+    )
+    return Assessment(best.tau, best, unc, restarts, _verdict(unc, list(restarts), trust))
