@@ -14,6 +14,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from calib.errors import CalibError
 from drivers.errors import DriverError
+from rigd.api.errors import QueueFullError
 from rigd.api.routes import calibrate, capture, datasets, extrinsics, jobs
 from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
@@ -36,6 +37,11 @@ ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
 async def _error_response(request: Request, exc: Exception) -> JSONResponse:
     code = next(code for kind, code in ERROR_STATUS if isinstance(exc, kind))
     return JSONResponse({"detail": str(exc)}, status_code=int(code))
+
+
+async def _queue_full(request: Request, exc: QueueFullError) -> JSONResponse:
+    return JSONResponse({"detail": str(exc)}, status_code=int(HTTPStatus.TOO_MANY_REQUESTS),
+                        headers={"Retry-After": str(exc.retry_after_s)})
 
 
 async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
@@ -88,6 +94,7 @@ def create_app(service: Service) -> FastAPI:
     for kind, _ in ERROR_STATUS:
         app.add_exception_handler(kind, _error_response)
     app.add_exception_handler(RequestValidationError, _validation_error)  # type: ignore[arg-type]
+    app.add_exception_handler(QueueFullError, _queue_full)  # type: ignore[arg-type]
     app.add_middleware(BodyLimit, max_bytes=service.settings.max_body_bytes)
     for module in (status_routes, jobs, capture, calibrate, datasets, extrinsics):
         app.include_router(module.router)

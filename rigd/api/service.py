@@ -91,7 +91,7 @@ def build_service(settings: Settings) -> Service:
         versions=versions,
         jobs=jobs,
         datasets=datasets,
-        runner=JobRunner(jobs, versions, datasets, bounds, code_version),
+        runner=JobRunner(jobs, versions, datasets, bounds, code_version, settings.max_queued_jobs),
         sensors=SensorMonitor(rig.camera_source, rig.lidar_source, settings.sensor_poll_s, figures.get),
         capture_figures=figures,
         software_version=code_version,

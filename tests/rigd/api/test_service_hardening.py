@@ -5,7 +5,7 @@ directory, a camera without its SDK layout."""
 from __future__ import annotations
 
 import pytest
-from api_helpers import Server, simulated_dataset
+from api_helpers import Server, perturbed_truth, simulated_dataset, wait_job
 
 JSON = {"Content-Type": "application/json"}
 IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}
@@ -33,3 +33,39 @@ def test_lone_surrogates_are_refused_not_a_server_error(server, path, body):
         # Nothing was stored that could not be read back.
         listed = client.get("/extrinsics/versions")
         assert listed.status_code == 200 and all(v["parameters"].get("note") != "a\ud800b" for v in listed.json())
+
+
+def test_the_queue_is_bounded_and_an_identical_request_gets_the_same_job(tmp_path):
+    data = tmp_path / "data"
+    dataset = simulated_dataset(data, "ds", pairs=3)
+    server = Server(data, env={"RIGD_MAX_QUEUED_JOBS": "2"}).start()
+    try:
+        with server.client() as client:
+            body = {"dataset": "ds", "init": perturbed_truth(dataset)}
+            first = client.post("/calibrate", json=body)
+            again = client.post("/calibrate", json=body)
+            assert first.status_code == 202 and again.status_code == 200, again.text
+            assert again.json()["id"] == first.json()["id"]
+            assert again.headers["Location"] == first.headers["Location"]
+
+            # Different requests (other sigmas): two may wait behind the first, the rest are refused.
+            responses = [client.post("/calibrate", json={**body, "sigmas_deg": [float(s)]}) for s in range(1, 7)]
+            codes = [r.status_code for r in responses]
+            accepted = codes.count(202)
+            assert accepted in (1, 2) and codes == [202] * accepted + [429] * (6 - accepted), codes
+            refused = responses[-1]
+            assert int(refused.headers["Retry-After"]) > 0
+            assert "2 calibrations are queued already" in refused.json()["detail"]
+
+            unfinished = [j["id"] for j in client.get("/jobs").json() if j["status"] in ("queued", "running")]
+            assert len(unfinished) == 1 + accepted  # the refused ones left no job behind
+            for job_id in unfinished:
+                client.delete(f"/jobs/{job_id}")
+            for job_id in unfinished:
+                wait_job(client, job_id)
+            # Once the first one has finished, the same request is a new job.
+            later = client.post("/calibrate", json=body)
+            assert later.status_code == 202 and later.json()["id"] > max(unfinished)
+            client.delete(f"/jobs/{later.json()['id']}")
+    finally:
+        server.stop()
