@@ -4,8 +4,11 @@ directory, a camera without its SDK layout."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
-from api_helpers import Server, perturbed_truth, simulated_dataset, wait_job
+from api_helpers import REPO, Server, free_port, perturbed_truth, simulated_dataset, wait_job
 
 JSON = {"Content-Type": "application/json"}
 IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}
@@ -69,3 +72,26 @@ def test_the_queue_is_bounded_and_an_identical_request_gets_the_same_job(tmp_pat
             client.delete(f"/jobs/{later.json()['id']}")
     finally:
         server.stop()
+
+
+def test_a_second_service_on_the_same_data_dir_exits(tmp_path):
+    data = tmp_path / "data"
+    dataset = simulated_dataset(data, "ds", pairs=2)
+    first = Server(data).start()
+    try:
+        with first.client() as client:
+            job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
+            second = subprocess.run([sys.executable, "-m", "rigd", "serve", "--port", str(free_port())],
+                                    env=first.env, cwd=REPO, capture_output=True, text=True, timeout=30)
+            assert second.returncode == 2, second.stderr
+            assert f"rigd: error: data directory {data} is in use by another rigd serve (pid {first.proc.pid})" in (
+                second.stderr)
+            assert "Traceback" not in second.stderr
+            # The first one's job was left alone: it was not marked interrupted, and it completes.
+            done = wait_job(client, job["id"])
+            assert done["status"] == "succeeded", done
+            assert client.get("/extrinsics/versions").json()[0]["job_id"] == job["id"]
+    finally:
+        first.stop()
+    # Stopped, it released the data directory: a new service starts on it.
+    first.start().stop()
