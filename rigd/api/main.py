@@ -19,13 +19,14 @@ from rigd.api.routes import calibrate, capture, datasets, extrinsics, jobs
 from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
 from rigd.errors import DatasetError, RigdError
-from rigd.store import ConflictError, NotFoundError, StoreError
+from rigd.store import ConflictError, NotFoundError, StoreError, StoreUnavailableError
 from rigd.store.jsonsafe import json_safe
 
 # Most specific first: the first class an error is an instance of decides its status.
 ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
     (NotFoundError, HTTPStatus.NOT_FOUND),
     (ConflictError, HTTPStatus.CONFLICT),
+    (StoreUnavailableError, HTTPStatus.SERVICE_UNAVAILABLE),
     (StoreError, HTTPStatus.INTERNAL_SERVER_ERROR),
     (DatasetError, HTTPStatus.UNPROCESSABLE_ENTITY),
     (DriverError, HTTPStatus.SERVICE_UNAVAILABLE),

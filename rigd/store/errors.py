@@ -17,3 +17,7 @@ class ConflictError(StoreError):
 
 class DataDirLockedError(StoreError):
     """Another process (another ``rigd serve``) holds the data directory; the message names its pid."""
+
+
+class StoreUnavailableError(StoreError):
+    """The database file is gone or was replaced under the running service: nothing can be read or stored."""

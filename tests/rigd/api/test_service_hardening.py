@@ -4,6 +4,7 @@ directory, a camera without its SDK layout."""
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 
@@ -95,3 +96,27 @@ def test_a_second_service_on_the_same_data_dir_exits(tmp_path):
         first.stop()
     # Stopped, it released the data directory: a new service starts on it.
     first.start().stop()
+
+
+@pytest.mark.parametrize("replace", [False, True], ids=["deleted", "replaced"])
+def test_a_deleted_data_dir_answers_503_and_acknowledges_no_write(tmp_path, replace):
+    data = tmp_path / "data"
+    server = Server(data).start()
+    try:
+        with server.client() as client:
+            stored = client.post("/extrinsics/versions", json={"T_camera_lidar": IDENTITY})
+            assert stored.status_code == 201
+            shutil.rmtree(data)
+            if replace:  # e.g. a backup restored under the running service
+                data.mkdir()
+                (data / "rigd.db").write_bytes(b"")
+            write = client.post("/extrinsics/versions", json={"T_camera_lidar": IDENTITY, "note": "lost"})
+            assert write.status_code == 503, write.text  # never 201 for a version nobody will read back
+            assert "restart rigd serve" in write.json()["detail"]
+            status = client.get("/status")
+            assert status.status_code == 503, status.text
+            assert f"{data / 'rigd.db'}: the database was deleted or replaced" in status.json()["detail"]
+            assert client.get("/extrinsics/versions").status_code == 503
+        assert not (data / "rigd.db").exists() or (data / "rigd.db").stat().st_size == 0  # nothing recreated
+    finally:
+        server.kill()
