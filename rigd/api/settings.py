@@ -36,6 +36,8 @@ class Settings(BaseSettings):
         10.0, gt=0, description="auto_activate only if the translation moved at most this far from the active version")
     sensor_poll_s: float = Field(10.0, ge=1.0, description="seconds between sensor checks for GET /status")
     max_body_bytes: int = Field(65536, ge=1024, description="largest request body accepted")
+    body_timeout_s: float = Field(10.0, gt=0, le=600, description="seconds a request body may take to arrive; "
+                                  "slower ones get 408")
     max_queued_jobs: int = Field(4, ge=1, le=1000, description="calibrations that may wait behind the running "
                                  "one; more get 429")
     log_level: str = Field("info", description="uvicorn log level")

@@ -5,21 +5,24 @@ directory, a camera without its SDK layout."""
 from __future__ import annotations
 
 import shutil
+import socket
 import subprocess
 import sys
+import time
 
 import pytest
 from api_helpers import REPO, Server, free_port, perturbed_truth, simulated_dataset, wait_job
 
 JSON = {"Content-Type": "application/json"}
 IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}
+BODY_TIMEOUT_S = 1.5
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     data = tmp_path_factory.mktemp("hardening") / "data"
     simulated_dataset(data, "ds", pairs=1)
-    server = Server(data).start()
+    server = Server(data, env={"RIGD_BODY_TIMEOUT_S": str(BODY_TIMEOUT_S)}).start()
     yield server
     server.stop()
 
@@ -37,6 +40,35 @@ def test_lone_surrogates_are_refused_not_a_server_error(server, path, body):
         # Nothing was stored that could not be read back.
         listed = client.get("/extrinsics/versions")
         assert listed.status_code == 200 and all(v["parameters"].get("note") != "a\ud800b" for v in listed.json())
+
+
+def raw_request(server: Server, body: bytes, length: int, pause_s: float = 0.0) -> tuple[bytes, float]:
+    """POST a version with ``Content-Length: length``, sending ``body`` in two halves ``pause_s`` apart; the
+    whole answer (read until the server closes, at most 10 s) and the seconds it took."""
+    head = (f"POST /extrinsics/versions HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+            f"Content-Length: {length}\r\nConnection: close\r\n\r\n").encode()
+    with socket.create_connection(("127.0.0.1", server.port), timeout=10.0) as sock:
+        start = time.monotonic()
+        sock.sendall(head + body[:len(body) // 2])
+        time.sleep(pause_s)
+        sock.sendall(body[len(body) // 2:])
+        answer = b""
+        while chunk := sock.recv(65536):  # socket.timeout (a failure) if the server holds the connection
+            answer += chunk
+        return answer, time.monotonic() - start
+
+
+def test_a_body_that_does_not_arrive_gets_408(server):
+    answer, seconds = raw_request(server, b'{"note": "', length=100)
+    assert answer.startswith(b"HTTP/1.1 408 "), answer
+    assert b"the request body did not arrive within 1.5 s" in answer
+    assert BODY_TIMEOUT_S <= seconds < BODY_TIMEOUT_S + 3
+
+
+def test_a_slow_body_within_the_timeout_is_served(server):
+    body = b'{"T_camera_lidar": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}, "note": "slow"}'
+    answer, _ = raw_request(server, body, length=len(body), pause_s=BODY_TIMEOUT_S / 3)
+    assert answer.startswith(b"HTTP/1.1 201 "), answer
 
 
 def test_the_queue_is_bounded_and_an_identical_request_gets_the_same_job(tmp_path):
