@@ -42,6 +42,32 @@ def test_lone_surrogates_are_refused_not_a_server_error(server, path, body):
         assert listed.status_code == 200 and all(v["parameters"].get("note") != "a\ud800b" for v in listed.json())
 
 
+def test_symlinks_out_of_the_datasets_folder_are_refused(server, tmp_path):
+    outside = simulated_dataset(tmp_path, "outside", pairs=1)
+    (server.data_dir / "datasets" / "linked").symlink_to(outside, target_is_directory=True)
+    inner = server.data_dir / "datasets" / "inner"
+    shutil.copytree(server.data_dir / "datasets" / "ds", inner)
+    image = next((inner / "pairs" / "0000").glob("image.*"))
+    image.unlink()
+    image.symlink_to(next((outside / "pairs" / "0000").glob("image.*")))
+    before = sorted(p.relative_to(outside) for p in outside.rglob("*"))
+    with server.client() as client:
+        for dataset in ("linked", "inner"):
+            detail = client.get(f"/datasets/{dataset}")
+            assert detail.status_code == 422, detail.text
+            assert "is a symbolic link" in detail.json()["detail"]
+            assert "datasets must be folders and files inside" in detail.json()["detail"]
+            calibrate = client.post("/calibrate", json={"dataset": dataset, "init": IDENTITY})
+            assert calibrate.status_code == 422, calibrate.text
+            capture = client.post("/capture", json={"dataset": dataset, "source": "sim", "n": 1})
+            assert capture.status_code == 422, capture.text
+        assert "datasets/linked is a symbolic link" in client.get("/datasets/linked").json()["detail"]
+        assert "pairs/0000/image.png is a symbolic link" in client.get("/datasets/inner").json()["detail"]
+        listed = {d["id"]: d for d in client.get("/datasets").json()}
+        assert listed["linked"]["error"] and listed["inner"]["error"] and listed["ds"]["error"] is None
+    assert sorted(p.relative_to(outside) for p in outside.rglob("*")) == before  # nothing written out there
+
+
 def raw_request(server: Server, body: bytes, length: int, pause_s: float = 0.0) -> tuple[bytes, float]:
     """POST a version with ``Content-Length: length``, sending ``body`` in two halves ``pause_s`` apart; the
     whole answer (read until the server closes, at most 10 s) and the seconds it took."""
