@@ -11,6 +11,7 @@ import sys
 import time
 
 import pytest
+import yaml
 from api_helpers import REPO, Server, free_port, perturbed_truth, simulated_dataset, wait_job
 
 JSON = {"Content-Type": "application/json"}
@@ -178,3 +179,25 @@ def test_a_deleted_data_dir_answers_503_and_acknowledges_no_write(tmp_path, repl
         assert not (data / "rigd.db").exists() or (data / "rigd.db").stat().st_size == 0  # nothing recreated
     finally:
         server.kill()
+
+
+def test_a_capture_without_the_sdk_layout_says_how_to_get_it(tmp_path):
+    layout = tmp_path / "etc" / "ladybug_layout.yaml"
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(yaml.safe_dump({
+        "camera": {"model": "equirectangular", "width": 256, "height": 128, "source": "sdk",
+                   "sdk": {"layout": str(layout)}},
+        "lidar": {"model": "VLP-16", "source": f"udp:127.0.0.1:{free_port()}"},  # silent: the camera fails first
+    }))
+    server = Server(tmp_path / "data", env={"RIGD_CONFIG": str(rig)}).start()
+    try:
+        with server.client() as client:
+            job = client.post("/capture", json={"dataset": "live", "n": 1}).json()
+            error = wait_job(client, job["id"], timeout_s=60)["error"]
+    finally:
+        server.stop()
+    assert str(layout) in error  # the file ...
+    # ... and the fix: where the file comes from, and the setting that names it.
+    assert "install FLIR's Ladybug SDK" in error
+    assert f"rigd camera sdk-layout --include /usr/include/ladybug --out {layout}" in error
+    assert "camera.sdk.layout" in error
