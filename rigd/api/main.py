@@ -77,8 +77,8 @@ class BodyLimit:
 
 
 class BodyTimeout:
-    """Answer 408 and close the connection when a request's body has not arrived ``timeout_s`` after the
-    application first asks for it.
+    """Answer 408 and close the connection when a request's body has not arrived in full ``timeout_s`` after
+    its headers.
 
     uvicorn bounds idle keep-alive connections but not a body that trickles or stops: a client announcing
     100 bytes and sending 10 would hold its connection, and a thread of the pool, for as long as it likes.
