@@ -81,7 +81,7 @@ class BodyTimeout:
     its headers.
 
     uvicorn bounds idle keep-alive connections but not a body that trickles or stops: a client announcing
-    100 bytes and sending 10 would hold its connection, and a thread of the pool, for as long as it likes.
+    100 bytes and sending 10 would hold its connection open for as long as it likes.
     The body is read here in full (BodyLimit, outside this, has bounded its size) and handed on as received.
     """
 
