@@ -26,7 +26,8 @@ def require_token(service: ServiceDep,
     token = service.settings.token
     if token is None:
         return
-    given = credentials.credentials.encode() if credentials is not None else b""
+    # The header as its bytes on the wire (Starlette decodes headers as latin-1); the token is ASCII.
+    given = credentials.credentials.encode("latin-1") if credentials is not None else b""
     if not hmac.compare_digest(given, token.get_secret_value().encode()):
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "a valid bearer token is required",
                             headers={"WWW-Authenticate": "Bearer"})

@@ -1,7 +1,10 @@
-"""The FastAPI application: routers, error mapping, the request-size limit, start-up and shutdown."""
+"""The FastAPI application: routers, error mapping, the request-size and body-time limits, start-up and
+shutdown."""
 
 from __future__ import annotations
 
+import asyncio
+from collections import deque
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from http import HTTPStatus
@@ -10,21 +13,23 @@ from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from calib.errors import CalibError
 from drivers.errors import DriverError
+from rigd.api.errors import QueueFullError
 from rigd.api.routes import calibrate, capture, datasets, extrinsics, jobs
 from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
 from rigd.errors import DatasetError, RigdError
-from rigd.store import ConflictError, NotFoundError, StoreError
+from rigd.store import ConflictError, NotFoundError, StoreError, StoreUnavailableError
 from rigd.store.jsonsafe import json_safe
 
 # Most specific first: the first class an error is an instance of decides its status.
 ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
     (NotFoundError, HTTPStatus.NOT_FOUND),
     (ConflictError, HTTPStatus.CONFLICT),
+    (StoreUnavailableError, HTTPStatus.SERVICE_UNAVAILABLE),
     (StoreError, HTTPStatus.INTERNAL_SERVER_ERROR),
     (DatasetError, HTTPStatus.UNPROCESSABLE_ENTITY),
     (DriverError, HTTPStatus.SERVICE_UNAVAILABLE),
@@ -36,6 +41,11 @@ ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
 async def _error_response(request: Request, exc: Exception) -> JSONResponse:
     code = next(code for kind, code in ERROR_STATUS if isinstance(exc, kind))
     return JSONResponse({"detail": str(exc)}, status_code=int(code))
+
+
+async def _queue_full(request: Request, exc: QueueFullError) -> JSONResponse:
+    return JSONResponse({"detail": str(exc)}, status_code=int(HTTPStatus.TOO_MANY_REQUESTS),
+                        headers={"Retry-After": str(exc.retry_after_s)})
 
 
 async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
@@ -66,6 +76,52 @@ class BodyLimit:
         await self.app(scope, receive, send)
 
 
+class BodyTimeout:
+    """Answer 408 and close the connection when a request's body has not arrived in full ``timeout_s`` after
+    its headers.
+
+    uvicorn bounds idle keep-alive connections but not a body that trickles or stops: a client announcing
+    100 bytes and sending 10 would hold its connection open for as long as it likes.
+    The body is read here in full (BodyLimit, outside this, has bounded its size) and handed on as received.
+    """
+
+    def __init__(self, app: ASGIApp, timeout_s: float) -> None:
+        self.app = app
+        self.timeout_s = timeout_s
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        try:
+            received = await asyncio.wait_for(_receive_body(receive), self.timeout_s)
+        except TimeoutError:
+            response = JSONResponse({"detail": f"the request body did not arrive within {self.timeout_s:g} s"},
+                                    status_code=int(HTTPStatus.REQUEST_TIMEOUT), headers={"Connection": "close"})
+            await response(scope, receive, send)
+            return
+        await self.app(scope, _replay(received, receive), send)
+
+
+async def _receive_body(receive: Receive) -> list[Message]:
+    """The messages up to the body's last part (or the client's disconnect)."""
+    messages = []
+    while True:
+        message = await receive()
+        messages.append(message)
+        if message["type"] != "http.request" or not message.get("more_body", False):
+            return messages
+
+
+def _replay(messages: list[Message], receive: Receive) -> Receive:
+    pending = deque(messages)
+
+    async def replayed() -> Message:
+        return pending.popleft() if pending else await receive()  # then: the disconnect, when it comes
+
+    return replayed
+
+
 def create_app(service: Service) -> FastAPI:
     """The application around a built (not yet started) service; starting and stopping follow the lifespan."""
 
@@ -88,7 +144,9 @@ def create_app(service: Service) -> FastAPI:
     for kind, _ in ERROR_STATUS:
         app.add_exception_handler(kind, _error_response)
     app.add_exception_handler(RequestValidationError, _validation_error)  # type: ignore[arg-type]
-    app.add_middleware(BodyLimit, max_bytes=service.settings.max_body_bytes)
+    app.add_exception_handler(QueueFullError, _queue_full)  # type: ignore[arg-type]
+    app.add_middleware(BodyTimeout, timeout_s=service.settings.body_timeout_s)
+    app.add_middleware(BodyLimit, max_bytes=service.settings.max_body_bytes)  # added last: runs first
     for module in (status_routes, jobs, capture, calibrate, datasets, extrinsics):
         app.include_router(module.router)
     return app

@@ -10,6 +10,7 @@ from calib.errors import CalibError
 from calib.geometry import Transform
 from rigd.dataset.records import transform_to_yaml
 from rigd.store.datasets import DATASET_ID_PATTERN
+from rigd.store.jsonsafe import unicode_safe
 
 DatasetId = Annotated[str, Field(pattern=DATASET_ID_PATTERN, examples=["indoor-2025-01-31"])]
 Coordinate = Annotated[float, Field(ge=-1e3, le=1e3)]
@@ -18,8 +19,32 @@ Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
 Row4 = Annotated[list[Coordinate], Field(min_length=4, max_length=4)]
 
 
+def lone_surrogate(value: Any, where: str = "body") -> str | None:
+    """Where in a parsed JSON value a string or key holds a lone surrogate, or None."""
+    if isinstance(value, str):
+        return where if unicode_safe(value) != value else None
+    if isinstance(value, dict):
+        named = [(f"{where}.{unicode_safe(str(k))}", (k, v)) for k, v in value.items()]
+    elif isinstance(value, list):
+        named = [(f"{where}[{i}]", (v,)) for i, v in enumerate(value)]
+    else:
+        return None
+    found = (lone_surrogate(part, at) for at, parts in named for part in parts)
+    return next((at for at in found if at is not None), None)
+
+
 class Request(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _unicode_only(cls, data: Any) -> Any:
+        # JSON's "\ud800" parses to a string no UTF-8 can carry: it could be neither stored nor answered.
+        where = lone_surrogate(data)
+        if where is not None:
+            raise ValueError(f"{where}: text must be Unicode, it holds a lone surrogate (a \\ud800-\\udfff escape "
+                             "outside a pair)")
+        return data
 
 
 class TransformIn(Request):

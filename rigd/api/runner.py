@@ -22,6 +22,7 @@ import numpy as np
 
 from calib.geometry import Transform
 from drivers.errors import DriverError
+from rigd.api.errors import QueueFullError
 from rigd.dataset.records import transform_to_yaml
 from rigd.errors import RigdError
 from rigd.store import (
@@ -37,6 +38,8 @@ from rigd.store import (
 from rigd.store.datasets import DatasetCatalog
 
 CALIBRATION_METHOD = "kang-doh-2020-gmm-edge-alignment"
+# What a refused client is told to wait: a small dataset calibrates in tens of seconds, a large one in minutes.
+QUEUE_RETRY_AFTER_S = 30
 PROGRESS_INTERVAL_S = 0.5  # progress is written at most this often (plus every change of stage)
 
 
@@ -97,8 +100,9 @@ class _Throttle:
 
 class JobRunner:
     def __init__(self, jobs: JobStore, versions: VersionStore, datasets: DatasetCatalog, bounds: ActivationBounds,
-                 code_version: str) -> None:
+                 code_version: str, max_queued: int = 4) -> None:
         self.jobs = jobs
+        self.max_queued = max_queued
         self.versions = versions
         self.datasets = datasets
         self.bounds = bounds
@@ -115,13 +119,25 @@ class JobRunner:
         self._thread.start()
 
     # -- calibration --------------------------------------------------------------------------------------------
-    def submit_calibration(self, plan: CalibrationPlan) -> Job:
-        if plan.dataset_id in self.capturing():  # a capture may have started since the request was checked
-            raise ConflictError(f"dataset {plan.dataset_id} is being captured; calibrate it when the capture ends")
-        job = self.jobs.create(JobKind.CALIBRATE, plan.params())
+    def submit_calibration(self, plan: CalibrationPlan) -> tuple[Job, bool]:
+        """The job calibrating ``plan`` and whether it is new: the job of an identical calibration that is queued
+        or running is returned rather than queuing it twice. QueueFullError when ``max_queued`` jobs wait."""
+        with self._lock:  # two identical requests at once must not both find no job and both queue one
+            if plan.dataset_id in self.capturing():  # a capture may have started since the request was checked
+                raise ConflictError(f"dataset {plan.dataset_id} is being captured; calibrate it when the capture ends")
+            same = [j for j in self.jobs.unfinished_with(JobKind.CALIBRATE, plan.params())
+                    if j.id not in self._cancelled]
+            if same:
+                return same[0], False
+            waiting = [j.id for j in self.jobs.unfinished(JobKind.CALIBRATE) if j.status is JobStatus.QUEUED]
+            if len(waiting) >= self.max_queued:
+                raise QueueFullError(f"{len(waiting)} calibrations are queued already (jobs {waiting}; at most "
+                                     f"{self.max_queued}, RIGD_MAX_QUEUED_JOBS): retry when one has finished",
+                                     QUEUE_RETRY_AFTER_S)
+            job = self.jobs.create(JobKind.CALIBRATE, plan.params())
         self.jobs.log(job.id, f"queued: calibrate dataset {plan.dataset_id} from {plan.init} guess")
         self._queue.put(job.id)
-        return job
+        return job, True
 
     def _calibration_loop(self) -> None:
         while (job_id := self._queue.get()) is not None:

@@ -12,7 +12,7 @@ from rigd.api.runner import ActivationBounds, JobRunner
 from rigd.api.sensors import SensorMonitor
 from rigd.api.settings import Settings
 from rigd.capture.config import RigSettings, load_settings
-from rigd.store import Database, JobStore, VersionStore
+from rigd.store import Database, DataDirLock, JobStore, VersionStore
 from rigd.store.datasets import DatasetCatalog
 from rigd.store.db import utc_now
 
@@ -43,6 +43,7 @@ class CaptureFigures:
 @dataclass
 class Service:
     settings: Settings
+    lock: DataDirLock
     rig: RigSettings
     db: Database
     versions: VersionStore
@@ -66,11 +67,23 @@ class Service:
         self.runner.shutdown()
         self.sensors.stop()
         self.db.close()
+        self.lock.release()
 
 
 def build_service(settings: Settings) -> Service:
-    """Open the data directory; jobs left unfinished by a previous run are marked failed (interrupted)."""
+    """Lock and open the data directory; jobs left unfinished by a previous run are marked failed (interrupted).
+    DataDirLockedError if another service holds it."""
     rig = load_settings(settings.config)
+    # Before anything reads the database: a second service must not fail the first one's jobs.
+    lock = DataDirLock.acquire(settings.data_dir)
+    try:
+        return _open_service(settings, rig, lock)
+    except BaseException:
+        lock.release()
+        raise
+
+
+def _open_service(settings: Settings, rig: RigSettings, lock: DataDirLock) -> Service:
     db = Database(settings.data_dir / "rigd.db")
     jobs = JobStore(db, settings.data_dir / "jobs")
     jobs.fail_unfinished("interrupted: the service stopped while the job was queued or running")
@@ -86,12 +99,13 @@ def build_service(settings: Settings) -> Service:
     figures = CaptureFigures()
     return Service(
         settings=settings,
+        lock=lock,
         rig=rig,
         db=db,
         versions=versions,
         jobs=jobs,
         datasets=datasets,
-        runner=JobRunner(jobs, versions, datasets, bounds, code_version),
+        runner=JobRunner(jobs, versions, datasets, bounds, code_version, settings.max_queued_jobs),
         sensors=SensorMonitor(rig.camera_source, rig.lidar_source, settings.sensor_poll_s, figures.get),
         capture_figures=figures,
         software_version=code_version,

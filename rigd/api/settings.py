@@ -25,8 +25,9 @@ class Settings(BaseSettings):
     config: Path | None = Field(None, description="the rig file (/etc/rigd/rig.yaml): sources, initial guess")
     host: str = Field("127.0.0.1", description="listen address; other than loopback it needs a token")
     port: int = Field(8000, ge=0, le=65535, description="listen port")
-    token: SecretStr | None = Field(None, description=f"bearer token for mutating requests (>= {MIN_TOKEN_LENGTH} "
-                                    "characters); required to listen on a non-loopback address")
+    token: SecretStr | None = Field(None, description=f"bearer token for mutating requests ({MIN_TOKEN_LENGTH} or more "
+                                    "printable ASCII characters, never empty); required to listen on a "
+                                    "non-loopback address")
     auto_activate_require_converged: bool = Field(True, description="auto_activate only a converged calibration")
     auto_activate_min_pairs: int = Field(6, ge=1, description="auto_activate needs at least this many pairs")
     auto_activate_max_rotation_deg: float = Field(
@@ -35,6 +36,10 @@ class Settings(BaseSettings):
         10.0, gt=0, description="auto_activate only if the translation moved at most this far from the active version")
     sensor_poll_s: float = Field(10.0, ge=1.0, description="seconds between sensor checks for GET /status")
     max_body_bytes: int = Field(65536, ge=1024, description="largest request body accepted")
+    body_timeout_s: float = Field(10.0, gt=0, le=600, description="seconds a request body may take to arrive; "
+                                  "slower ones get 408")
+    max_queued_jobs: int = Field(4, ge=1, le=1000, description="calibrations that may wait behind the running "
+                                 "one; more get 429")
     log_level: str = Field("info", description="uvicorn log level")
 
     @classmethod
@@ -56,6 +61,8 @@ def service_section(config: Path) -> dict[str, Any]:
     section = read_yaml_mapping(config).get("service") or {}
     if not isinstance(section, dict):
         raise RigdError(f"{config}: 'service' must be a mapping of settings, got {section!r}")
+    if "token" in section and section["token"] is None:  # "token:" with no value: empty, not absent
+        section = {**section, "token": ""}
     return section
 
 
@@ -77,11 +84,27 @@ def is_loopback(host: str) -> bool:
         return False
 
 
+def token_problem(token: str) -> str | None:
+    """Why ``token`` cannot be the API token, or None when it can."""
+    if not token.strip():
+        # An empty RIGD_TOKEN= (a placeholder left in rigd.env) must never read as "no token".
+        return "is empty; set a secret of at least 16 characters, or remove the setting to run without one"
+    if token != token.strip():
+        return "has leading or trailing white space, which HTTP strips from the Authorization header"
+    if len(token) < MIN_TOKEN_LENGTH:
+        return f"must have at least {MIN_TOKEN_LENGTH} characters"
+    if not (token.isascii() and token.isprintable()):
+        # Clients send headers as UTF-8 or latin-1 at their whim; only printable ASCII is the same bytes in both.
+        return "must be printable ASCII (letters, digits, punctuation, spaces), as HTTP headers carry it"
+    return None
+
+
 def check_exposure(settings: Settings) -> None:
-    """Refuse a non-loopback listen address without a token, and a short token anywhere."""
-    token = settings.token.get_secret_value() if settings.token else None
-    if token is not None and len(token) < MIN_TOKEN_LENGTH:
-        raise RigdError(f"the API token (RIGD_TOKEN) must have at least {MIN_TOKEN_LENGTH} characters")
+    """Refuse a non-loopback listen address without a token, and a token clients cannot send anywhere."""
+    token = settings.token.get_secret_value() if settings.token is not None else None
+    problem = token_problem(token) if token is not None else None
+    if problem is not None:
+        raise RigdError(f"the API token (RIGD_TOKEN) {problem}")
     if token is None and not is_loopback(settings.host):
         raise RigdError(f"refusing to listen on {settings.host} without an API token: set RIGD_TOKEN (e.g. in "
                         "/etc/rigd/rigd.env) or listen on 127.0.0.1")

@@ -39,7 +39,7 @@ from drivers.sim.motion import MotionRigSpec, load_spec
 from drivers.sim.stream import START_LEAD_S, CameraProcess, LidarProcess, SimFrame
 from drivers.vlp16 import PcapReplay, Ports, StreamStats, Sweep, UdpReceiver, Vlp16Config
 from rigd.capture.config import RigSettings
-from rigd.capture.errors import CaptureError, SourceEndedError, SourceSpecError
+from rigd.capture.errors import CaptureError, ConfigError, SourceEndedError, SourceSpecError
 from rigd.capture.specs import CameraKind, CameraSpec, LidarKind, LidarSpec
 
 _POLL_S = 0.1
@@ -331,6 +331,14 @@ def _lidar_feed(stack: contextlib.ExitStack, spec: LidarSpec) -> LidarFeed:
 def _sdk_feed(settings: RigSettings) -> ThreadedCameraFeed:
     """The live Ladybug5 through FLIR's SDK, stitched to the rig file's panorama size."""
     sdk = settings.sdk
+    if not sdk.layout.exists():
+        # The usual first-run state of a rig computer: say where the file comes from, not only that it is missing.
+        raise ConfigError(
+            f"{sdk.layout}: the Ladybug SDK layout file does not exist (camera.sdk.layout). The live Ladybug5 "
+            "needs it: install FLIR's Ladybug SDK (not on PyPI, rigd does not ship it), then measure its header "
+            f"with `rigd camera sdk-layout --include /usr/include/ladybug --out {sdk.layout}` (the directory "
+            "holding ladybug.h), or set camera.sdk.layout in the rig file to an existing layout file "
+            "(docs/ladybug5.md). Without the camera, capture from the simulated rig (source sim).")
     library = LadybugLibrary(SdkLayout.load(sdk.layout), sdk.library)
     rig = load_rig(sdk.rig_file) if sdk.rig_file is not None else default_ladybug5_rig()
     stitcher = Stitcher(rig, PanoramaSpec(settings.width, settings.height, sdk.radius_m))

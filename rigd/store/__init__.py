@@ -4,8 +4,15 @@ It raises only :mod:`rigd.store.errors` (never anything HTTP); the API maps them
 """
 
 from rigd.store.db import Database
-from rigd.store.errors import ConflictError, NotFoundError, StoreError
+from rigd.store.errors import (
+    ConflictError,
+    DataDirLockedError,
+    NotFoundError,
+    StoreError,
+    StoreUnavailableError,
+)
 from rigd.store.jobs import JobStore
+from rigd.store.lock import DataDirLock
 from rigd.store.records import (
     Change,
     ExtrinsicsVersion,
@@ -21,6 +28,8 @@ __all__ = [
     "ActivationPolicy",
     "Change",
     "ConflictError",
+    "DataDirLock",
+    "DataDirLockedError",
     "Database",
     "ExtrinsicsVersion",
     "Job",
@@ -30,6 +39,7 @@ __all__ = [
     "NewVersion",
     "NotFoundError",
     "StoreError",
+    "StoreUnavailableError",
     "VersionStatus",
     "VersionStore",
     "change_between",

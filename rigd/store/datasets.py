@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,10 +33,35 @@ class DatasetCatalog:
         self.root = Path(root)
 
     def path(self, dataset_id: str) -> Path:
-        """The folder of ``dataset_id`` (which need not exist yet); a malformed id names no dataset."""
+        """The folder of ``dataset_id`` (which need not exist yet); a malformed id names no dataset, and a
+        folder that is a symbolic link, or holds one leading out of the datasets folder, is refused."""
         if not _ID.fullmatch(dataset_id):
             raise NotFoundError(f"dataset id {dataset_id!r} is not of the form {DATASET_ID_PATTERN}")
-        return self.root / dataset_id
+        path = self.root / dataset_id
+        self._refuse_links_out(path)
+        return path
+
+    def _refuse_links_out(self, folder: Path) -> None:
+        """DatasetError naming the first symbolic link by which ``folder`` leads out of the datasets folder.
+
+        Ids keep requests inside ``root``, but a link would still let a capture write, and the API read,
+        wherever it points. Links between datasets (a shared rig.yaml) stay allowed; the folder itself must
+        not be one (its id would name another dataset, or a place outside).
+        """
+        if folder.is_symlink():
+            raise self._link_error(folder, folder)
+        root = Path(os.path.realpath(self.root))
+        for parent, dirs, files in os.walk(folder):  # does not descend into linked folders: they are checked here
+            for link in (Path(parent) / name for name in (*dirs, *files)):
+                # realpath, not resolve(): a link loop must be refused, not raise RuntimeError
+                if link.is_symlink() and not Path(os.path.realpath(link)).is_relative_to(root):
+                    raise self._link_error(folder, link)
+
+    def _link_error(self, folder: Path, link: Path) -> DatasetError:
+        name = f"{self.root.name}/{folder.name}" if link == folder else link.relative_to(folder).as_posix()
+        return DatasetError(f"dataset {folder.name}: {name} is a symbolic link (to {os.path.realpath(link)}); "
+                            f"datasets must be folders and files inside {self.root}: copy the data in instead of "
+                            "linking it")
 
     def open(self, dataset_id: str) -> Dataset:
         path = self.path(dataset_id)

@@ -14,7 +14,7 @@ from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 
-from rigd.store.errors import StoreError
+from rigd.store.errors import StoreError, StoreUnavailableError
 
 _VERSION_COLUMNS = ("number", "created_at", "transform", "quality", "dataset_id", "dataset_hash", "method",
                     "parameters", "code_version", "supersedes", "change", "job_id")
@@ -82,12 +82,34 @@ class Database:
         except OSError as exc:
             raise StoreError(f"{self.path.parent}: cannot create the data directory ({exc.strerror})") from exc
         self._conn = self._connect(check_same_thread=False)
+        self._identity = self._file_identity()
         mode = self._conn.execute("PRAGMA journal_mode=WAL").fetchone()[0]
         if mode.lower() != "wal":
             raise StoreError(f"{self.path}: the file system does not support SQLite's WAL mode (got {mode})")
         # FULL: a committed version survives a power cut too (the rig runs on batteries); writes are rare.
         self._conn.execute("PRAGMA synchronous=FULL")
         self._migrate()
+
+    def _file_identity(self) -> tuple[int, int]:
+        try:
+            st = self.path.stat()
+        except OSError as exc:
+            raise StoreUnavailableError(
+                f"{self.path}: the database was deleted or replaced while the service ran ({exc.strerror}; was "
+                f"the data directory {self.path.parent} removed?): nothing is stored; restore it and restart "
+                "rigd serve") from exc
+        return st.st_dev, st.st_ino
+
+    def check(self) -> None:
+        """StoreUnavailableError unless the file opened at start is still at its path.
+
+        SQLite keeps writing to a deleted (unlinked) file without complaint, and would go on reading a
+        replaced one's predecessor: a write "stored" there is lost when the service stops.
+        """
+        if self._file_identity() != self._identity:
+            raise StoreUnavailableError(
+                f"{self.path}: the database was deleted or replaced while the service ran (another file is at its "
+                f"path now): nothing is stored; restore it and restart rigd serve")
 
     def _connect(self, check_same_thread: bool) -> sqlite3.Connection:
         try:
@@ -118,6 +140,7 @@ class Database:
     @contextmanager
     def read(self) -> Iterator[sqlite3.Connection]:
         """This thread's read connection (each statement sees the last committed state)."""
+        self.check()
         conn = getattr(self._local, "conn", None)
         if conn is None:
             conn = self._local.conn = self._connect(check_same_thread=True)
@@ -128,8 +151,10 @@ class Database:
 
     @contextmanager
     def write(self) -> Iterator[sqlite3.Connection]:
-        """One transaction: committed when the block ends, rolled back if it raises."""
+        """One transaction: committed when the block ends, rolled back if it raises; StoreUnavailableError when
+        the database file is gone before or after it (so that no caller acknowledges a write that is lost)."""
         with self._lock:
+            self.check()
             try:
                 self._conn.execute("BEGIN IMMEDIATE")
             except sqlite3.Error as exc:
@@ -142,6 +167,7 @@ class Database:
                 if isinstance(exc, sqlite3.Error):
                     raise StoreError(f"{self.path}: write failed ({exc})") from exc
                 raise
+            self.check()  # deleted while the transaction ran: it committed into a file nobody will read
 
     def close(self) -> None:
         """Close the write connection (a thread's read connection closes when the thread ends)."""

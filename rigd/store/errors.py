@@ -13,3 +13,11 @@ class NotFoundError(StoreError):
 
 class ConflictError(StoreError):
     """The request contradicts the current state (a finished job cancelled, no active version, ...)."""
+
+
+class DataDirLockedError(StoreError):
+    """Another process (another ``rigd serve``) holds the data directory; the message names its pid."""
+
+
+class StoreUnavailableError(StoreError):
+    """The database file is gone or was replaced under the running service: nothing can be read or stored."""

@@ -16,6 +16,10 @@ from rigd.store.records import Job, JobKind, JobStatus
 _UNFINISHED = (JobStatus.QUEUED.value, JobStatus.RUNNING.value)
 
 
+def _stored(params: dict[str, Any]) -> str:
+    return json.dumps(json_safe(params))
+
+
 def _row_to_job(row: sqlite3.Row) -> Job:
     return Job(
         id=row["id"],
@@ -43,7 +47,7 @@ class JobStore:
         with self.db.write() as conn:
             cursor = conn.execute(
                 "INSERT INTO jobs (kind, status, params, stage, created_at) VALUES (?, ?, ?, ?, ?)",
-                (kind.value, JobStatus.QUEUED.value, json.dumps(json_safe(params)), stage, utc_now()),
+                (kind.value, JobStatus.QUEUED.value, _stored(params), stage, utc_now()),
             )
             job = self._get(conn, int(cursor.lastrowid or 0))
         self.job_dir(job.id).mkdir(parents=True, exist_ok=True)
@@ -72,6 +76,11 @@ class JobStore:
             rows = conn.execute("SELECT * FROM jobs WHERE status IN (?, ?) ORDER BY id", _UNFINISHED)
             jobs = [_row_to_job(r) for r in rows]
         return [j for j in jobs if kind is None or j.kind is kind]
+
+    def unfinished_with(self, kind: JobKind, params: dict[str, Any]) -> list[Job]:
+        """Queued and running jobs of ``kind`` with exactly these parameters (as stored), oldest first."""
+        wanted = json.loads(_stored(params))
+        return [j for j in self.unfinished(kind) if j.params == wanted]
 
     def start(self, job_id: int, stage: str) -> Job:
         """queued -> running; ConflictError if the job is no longer queued (cancelled meanwhile)."""

@@ -42,11 +42,17 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
 
 @router.post("/calibrate", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, dependencies=[Authorized],
              summary="calibrate a dataset in a worker process",
-             responses={404: {"model": ErrorOut, "description": "no such dataset"},
+             responses={200: {"model": JobOut, "description": "an identical calibration is queued or running: "
+                              "its job (nothing new is queued)"},
+                        404: {"model": ErrorOut, "description": "no such dataset"},
                         409: {"model": ErrorOut, "description": "the dataset is being captured, or init 'active' "
                               "without an active version"},
-                        422: {"model": ErrorOut, "description": "bad request or unusable dataset"}})
+                        422: {"model": ErrorOut, "description": "bad request or unusable dataset"},
+                        429: {"model": ErrorOut, "description": "the queue is full; ask again after Retry-After "
+                              "seconds"}})
 def calibrate(service: ServiceDep, body: CalibrateIn, response: Response) -> JobOut:
-    job = service.runner.submit_calibration(plan(service, body))
+    job, new = service.runner.submit_calibration(plan(service, body))
+    if not new:
+        response.status_code = status.HTTP_200_OK
     response.headers["Location"] = job_link(job)
     return job_out(service, job)

@@ -17,6 +17,7 @@ router = APIRouter(tags=["status"])
 async def get_status(service: ServiceDep) -> StatusOut:
     # async: served on the event loop without a thread hop; everything here is a cached value or a
     # sub-millisecond SQLite read (WAL readers never wait for the job writing its progress).
+    service.db.check()  # a deleted data directory is a 503 naming it, before disk_usage fails on it
     lidar, camera = service.sensors.snapshot()
     running = [j for j in service.jobs.unfinished() if j.status is JobStatus.RUNNING]
     active = service.versions.active()

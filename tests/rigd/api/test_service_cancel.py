@@ -25,7 +25,9 @@ def test_cancel_queued_and_running_jobs(tmp_path):
         with server.client() as client:
             body = {"dataset": "ds", "init": perturbed_truth(dataset)}
             first = client.post("/calibrate", json=body).json()
-            second = client.post("/calibrate", json=body).json()  # waits behind the first
+            # waits behind the first (other sigmas: the same request would be the first job again)
+            second = client.post("/calibrate", json={**body, "sigmas_deg": [3.0, 1.5]}).json()
+            assert second["id"] != first["id"]
             cancelled = client.delete(f"/jobs/{second['id']}")
             assert cancelled.status_code == 202 and cancelled.json()["status"] == "cancelled"
 

@@ -2,18 +2,24 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
 import pytest
-from api_helpers import REPO, Server, simulated_dataset
+from api_helpers import REPO, Server, free_port, simulated_dataset
 
 TOKEN = "correct-horse-battery-staple"
 
 
-def serve(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "rigd", "serve", *args], capture_output=True, text=True,
-                          timeout=60, cwd=REPO, env={"PATH": "/usr/bin:/bin", **(env or {})})
+def serve(*args: str, env: dict[str, str] | None = None, timeout_s: float = 60) -> subprocess.CompletedProcess[str]:
+    """``rigd serve`` expected to refuse its settings: it must exit well within ``timeout_s`` (a serving
+    process raises TimeoutExpired)."""
+    environment = {"PATH": "/usr/bin:/bin", **(env or {})}
+    if "PYTHONPATH" in os.environ:  # the code under test, when it is not the installed tree
+        environment["PYTHONPATH"] = os.environ["PYTHONPATH"]
+    return subprocess.run([sys.executable, "-m", "rigd", "serve", "--port", str(free_port()), *args],
+                          capture_output=True, text=True, timeout=timeout_s, cwd=REPO, env=environment)
 
 
 def test_refuses_a_public_address_without_a_token(tmp_path):
@@ -28,6 +34,35 @@ def test_refuses_a_short_token_and_bad_settings(tmp_path):
     assert proc.returncode == 2 and "at least 16 characters" in proc.stderr
     proc = serve("--data-dir", str(tmp_path), env={"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "zero"})
     assert proc.returncode == 2 and "auto_activate_min_pairs" in proc.stderr
+
+
+@pytest.mark.parametrize("token", ["", " ", " " * 20, "\t\n"])
+def test_refuses_an_empty_token(tmp_path, token):
+    # An empty RIGD_TOKEN= (a placeholder left in rigd.env) must not mean "no token": refuse to start.
+    proc = serve("--data-dir", str(tmp_path), env={"RIGD_TOKEN": token}, timeout_s=20)
+    assert proc.returncode == 2, proc.stderr
+    assert "rigd: error: the API token (RIGD_TOKEN) is empty" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_refuses_an_empty_token_in_the_rig_file(tmp_path):
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("service:\n  token:\n")
+    proc = serve("--data-dir", str(tmp_path / "data"), "--config", str(rig), timeout_s=20)
+    assert proc.returncode == 2, proc.stderr
+    assert "the API token (RIGD_TOKEN) is empty" in proc.stderr
+
+
+@pytest.mark.parametrize("token, problem", [
+    ("correct-horse-b\u00e4ttery-staple", "printable ASCII"),  # UTF-8 on the wire, latin-1 in the server
+    ("correct-horse-battery-staple\u20ac", "printable ASCII"),
+    ("correct horse\tbattery staple", "printable ASCII"),  # a control character
+    (" correct-horse-battery-staple", "leading or trailing white space"),  # HTTP strips it from the header
+])
+def test_refuses_a_token_a_client_cannot_send(tmp_path, token, problem):
+    proc = serve("--data-dir", str(tmp_path), env={"RIGD_TOKEN": token}, timeout_s=20)
+    assert proc.returncode == 2, proc.stderr
+    assert "the API token (RIGD_TOKEN)" in proc.stderr and problem in proc.stderr
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,62 @@
+"""One service per data directory: an exclusive ``flock`` on ``DATA_DIR/rigd.lock`` for the process lifetime.
+
+Two services on one data directory would each take the other's jobs for leftovers of a crash (marking a
+running job failed while its worker still stores a version) and run two calibrations at once. The kernel
+drops the lock when the process dies, however it dies, so a stale lock file never blocks a restart.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+from pathlib import Path
+
+from rigd.store.errors import DataDirLockedError, StoreError
+
+LOCK_FILE = "rigd.lock"
+
+
+def _holder(fd: int) -> str:
+    """The pid the holder wrote into the lock file, as text ("unknown" if it cannot be read)."""
+    try:
+        text = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+    except OSError:
+        return "unknown"
+    return text if text.isdigit() else "unknown"
+
+
+class DataDirLock:
+    """Held from :meth:`acquire` to :meth:`release` (or the end of the process)."""
+
+    def __init__(self, path: Path, fd: int) -> None:
+        self.path = path
+        self._fd = fd
+
+    @classmethod
+    def acquire(cls, data_dir: Path) -> DataDirLock:
+        """Lock ``data_dir`` (created if missing); DataDirLockedError naming the holder's pid if it is taken."""
+        path = Path(data_dir) / LOCK_FILE
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)  # not inherited by the calibration workers
+        except OSError as exc:
+            raise StoreError(f"{path}: cannot open the data directory's lock file ({exc.strerror})") from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            holder = _holder(fd)
+            os.close(fd)
+            if isinstance(exc, BlockingIOError):
+                raise DataDirLockedError(
+                    f"data directory {data_dir} is in use by another rigd serve (pid {holder}); stop that one "
+                    "or give this one another --data-dir") from exc
+            raise StoreError(f"{path}: cannot lock the data directory ({exc.strerror})") from exc
+        # Written only once the lock is ours: the file always names the live holder.
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        return cls(path, fd)
+
+    def release(self) -> None:
+        if self._fd >= 0:
+            os.close(self._fd)  # closing the only descriptor drops the flock
+            self._fd = -1

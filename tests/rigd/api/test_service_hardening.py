@@ -1,0 +1,203 @@
+"""A careless or hostile client (issue 15): text that is not Unicode, symlinks out of the data directory,
+bodies that never arrive, a full queue, a second service on the same data directory, a deleted data
+directory, a camera without its SDK layout."""
+
+from __future__ import annotations
+
+import shutil
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+import yaml
+from api_helpers import REPO, Server, free_port, perturbed_truth, simulated_dataset, wait_job
+
+JSON = {"Content-Type": "application/json"}
+IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}
+BODY_TIMEOUT_S = 1.5
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    data = tmp_path_factory.mktemp("hardening") / "data"
+    simulated_dataset(data, "ds", pairs=1)
+    server = Server(data, env={"RIGD_BODY_TIMEOUT_S": str(BODY_TIMEOUT_S)}).start()
+    yield server
+    server.stop()
+
+
+@pytest.mark.parametrize("path, body", [
+    ("/calibrate", b'{"dataset": "\\ud800", "init": "rig"}'),  # refused by the id pattern, which echoes it
+    ("/calibrate", b'{"dataset": "ds", "\\udfff": 1}'),  # an unknown key, named in the error
+    ("/extrinsics/versions", b'{"T_camera_lidar": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}, "note": "a\\ud800b"}'),
+])
+def test_lone_surrogates_are_refused_not_a_server_error(server, path, body):
+    with server.client() as client:
+        response = client.post(path, content=body, headers=JSON)
+        assert response.status_code == 422, response.text
+        assert "\\ud800" in response.text or "\\udfff" in response.text or "surrogate" in response.text
+        # Nothing was stored that could not be read back.
+        listed = client.get("/extrinsics/versions")
+        assert listed.status_code == 200 and all(v["parameters"].get("note") != "a\ud800b" for v in listed.json())
+
+
+def test_symlinks_out_of_the_datasets_folder_are_refused(server, tmp_path):
+    outside = simulated_dataset(tmp_path, "outside", pairs=1)
+    (server.data_dir / "datasets" / "linked").symlink_to(outside, target_is_directory=True)
+    inner = server.data_dir / "datasets" / "inner"
+    shutil.copytree(server.data_dir / "datasets" / "ds", inner)
+    image = next((inner / "pairs" / "0000").glob("image.*"))
+    image.unlink()
+    image.symlink_to(next((outside / "pairs" / "0000").glob("image.*")))
+    before = sorted(p.relative_to(outside) for p in outside.rglob("*"))
+    with server.client() as client:
+        for dataset in ("linked", "inner"):
+            detail = client.get(f"/datasets/{dataset}")
+            assert detail.status_code == 422, detail.text
+            assert "is a symbolic link" in detail.json()["detail"]
+            assert "datasets must be folders and files inside" in detail.json()["detail"]
+            calibrate = client.post("/calibrate", json={"dataset": dataset, "init": IDENTITY})
+            assert calibrate.status_code == 422, calibrate.text
+            capture = client.post("/capture", json={"dataset": dataset, "source": "sim", "n": 1})
+            assert capture.status_code == 422, capture.text
+        assert "datasets/linked is a symbolic link" in client.get("/datasets/linked").json()["detail"]
+        assert "pairs/0000/image.png is a symbolic link" in client.get("/datasets/inner").json()["detail"]
+        listed = {d["id"]: d for d in client.get("/datasets").json()}
+        assert listed["linked"]["error"] and listed["inner"]["error"] and listed["ds"]["error"] is None
+    assert sorted(p.relative_to(outside) for p in outside.rglob("*")) == before  # nothing written out there
+
+
+def raw_request(server: Server, body: bytes, length: int, pause_s: float = 0.0) -> tuple[bytes, float]:
+    """POST a version with ``Content-Length: length``, sending ``body`` in two halves ``pause_s`` apart; the
+    whole answer (read until the server closes, at most 10 s) and the seconds it took."""
+    head = (f"POST /extrinsics/versions HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+            f"Content-Length: {length}\r\nConnection: close\r\n\r\n").encode()
+    with socket.create_connection(("127.0.0.1", server.port), timeout=10.0) as sock:
+        start = time.monotonic()
+        sock.sendall(head + body[:len(body) // 2])
+        time.sleep(pause_s)
+        sock.sendall(body[len(body) // 2:])
+        answer = b""
+        while chunk := sock.recv(65536):  # socket.timeout (a failure) if the server holds the connection
+            answer += chunk
+        return answer, time.monotonic() - start
+
+
+def test_a_body_that_does_not_arrive_gets_408(server):
+    answer, seconds = raw_request(server, b'{"note": "', length=100)
+    assert answer.startswith(b"HTTP/1.1 408 "), answer
+    assert b"the request body did not arrive within 1.5 s" in answer
+    assert BODY_TIMEOUT_S <= seconds < BODY_TIMEOUT_S + 3
+
+
+def test_a_slow_body_within_the_timeout_is_served(server):
+    body = b'{"T_camera_lidar": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}, "note": "slow"}'
+    answer, _ = raw_request(server, body, length=len(body), pause_s=BODY_TIMEOUT_S / 3)
+    assert answer.startswith(b"HTTP/1.1 201 "), answer
+
+
+def test_the_queue_is_bounded_and_an_identical_request_gets_the_same_job(tmp_path):
+    data = tmp_path / "data"
+    dataset = simulated_dataset(data, "ds", pairs=3)
+    server = Server(data, env={"RIGD_MAX_QUEUED_JOBS": "2"}).start()
+    try:
+        with server.client() as client:
+            body = {"dataset": "ds", "init": perturbed_truth(dataset)}
+            first = client.post("/calibrate", json=body)
+            again = client.post("/calibrate", json=body)
+            assert first.status_code == 202 and again.status_code == 200, again.text
+            assert again.json()["id"] == first.json()["id"]
+            assert again.headers["Location"] == first.headers["Location"]
+
+            # Different requests (other sigmas): two may wait behind the first, the rest are refused.
+            responses = [client.post("/calibrate", json={**body, "sigmas_deg": [float(s)]}) for s in range(1, 7)]
+            codes = [r.status_code for r in responses]
+            accepted = codes.count(202)
+            assert accepted in (1, 2) and codes == [202] * accepted + [429] * (6 - accepted), codes
+            refused = responses[-1]
+            assert int(refused.headers["Retry-After"]) > 0
+            assert "2 calibrations are queued already" in refused.json()["detail"]
+
+            unfinished = [j["id"] for j in client.get("/jobs").json() if j["status"] in ("queued", "running")]
+            assert len(unfinished) == 1 + accepted  # the refused ones left no job behind
+            for job_id in unfinished:
+                client.delete(f"/jobs/{job_id}")
+            for job_id in unfinished:
+                wait_job(client, job_id)
+            # Once the first one has finished, the same request is a new job.
+            later = client.post("/calibrate", json=body)
+            assert later.status_code == 202 and later.json()["id"] > max(unfinished)
+            client.delete(f"/jobs/{later.json()['id']}")
+    finally:
+        server.stop()
+
+
+def test_a_second_service_on_the_same_data_dir_exits(tmp_path):
+    data = tmp_path / "data"
+    dataset = simulated_dataset(data, "ds", pairs=2)
+    first = Server(data).start()
+    try:
+        with first.client() as client:
+            job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
+            second = subprocess.run([sys.executable, "-m", "rigd", "serve", "--port", str(free_port())],
+                                    env=first.env, cwd=REPO, capture_output=True, text=True, timeout=30)
+            assert second.returncode == 2, second.stderr
+            assert f"rigd: error: data directory {data} is in use by another rigd serve (pid {first.proc.pid})" in (
+                second.stderr)
+            assert "Traceback" not in second.stderr
+            # The first one's job was left alone: it was not marked interrupted, and it completes.
+            done = wait_job(client, job["id"])
+            assert done["status"] == "succeeded", done
+            assert client.get("/extrinsics/versions").json()[0]["job_id"] == job["id"]
+    finally:
+        first.stop()
+    # Stopped, it released the data directory: a new service starts on it.
+    first.start().stop()
+
+
+@pytest.mark.parametrize("replace", [False, True], ids=["deleted", "replaced"])
+def test_a_deleted_data_dir_answers_503_and_acknowledges_no_write(tmp_path, replace):
+    data = tmp_path / "data"
+    server = Server(data).start()
+    try:
+        with server.client() as client:
+            stored = client.post("/extrinsics/versions", json={"T_camera_lidar": IDENTITY})
+            assert stored.status_code == 201
+            shutil.rmtree(data)
+            if replace:  # e.g. a backup restored under the running service
+                data.mkdir()
+                (data / "rigd.db").write_bytes(b"")
+            write = client.post("/extrinsics/versions", json={"T_camera_lidar": IDENTITY, "note": "lost"})
+            assert write.status_code == 503, write.text  # never 201 for a version nobody will read back
+            assert "restart rigd serve" in write.json()["detail"]
+            status = client.get("/status")
+            assert status.status_code == 503, status.text
+            assert f"{data / 'rigd.db'}: the database was deleted or replaced" in status.json()["detail"]
+            assert client.get("/extrinsics/versions").status_code == 503
+        assert not (data / "rigd.db").exists() or (data / "rigd.db").stat().st_size == 0  # nothing recreated
+    finally:
+        server.kill()
+
+
+def test_a_capture_without_the_sdk_layout_says_how_to_get_it(tmp_path):
+    layout = tmp_path / "etc" / "ladybug_layout.yaml"
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(yaml.safe_dump({
+        "camera": {"model": "equirectangular", "width": 256, "height": 128, "source": "sdk",
+                   "sdk": {"layout": str(layout)}},
+        "lidar": {"model": "VLP-16", "source": f"udp:127.0.0.1:{free_port()}"},  # silent: the camera fails first
+    }))
+    server = Server(tmp_path / "data", env={"RIGD_CONFIG": str(rig)}).start()
+    try:
+        with server.client() as client:
+            job = client.post("/capture", json={"dataset": "live", "n": 1}).json()
+            error = wait_job(client, job["id"], timeout_s=60)["error"]
+    finally:
+        server.stop()
+    assert str(layout) in error  # the file ...
+    # ... and the fix: where the file comes from, and the setting that names it.
+    assert "install FLIR's Ladybug SDK" in error
+    assert f"rigd camera sdk-layout --include /usr/include/ladybug --out {layout}" in error
+    assert "camera.sdk.layout" in error
