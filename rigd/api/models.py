@@ -73,6 +73,29 @@ class TransformIn(Request):
         return self._transform
 
 
+class PriorIn(Request):
+    """A Gaussian prior per axis from the rig's drawing (rig.yaml's ``prior`` form): the lever arm ``xyz_m``
+    (t of T_camera_lidar, m) with ``sigma_cm``, and/or the rotation ``rpy_deg`` with ``sigma_deg``."""
+
+    xyz_m: Vec3 | None = None
+    sigma_cm: Annotated[float, Field(gt=0.0, le=1000.0)] | None = None
+    rpy_deg: Annotated[list[Angle], Field(min_length=3, max_length=3)] | None = None
+    sigma_deg: Annotated[float, Field(gt=0.0, le=180.0)] | None = None
+
+    @model_validator(mode="after")
+    def _pairs(self) -> PriorIn:
+        if (self.xyz_m is None) != (self.sigma_cm is None):
+            raise ValueError("a lever-arm prior needs both xyz_m and sigma_cm")
+        if (self.rpy_deg is None) != (self.sigma_deg is None):
+            raise ValueError("a rotation prior needs both rpy_deg and sigma_deg")
+        return self
+
+
+class ToleranceIn(Request):
+    rotation_deg: Annotated[float, Field(gt=0.0, le=90.0)] = 0.2
+    translation_cm: Annotated[float, Field(gt=0.0, le=1000.0)] = 2.0
+
+
 class CalibrateIn(Request):
     dataset: DatasetId
     init: Literal["active", "rig"] | TransformIn = Field(
@@ -81,7 +104,12 @@ class CalibrateIn(Request):
     sigmas_deg: Annotated[list[Annotated[float, Field(gt=0.0, le=30.0)]], Field(min_length=1, max_length=6)] | None = (
         Field(None, description="sigma_in per coarse-to-fine level, deg at 1 m; absent: the calibration's default "
               "schedule (the levels used are in the version's quality figures)"))
-    auto_activate: bool = Field(False, description="activate the result if its quality passes the service's bounds")
+    auto_activate: bool = Field(False, description="activate the result if its verdict is trusted and its quality "
+                                "passes the service's bounds")
+    prior: PriorIn | None = Field(None, description="Gaussian prior per axis; absent: the dataset's rig.yaml prior")
+    fix_translation: bool = Field(False, description="hold the translation at the prior's lever arm (or the start's)")
+    tolerance: ToleranceIn | None = Field(None, description="field tolerance of the verdict; absent: the dataset's "
+                                          "rig.yaml tolerance, else 0.2 deg / 2 cm")
 
 
 class ManualVersionIn(Request):
@@ -113,6 +141,10 @@ class VersionOut(BaseModel):
     created_at: str
     activated_at: str | None
     T_camera_lidar: TransformOut
+    verdict: dict[str, Any] | None = Field(description="trusted | weak | failed with the weak axes and the reasons "
+                                           "(docs/trust.md); null for a manual version")
+    uncertainty: dict[str, Any] | None = Field(description="per-axis sigma (rpy_deg, xyz_cm), 6x6 covariance in "
+                                               "deg/cm and the weakest direction; null for a manual version")
     quality: dict[str, Any]
     method: str
     parameters: dict[str, Any]

@@ -54,6 +54,9 @@ class ActivationBounds:
 
     def failures(self, quality: dict[str, Any], pairs: int, change: Change | None) -> list[str]:
         reasons = []
+        verdict = (quality.get("verdict") or {}).get("status")
+        if verdict != "trusted":  # never activate what the calibration itself does not trust (docs/trust.md)
+            reasons.append(f"the calibration's verdict is {verdict or 'missing'}, not trusted")
         if self.require_converged and not quality.get("converged"):
             reasons.append("the optimisation did not converge")
         if pairs < self.min_pairs:
@@ -77,12 +80,16 @@ class CalibrationPlan:
     init_version: int | None
     sigmas_deg: tuple[float, ...] | None  # None: the calibration's default schedule
     auto_activate: bool
+    prior: dict[str, Any] | None = None  # rig.yaml's prior form; None: the dataset's rig.yaml prior
+    fix_translation: bool = False
+    tolerance: dict[str, float] | None = None  # rig.yaml's tolerance form; None: the dataset's or the default
 
     def params(self) -> dict[str, Any]:
         return {"dataset": self.dataset_id, "init": self.init, "init_version": self.init_version,
                 "initial": transform_to_yaml(self.initial),
                 "sigmas_deg": list(self.sigmas_deg) if self.sigmas_deg is not None else None,
-                "auto_activate": self.auto_activate}
+                "auto_activate": self.auto_activate, "prior": self.prior, "fix_translation": self.fix_translation,
+                "tolerance": self.tolerance}
 
 
 class _Throttle:
@@ -156,7 +163,9 @@ class JobRunner:
         params = job.params
         out_dir = self.jobs.job_dir(job.id) / "calibration"
         payload = {"dataset": str(self.datasets.path(params["dataset"])), "out_dir": str(out_dir),
-                   "initial_matrix": params["initial"]["matrix"], "sigmas_deg": params["sigmas_deg"]}
+                   "initial_matrix": params["initial"]["matrix"], "sigmas_deg": params["sigmas_deg"],
+                   "prior": params.get("prior"), "fix_translation": params.get("fix_translation", False),
+                   "tolerance": params.get("tolerance")}
         with (self.jobs.job_dir(job.id) / "job.log").open("a") as stderr, self._lock:
             proc = subprocess.Popen([sys.executable, "-m", "rigd.api.worker"], stdin=subprocess.PIPE,
                                     stdout=subprocess.PIPE, stderr=stderr, text=True)
@@ -210,8 +219,9 @@ class JobRunner:
         params, report = job.params, result["report"]
         pairs = result["pair_numbers"]
         quality = {**report["quality"], "pairs_used": len(pairs)}
-        if "error_vs_ground_truth" in report:
-            quality["error_vs_ground_truth"] = report["error_vs_ground_truth"]
+        for key in ("error_vs_ground_truth", "uncertainty", "verdict"):
+            if key in report:
+                quality[key] = report[key]
         decision: dict[str, Any] = {"requested": params["auto_activate"]}
 
         def policy(change: Change | None) -> bool:

@@ -26,6 +26,7 @@ from calib.pipeline import CalibParams
 from drivers.errors import DriverError
 from rigd.calibration import CalibrationRequest, run_calibration
 from rigd.dataset import open_dataset
+from rigd.dataset.records import prior_from_yaml, tolerance_from_yaml
 from rigd.errors import RigdError
 from rigd.store.datasets import content_hash
 from rigd.store.jsonsafe import json_safe
@@ -76,6 +77,9 @@ def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
         dataset=dataset.root,
         out_dir=Path(job["out_dir"]),
         initial=Transform.from_matrix(np.asarray(job["initial_matrix"], dtype=np.float64)),
+        prior=prior_from_yaml(job["prior"], "request prior") if job.get("prior") else None,
+        fix_translation=bool(job.get("fix_translation", False)),
+        tolerance=tolerance_from_yaml(job["tolerance"], "request tolerance") if job.get("tolerance") else None,
         **schedule,
     )
     outcome = run_calibration(request, reporter.progress, reporter.iteration)

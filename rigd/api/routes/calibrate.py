@@ -37,7 +37,10 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
     else:
         initial, init = body.init.transform, "explicit"
     sigmas = tuple(body.sigmas_deg) if body.sigmas_deg is not None else None
-    return CalibrationPlan(body.dataset, initial, init, init_version, sigmas, body.auto_activate)
+    prior = body.prior.model_dump(exclude_none=True) if body.prior is not None else None
+    tolerance = body.tolerance.model_dump() if body.tolerance is not None else None
+    return CalibrationPlan(body.dataset, initial, init, init_version, sigmas, body.auto_activate, prior,
+                           body.fix_translation, tolerance)
 
 
 @router.post("/calibrate", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, dependencies=[Authorized],

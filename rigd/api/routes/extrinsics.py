@@ -30,6 +30,7 @@ def version_out(version: ExtrinsicsVersion) -> VersionOut:
     return VersionOut(
         number=version.number, status=version.status.value, created_at=version.created_at,
         activated_at=version.activated_at, T_camera_lidar=TransformOut.of(version.T_camera_lidar),
+        verdict=version.quality.get("verdict"), uncertainty=version.quality.get("uncertainty"),
         quality=version.quality, method=version.method, parameters=version.parameters,
         code_version=version.code_version, dataset_id=version.dataset_id, dataset_hash=version.dataset_hash,
         job_id=version.job_id, supersedes=version.supersedes,

@@ -101,8 +101,12 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
         t1, t2 = matrix(v1["T_camera_lidar"])[:3, 3], matrix(v2["T_camera_lidar"])[:3, 3]
         assert v2["change"]["translation_cm"] == pytest.approx(np.linalg.norm(t2 - t1) * 100, abs=1e-6)
         assert v2["dataset_hash"] == v1["dataset_hash"]  # same files, same hash
-        # auto_activate: the service's bounds (converged, >= 2 pairs here, <= 5 deg and <= 10 cm of change).
-        expected_failures = [not v2["quality"]["converged"], v2["quality"]["pairs_used"] < 2,
+        # auto_activate: the service's bounds (verdict trusted, converged, >= 2 pairs here, <= 5 deg and <= 10 cm
+        # of change). The verdict and uncertainty are stored with the version and shown at its top level.
+        assert v2["verdict"] == v2["quality"]["verdict"] and v2["verdict"]["status"] in ("trusted", "weak", "failed")
+        assert len(v2["uncertainty"]["rpy_deg"]) == 3 and len(v2["uncertainty"]["covariance"]) == 6
+        expected_failures = [v2["verdict"]["status"] != "trusted", not v2["quality"]["converged"],
+                             v2["quality"]["pairs_used"] < 2,
                              v2["change"]["rotation_deg"] > 5.0, v2["change"]["translation_cm"] > 10.0]
         checks = second["result"]["auto_activate"]
         assert checks["requested"] is True and len(checks["failed_checks"]) == sum(expected_failures)
