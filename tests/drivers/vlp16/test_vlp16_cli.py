@@ -13,8 +13,6 @@ from drivers.vlp16 import PcapReplay, Vlp16Config
 from drivers.vlp16.layout import NOMINAL_ELEVATION_DEG
 from rigd.dataset import read_pcd
 
-pytestmark = pytest.mark.skipif(not LEGACY_PCAP.is_file(), reason="shared VLP-16 captures not present")
-
 
 @pytest.fixture(autouse=True)
 def only_lidar_command(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -18,8 +18,6 @@ from vlp16_helpers import LEGACY_PCAP, SMALL_PCAP, data_payloads
 
 from drivers.vlp16 import LaserCalibration, PcapReplay, Vlp16Config, load_calibration
 
-pytestmark = pytest.mark.skipif(not LEGACY_PCAP.is_file(), reason="shared VLP-16 captures not present")
-
 
 def peer_scans(
     path: Path, calibration: vd.Calibration | None = None, cut_angle: float | None = None

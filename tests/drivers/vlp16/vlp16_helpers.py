@@ -10,11 +10,10 @@ import dpkt
 import numpy as np
 
 from drivers.vlp16 import DatagramBatch, Sweep, SweepAssembler, Vlp16Config
+from tests.testdata import LEGACY_PCAP, SMALL_PCAP
 
-REPO = Path(__file__).resolve().parents[3]
-DATA = REPO / ".." / "shared" / "data" / "vlp16"
-SMALL_PCAP = DATA / "vlp16_strongest_600rpm_84pkts.pcap"
-LEGACY_PCAP = DATA / "vlp16_legacyfw_1200rpm_50rot.pcap"
+__all__ = ["LEGACY_PCAP", "SMALL_PCAP"]  # re-exported for the test modules
+
 FIRING_S = 55.296e-6
 
 
