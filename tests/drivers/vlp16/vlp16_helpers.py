@@ -15,6 +15,10 @@ from tests.testdata import LEGACY_PCAP, SMALL_PCAP
 __all__ = ["LEGACY_PCAP", "SMALL_PCAP"]  # re-exported for the test modules
 
 FIRING_S = 55.296e-6
+# The VLP-16 manual's geometry, written out here rather than taken from the driver: nominal elevations of lasers
+# 0..15 (deg) and each laser's origin 41.91 mm * tan(-elevation) above the sensor origin (m).
+ELEVATION_DEG = np.array([-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15], dtype=np.float64)
+MANUAL_OFFSET_M = 0.04191 * np.tan(np.radians(-ELEVATION_DEG))
 
 
 class Firings(NamedTuple):
