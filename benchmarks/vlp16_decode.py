@@ -21,7 +21,7 @@ import velodyne_decoder as vd
 from drivers.vlp16 import PcapReplay, Vlp16Config, decode_packets, read_batches
 
 REPO = Path(__file__).resolve().parents[1]
-LEGACY = REPO / ".." / "shared" / "data" / "vlp16" / "vlp16_legacyfw_1200rpm_50rot.pcap"
+LEGACY = REPO / "tests" / "data" / "vlp16" / "vlp16_legacyfw_1200rpm_50rot.pcap"
 
 
 def patched_copy(source: Path, target: Path) -> None:

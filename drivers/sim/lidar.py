@@ -4,8 +4,11 @@
 :data:`LASER_ELEVATIONS_DEG`), one firing sequence every 0.2 degrees: 1800 firings per turn at 600 rpm.
 Laser ``k`` of firing ``f`` fires at ``time_s = f * FIRING_PERIOD_S + k * LASER_INTERVAL_S`` and the head
 turns clockwise (seen from above) at 3600 deg/s, so its azimuth is ``3600 * time_s`` degrees (0 at the
-start of the sweep, pointing along +x). Points follow the VLP-16 formula of docs/conventions.md:
-``x = r cos(w) cos(a)``, ``y = -r cos(w) sin(a)``, ``z = r sin(w)``.
+start of the sweep, pointing along +x). The geometry is the VLP-16 manual's, which the decoder applies by
+default (docs/vlp16.md): laser ``k`` sits :data:`LASER_OFFSETS_M` ``[k]`` (41.91 mm * tan(-w), up to 11.2 mm)
+above the LiDAR origin along z, its ray starts there, and ``r`` is measured from there:
+``x = r cos(w) cos(a)``, ``y = -r cos(w) sin(a)``, ``z = r sin(w) + offset``. So the packets the simulated rig
+sends decode back onto the scene's surfaces.
 
 Ranges get Gaussian noise and are reported in 2 mm steps (the VLP-16's range unit). Returns beyond
 ``max_range_m`` or before ``min_range_m``, and rays into the sky, give no point (range 0 in ``ranges_m``).
@@ -24,12 +27,15 @@ from drivers.sim.errors import SimError
 from drivers.sim.pose import Pose, rotate
 from drivers.sim.raycast import cast
 from drivers.sim.scene import Scene
+from drivers.vlp16 import LaserCalibration
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
 I16 = NDArray[np.int16]
 
-LASER_ELEVATIONS_DEG = np.array([-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15], dtype=np.float64)
+_MANUAL = LaserCalibration()  # the decoder's default geometry: what the simulated sensor is built to
+LASER_ELEVATIONS_DEG = _MANUAL.elevation_deg  # (16,) deg of laser ids 0..15
+LASER_OFFSETS_M = _MANUAL.vertical_offset_m  # (16,) m: each laser's origin above the LiDAR origin, along z
 N_LASERS = 16
 FIRINGS_PER_TURN = 1800
 ROTATION_HZ = 10.0  # 600 rpm
@@ -101,8 +107,10 @@ def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config:
     time_s, azimuth_deg = firing_grid()
     beams = beam_directions_lidar(azimuth_deg, np.broadcast_to(LASER_ELEVATIONS_DEG, azimuth_deg.shape))
     beams = beams.reshape(-1, 3)
+    laser_origins = np.zeros_like(beams)  # (1800*16, 3) m in the LiDAR frame, firing-major like the beams
+    laser_origins[:, 2] = np.tile(LASER_OFFSETS_M, FIRINGS_PER_TURN)
     beams_world = rotate(beams, pose_world_lidar.rotation)
-    hits = cast(scene, pose_world_lidar.translation_m, beams_world)
+    hits = cast(scene, pose_world_lidar.apply(laser_origins), beams_world)
     noisy = hits.depth_m + rng.normal(0.0, cfg.range_noise_m, size=len(beams))
     ranges = np.round(noisy / RANGE_RESOLUTION_M) * RANGE_RESOLUTION_M
     valid = hits.hit & (ranges >= cfg.min_range_m) & (ranges <= cfg.max_range_m)
@@ -113,7 +121,7 @@ def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config:
     laser = np.tile(np.arange(N_LASERS, dtype=np.int16), FIRINGS_PER_TURN)
     keep = np.flatnonzero(valid)
     return Sweep(
-        points_lidar=ranges[keep, None] * beams[keep],
+        points_lidar=ranges[keep, None] * beams[keep] + laser_origins[keep],
         intensity=reflectivity[keep].astype(np.float32),
         ring=RING_OF_LASER[laser[keep]],
         laser_id=laser[keep],

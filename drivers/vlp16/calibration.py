@@ -1,4 +1,9 @@
-"""Per-laser geometry: elevation angles and vertical offsets, optionally from a ROS ``VLP16db.yaml`` file."""
+"""Per-laser geometry: elevation angles and vertical offsets, optionally from a ROS ``VLP16db.yaml`` file.
+
+Without a file the geometry is the VLP-16 manual's (63-9243, "vertical correction"): nominal elevations, and
+each laser's origin ``41.91 mm * tan(-elevation)`` above the sensor origin along z (+11.2 mm for the -15 deg
+laser, -11.2 mm for +15 deg). velodyne_decoder and VeloView use the same default.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +16,15 @@ from numpy.typing import NDArray
 
 from drivers.vlp16.errors import CalibrationFileError
 from drivers.vlp16.layout import DISTANCE_UNIT_M, LASERS, NOMINAL_ELEVATION_DEG
+
+#: The manual's vertical correction is this length times tan(-elevation), m.
+MANUAL_OFFSET_LEVER_M = 0.04191
+
+
+def manual_vertical_offset_m(elevation_deg: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(16,) float64 m: the VLP-16 manual's vertical offset of each laser's origin for elevations (16,) deg."""
+    return MANUAL_OFFSET_LEVER_M * np.tan(np.radians(-np.asarray(elevation_deg, dtype=np.float64)))
+
 
 # Fields of the ROS format this driver does not model; a file with a nonzero value is refused, not ignored.
 _UNSUPPORTED_FIELDS = (
@@ -30,11 +44,19 @@ class LaserCalibration:
 
     The vertical offset ``o`` of a laser's origin is added to z: ``x = r cos w cos a``,
     ``y = -r cos w sin a``, ``z = r sin w + o`` (the VLP-16 manual's "vertical correction", applied as
-    velodyne_decoder does).
+    velodyne_decoder does). The default is the manual's geometry; :meth:`nominal` has no offsets.
     """
 
     elevation_deg: NDArray[np.float64] = field(default_factory=lambda: NOMINAL_ELEVATION_DEG.copy())
-    vertical_offset_m: NDArray[np.float64] = field(default_factory=lambda: np.zeros(LASERS))
+    vertical_offset_m: NDArray[np.float64] = field(
+        default_factory=lambda: manual_vertical_offset_m(NOMINAL_ELEVATION_DEG)
+    )
+
+    @classmethod
+    def nominal(cls) -> LaserCalibration:
+        """Nominal elevations with every laser at the sensor origin: rigd's earlier default, up to 11.2 mm off
+        in z (CLI ``--nominal-geometry``)."""
+        return cls(NOMINAL_ELEVATION_DEG.copy(), np.zeros(LASERS))
 
     def __post_init__(self) -> None:
         for name in ("elevation_deg", "vertical_offset_m"):

@@ -20,7 +20,6 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +38,7 @@ from rigd.capture.specs import parse_camera, parse_lidar
 from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
 from rigd.dataset.store import read_yaml
 from rigd.errors import DatasetError
+from rigd.version import software_version
 
 STILL_RANGE_M = 0.05  # LiDAR: 90th-percentile range change that still counts as standing still (docs/capture.md)
 CAMERA_CHANGE_GREY = 2.5  # camera: thumbnail change that still counts as standing still (docs/capture.md)
@@ -162,13 +162,6 @@ def existing_pairs(out: Path) -> list[Path]:
     if not pairs_dir.is_dir():
         return []
     return sorted((p for p in pairs_dir.iterdir() if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
-
-
-def software_version() -> str:
-    try:
-        return version("rigd")
-    except PackageNotFoundError:  # running from a source tree that was never installed
-        return "unknown"
 
 
 class _Session:

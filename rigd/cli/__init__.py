@@ -2,24 +2,26 @@
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import sys
 from collections.abc import Sequence
 
 from calib.errors import CalibError
 from drivers.errors import DriverError
+from rigd.cli.parser import RigdArgumentParser
 from rigd.errors import RigdError
+from rigd.version import software_version
 
 # Each module defines register(subparsers) and sets a handler with parser.set_defaults(func=...).
-COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "evaluate", "serve", "capture")
+COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "evaluate", "serve", "capture", "doctor")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+def build_parser() -> RigdArgumentParser:
+    parser = RigdArgumentParser(
         prog="rigd",
         description="Targetless camera-LiDAR calibration for a Ladybug5 + VLP-16 rig (Kang & Doh 2020).",
     )
+    parser.add_argument("--version", action="version", version=f"rigd {software_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMAND_MODULES:
         importlib.import_module(f"rigd.cli.{name}").register(sub)

@@ -50,11 +50,19 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
         metavar="DEG",
         help="azimuth where sweeps start, degrees clockwise from x (default 0)",
     )
-    parser.add_argument(
+    geometry = parser.add_mutually_exclusive_group()
+    geometry.add_argument(
         "--calibration",
         type=Path,
         metavar="YAML",
-        help="ROS VLP16db.yaml-style file with vert_correction / vert_offset_correction",
+        help="ROS VLP16db.yaml-style file with vert_correction / vert_offset_correction (default: the VLP-16 "
+        "manual's geometry, with its per-laser vertical offsets)",
+    )
+    geometry.add_argument(
+        "--nominal-geometry",
+        action="store_true",
+        help="nominal elevations without the manual's vertical offsets (rigd's earlier default; up to 11.2 mm "
+        "lower or higher in z)",
     )
     parser.add_argument("--data-port", type=_port, default=Ports().data, help="data packet UDP port (2368)")
     parser.add_argument(
@@ -89,8 +97,15 @@ def register(subparsers: Any) -> None:
     export.set_defaults(func=run_export)
 
 
+def _calibration(args: argparse.Namespace) -> LaserCalibration:
+    """A calibration file if given, else the nominal geometry if asked for, else the manual's."""
+    if args.calibration:
+        return load_calibration(args.calibration)
+    return LaserCalibration.nominal() if args.nominal_geometry else LaserCalibration()
+
+
 def _replay(args: argparse.Namespace) -> PcapReplay:
-    calibration = load_calibration(args.calibration) if args.calibration else LaserCalibration()
+    calibration = _calibration(args)
     config = Vlp16Config(
         calibration=calibration,
         cut_azimuth_deg=args.cut_azimuth,

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
 import pytest
@@ -12,9 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calib.camera import Equirectangular, Pinhole
-
-REPO = Path(__file__).resolve().parents[2]
-SAMPLE = REPO / ".." / "shared" / "data" / "pinhole_sample" / "ours_3"
+from tests.testdata import PINHOLE_FRAME
 
 W, H = 2048, 1024
 PANO = Equirectangular(W, H)
@@ -203,7 +199,7 @@ def test_pixels_per_radian_at_the_equator() -> None:
 
 @pytest.fixture(scope="module")
 def calibration() -> dict:
-    with (SAMPLE / "calibration.yaml").open() as fh:
+    with (PINHOLE_FRAME / "calibration.yaml").open() as fh:
         return yaml.safe_load(fh)
 
 
@@ -216,7 +212,7 @@ def pinhole(calibration: dict) -> Pinhole:
 @pytest.fixture(scope="module")
 def lidar_points() -> np.ndarray:
     """x y z of the real 64-ring cloud (layout documented in the sample README), every 4th point."""
-    raw = (SAMPLE / "cloud.pcd").read_bytes()
+    raw = (PINHOLE_FRAME / "cloud.pcd").read_bytes()
     body = raw[raw.index(b"DATA binary\n") + len(b"DATA binary\n") :]
     dtype = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("ring", "<u2")])
     data = np.frombuffer(body, dtype=dtype)

@@ -8,6 +8,8 @@ import pytest
 from drivers.sim import LidarConfig, Lighting, Pose, SceneBuilder, SceneKind, SimError, scan
 from drivers.sim.lidar import FIRINGS_PER_TURN, LASER_ELEVATIONS_DEG
 
+# The VLP-16 manual: laser k's origin is 41.91 mm * tan(-elevation) above the sensor origin (11.2 mm at -15 deg).
+OFFSET_M = 0.04191 * np.tan(np.radians(-LASER_ELEVATIONS_DEG))
 LIGHT = Lighting(sun_dir_world=np.array([0.0, 0.0, 1.0]), ambient=0.5, sun=0.5, shadows=False)
 HEIGHT_M = 1.7
 
@@ -25,10 +27,10 @@ def _level_pose() -> Pose:
 
 def test_floor_ranges_follow_the_elevation_of_each_laser():
     sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(0), LidarConfig(range_noise_m=0.0))
-    # A beam at elevation w < 0 from height h meets the floor after h / sin(-w) metres (-1 deg: 97.4 m,
-    # inside the 100 m range); upward beams see the sky: range 0, no return.
+    # A beam at elevation w < 0 from its laser at height h + offset meets the floor after (h + offset) / sin(-w)
+    # metres (-1 deg: 97.4 m, inside the 100 m range); upward beams see the sky: range 0, no return.
     w = np.radians(LASER_ELEVATIONS_DEG)
-    expected = np.where(w < 0, HEIGHT_M / np.sin(np.maximum(-w, 1e-9)), 0.0)
+    expected = np.where(w < 0, (HEIGHT_M + OFFSET_M) / np.sin(np.maximum(-w, 1e-9)), 0.0)
     expected = np.where(expected <= 100.0, expected, 0.0)
     for laser in range(16):
         ranges = sweep.ranges_m[:, laser]
@@ -38,9 +40,9 @@ def test_floor_ranges_follow_the_elevation_of_each_laser():
 
 def test_points_follow_the_vlp16_formula_and_ring_order():
     sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(1), LidarConfig(range_noise_m=0.02))
-    p = sweep.points_lidar
+    p = sweep.points_lidar - np.c_[np.zeros((len(sweep), 2)), OFFSET_M[sweep.laser_id]]  # from each laser
     r = np.linalg.norm(p, axis=1)
-    # Inverting x = r cos w cos a, y = -r cos w sin a, z = r sin w (docs/conventions.md):
+    # Inverting x = r cos w cos a, y = -r cos w sin a, z = r sin w + offset (docs/vlp16.md):
     elevation = np.degrees(np.arcsin(p[:, 2] / r))
     azimuth = np.mod(np.degrees(np.arctan2(-p[:, 1], p[:, 0])), 360.0)
     np.testing.assert_allclose(elevation, LASER_ELEVATIONS_DEG[sweep.laser_id], atol=1e-9)
@@ -60,12 +62,19 @@ def test_range_noise_sigma_and_quantisation():
     sigma = 0.03
     sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(2), LidarConfig(range_noise_m=sigma))
     w = np.radians(LASER_ELEVATIONS_DEG[sweep.laser_id])
-    true = HEIGHT_M / np.sin(-w)
-    residual = np.linalg.norm(sweep.points_lidar, axis=1) - true
+    true = (HEIGHT_M + OFFSET_M[sweep.laser_id]) / np.sin(-w)
+    residual = sweep.ranges_m.reshape(-1)[sweep.ranges_m.reshape(-1) > 0] - true
     assert residual.std() == pytest.approx(sigma, rel=0.05)
     assert abs(residual.mean()) < 0.002
     steps = sweep.ranges_m[sweep.ranges_m > 0] / 0.002
     np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
+
+
+def test_points_lie_on_the_surface_they_hit():
+    """The points are where the rays end: on the floor, whatever the laser's offset (the ground truth)."""
+    sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(5), LidarConfig(range_noise_m=0.0))
+    np.testing.assert_allclose(sweep.points_lidar[:, 2], -HEIGHT_M, atol=0.001)  # half the 2 mm range step
+    assert len(sweep) > 1000
 
 
 def test_range_limits_and_sky_give_no_return():

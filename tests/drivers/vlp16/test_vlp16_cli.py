@@ -6,14 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from vlp16_helpers import LEGACY_PCAP, SMALL_PCAP
+from vlp16_helpers import ELEVATION_DEG, LEGACY_PCAP, MANUAL_OFFSET_M, SMALL_PCAP
 
 import rigd.cli
 from drivers.vlp16 import PcapReplay, Vlp16Config
-from drivers.vlp16.layout import NOMINAL_ELEVATION_DEG
 from rigd.dataset import read_pcd
 
-pytestmark = pytest.mark.skipif(not LEGACY_PCAP.is_file(), reason="shared VLP-16 captures not present")
+LASER_OF_RING = np.argsort(ELEVATION_DEG)  # ring 0 is the lowest laser
 
 
 @pytest.fixture(autouse=True)
@@ -73,11 +72,35 @@ def test_export_writes_one_pcd_per_sweep_with_rings_by_elevation(
         cloud = read_pcd(path)
         assert len(cloud) == len(sweep.points)
         assert cloud.ring is not None and cloud.intensity is not None
-        elevation = np.degrees(
-            np.arcsin(cloud.points_lidar[:, 2] / np.linalg.norm(cloud.points_lidar, axis=1))
-        )
-        for ring, nominal in enumerate(np.sort(NOMINAL_ELEVATION_DEG)):  # ring 0 is the lowest laser
-            assert np.abs(elevation[cloud.ring == ring] - nominal).max() < 0.01
+        # By default each laser's origin is the manual's: 41.91 mm * tan(-elevation) above the sensor's.
+        lasers = LASER_OF_RING[cloud.ring]
+        from_laser = cloud.points_lidar - np.c_[np.zeros((len(cloud), 2)), MANUAL_OFFSET_M[lasers]]
+        elevation = np.degrees(np.arcsin(from_laser[:, 2] / np.linalg.norm(from_laser, axis=1)))
+        np.testing.assert_allclose(elevation, ELEVATION_DEG[lasers], atol=0.01)
+
+
+def test_nominal_geometry_moves_each_ring_by_the_manual_offset_only(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    clouds = {}
+    for name, flags in (("manual", []), ("nominal", ["--nominal-geometry"])):
+        code, _, _ = run(capsys, "lidar", "export", *flags, str(SMALL_PCAP), "--out", str(tmp_path / name))
+        assert code == 0
+        clouds[name] = read_pcd(tmp_path / name / "sweep_0000.pcd")
+    manual, nominal = clouds["manual"], clouds["nominal"]
+    np.testing.assert_array_equal(manual.ring, nominal.ring)
+    np.testing.assert_array_equal(manual.points_lidar[:, :2], nominal.points_lidar[:, :2])
+    dz = manual.points_lidar[:, 2] - nominal.points_lidar[:, 2]
+    np.testing.assert_allclose(dz, MANUAL_OFFSET_M[LASER_OF_RING[manual.ring]], atol=2e-6)  # float32 z
+    assert np.abs(dz).max() == pytest.approx(0.01123, abs=1e-5)  # the -15 and +15 deg lasers
+
+
+def test_calibration_file_and_nominal_geometry_exclude_each_other(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit):
+        run(capsys, "lidar", "info", "--nominal-geometry", "--calibration", str(tmp_path / "c.yaml"), str(SMALL_PCAP))
+    assert "not allowed with argument" in capsys.readouterr().err
 
 
 def test_export_complete_only_and_legacy_without_flag(

@@ -43,7 +43,6 @@ def on_ports(datagrams: Iterable[tuple[float, int, bytes]], ports: Ports) -> lis
     return [(t, mapping[port], payload) for t, port, payload in datagrams]
 
 
-@pytest.mark.skipif(not LEGACY_PCAP.is_file(), reason="shared VLP-16 captures not present")
 def test_pcap_replayed_over_udp_at_the_sensor_rate_gives_the_file_sweeps() -> None:
     expected = list(PcapReplay(LEGACY_PCAP, LEGACY))
     with UdpReceiver(LEGACY, host="127.0.0.1", ports=Ports(0, 0)) as receiver:

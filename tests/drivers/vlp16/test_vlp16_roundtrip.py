@@ -1,8 +1,9 @@
 """Encoder -> decoder round trips on synthetic firings, in strongest, last and dual-return modes.
 
-Expected points come from the firings themselves (range, the firing's true azimuth, the nominal laser
-elevation), not from the decoder: ranges survive to the 2 mm quantum, azimuths to the 0.01 deg quantum
-plus the in-block interpolation, times to the microsecond rounding of the packet stamp.
+Expected points come from the firings themselves (range, the firing's true azimuth, the laser's elevation
+and vertical offset from the VLP-16 manual, the decoder's default geometry), not from the decoder: ranges
+survive to the 2 mm quantum, azimuths to the 0.01 deg quantum plus the in-block interpolation, times to the
+microsecond rounding of the packet stamp.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import velodyne_decoder as vd
-from vlp16_helpers import FIRING_S, synthetic_firings
+from vlp16_helpers import ELEVATION_DEG, FIRING_S, MANUAL_OFFSET_M, synthetic_firings
 
 from drivers.vlp16 import (
     POINT_DTYPE,
@@ -23,9 +24,8 @@ from drivers.vlp16 import (
     encode_data_packets,
     write_pcap,
 )
-from drivers.vlp16.layout import NOMINAL_ELEVATION_DEG
 
-RING_OF_LASER = np.argsort(np.argsort(NOMINAL_ELEVATION_DEG, kind="stable"), kind="stable")
+RING_OF_LASER = np.argsort(np.argsort(ELEVATION_DEG, kind="stable"), kind="stable")
 
 
 def expected_points(
@@ -39,11 +39,12 @@ def expected_points(
     firing, laser = np.nonzero(ranges > 0)
     delay_s = laser * 2.304e-6
     azimuth = azimuth_deg[firing] + rpm / 60.0 * 360.0 * delay_s  # the head turns while the lasers fire
-    w = np.radians(NOMINAL_ELEVATION_DEG[laser])
+    w = np.radians(ELEVATION_DEG[laser])
     r = ranges[firing, laser]
     a = np.radians(azimuth)
     out = np.empty(len(r), POINT_DTYPE)
-    out["x"], out["y"], out["z"] = r * np.cos(w) * np.cos(a), -r * np.cos(w) * np.sin(a), r * np.sin(w)
+    out["x"], out["y"] = r * np.cos(w) * np.cos(a), -r * np.cos(w) * np.sin(a)
+    out["z"] = r * np.sin(w) + MANUAL_OFFSET_M[laser]  # the beam starts at the laser, not the sensor origin
     out["intensity"] = reflectivity[firing, laser]
     out["time"] = time_s[firing] + delay_s
     out["ring"] = RING_OF_LASER[laser]
@@ -110,12 +111,11 @@ def test_dual_return_round_trip_keeps_both_returns_and_merges_repeats() -> None:
 
 @pytest.mark.parametrize("mode", list(ReturnMode))
 def test_encoded_packets_decode_the_same_in_the_peer(mode: ReturnMode) -> None:
-    """The peer reads our encoder's packets as we do: the encoder writes the real format."""
+    """The peer reads our encoder's packets as we do, both with their default geometry (the manual's): the encoder
+    writes the real format."""
     f = synthetic_firings(480, start_deg=359.0)
     packets = encode_data_packets(f.ranges_m, f.reflectivity, f.azimuth_deg, 2000.0, mode)
-    decoder = vd.StreamDecoder(
-        vd.Config(model=vd.Model.VLP16, calibration=vd.get_bundled_calibration("VLP-16.yml"))
-    )
+    decoder = vd.StreamDecoder(vd.Config(model=vd.Model.VLP16))
     scans = [
         decoder.decode(float(t), p.tobytes(), True)
         for t, p in zip(packets.time_s, packets.payloads, strict=True)

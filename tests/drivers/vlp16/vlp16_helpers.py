@@ -10,12 +10,15 @@ import dpkt
 import numpy as np
 
 from drivers.vlp16 import DatagramBatch, Sweep, SweepAssembler, Vlp16Config
+from tests.testdata import LEGACY_PCAP, SMALL_PCAP
 
-REPO = Path(__file__).resolve().parents[3]
-DATA = REPO / ".." / "shared" / "data" / "vlp16"
-SMALL_PCAP = DATA / "vlp16_strongest_600rpm_84pkts.pcap"
-LEGACY_PCAP = DATA / "vlp16_legacyfw_1200rpm_50rot.pcap"
+__all__ = ["LEGACY_PCAP", "SMALL_PCAP"]  # re-exported for the test modules
+
 FIRING_S = 55.296e-6
+# The VLP-16 manual's geometry, written out here rather than taken from the driver: nominal elevations of lasers
+# 0..15 (deg) and each laser's origin 41.91 mm * tan(-elevation) above the sensor origin (m).
+ELEVATION_DEG = np.array([-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15], dtype=np.float64)
+MANUAL_OFFSET_M = 0.04191 * np.tan(np.radians(-ELEVATION_DEG))
 
 
 class Firings(NamedTuple):

@@ -17,7 +17,6 @@ from drivers.sim.stream import TURN_S, LidarEmitter
 from drivers.vlp16 import write_pcap
 
 REPO = Path(__file__).resolve().parents[3]
-LEGACY_PCAP = REPO / ".." / "shared" / "data" / "vlp16" / "vlp16_legacyfw_1200rpm_50rot.pcap"
 START_S = 1_700_000_000.0  # the recorded rig's time 0 on the host clock
 
 

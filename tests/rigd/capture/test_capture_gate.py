@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-from capture_helpers import LEGACY_PCAP
 
 from drivers.sim import LASER_ELEVATIONS_DEG, Pose, make_scene, scan
 from drivers.sim.rig import PAPER_T_CAMERA_LIDAR, place_rig, rng_for
@@ -25,6 +24,7 @@ from rigd.capture.gate import (
     range_image,
     thumbnail,
 )
+from tests.testdata import LEGACY_PCAP
 
 RING_ELEVATION_DEG = np.sort(LASER_ELEVATIONS_DEG)
 
@@ -60,7 +60,6 @@ def test_range_change_is_the_90th_percentile_over_common_bins() -> None:
     assert math.isinf(range_change_m(a, sparse))  # too few directions to judge
 
 
-@pytest.mark.skipif(not LEGACY_PCAP.is_file(), reason="shared VLP-16 captures not present")
 def test_a_real_vlp16_still_then_turning_slowly() -> None:
     """VeloView's test capture (1200 rpm, 50 turns): the sensor stands still for about 1.6 s, then turns
     slowly; turn to turn its range images differ by noise only (2-4 cm) all along."""

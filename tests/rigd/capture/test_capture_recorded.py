@@ -69,10 +69,13 @@ def test_one_pair_per_stop_and_none_in_motion(tmp_path: Path, session) -> None:
     assert dataset.ground_truth is None  # a recorded camera is not the simulator's
     pair = dataset.load_pair(1)
     assert pair.cloud.ring is not None and pair.cloud.intensity is not None
-    # Ring is the elevation rank: the fused points' elevations sort by ring (VLP-16: -15..15 deg in 2 deg steps).
+    # Ring is the elevation rank: the fused points' elevations sort by ring (VLP-16: -15..15 deg in 2 deg steps),
+    # seen from each laser's origin, 41.91 mm * tan(-elevation) above the sensor's (the VLP-16 manual).
+    ring_elevation = -15.0 + 2.0 * pair.cloud.ring
     xyz = pair.cloud.points_lidar
-    elevation = np.degrees(np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1])))
-    np.testing.assert_allclose(elevation, -15.0 + 2.0 * pair.cloud.ring, atol=0.05)
+    z_from_laser = xyz[:, 2] - 0.04191 * np.tan(np.radians(-ring_elevation))
+    elevation = np.degrees(np.arctan2(z_from_laser, np.hypot(xyz[:, 0], xyz[:, 1])))
+    np.testing.assert_allclose(elevation, ring_elevation, atol=0.05)
 
 
 def test_rerun_continues_and_does_not_repeat_the_last_place(tmp_path: Path, session) -> None:

@@ -9,10 +9,9 @@ import pytest
 
 from rigd.dataset import Cloud, read_pcd, write_pcd
 from rigd.errors import DatasetError
+from tests.testdata import PINHOLE_FRAME
 
-REPO = Path(__file__).resolve().parents[3]
-SAMPLE = REPO / ".." / "shared" / "data" / "pinhole_sample"
-# Layout of the uncompressed cloud.pcd beside each original, as documented in the sample README.
+# Layout of the uncompressed cloud.pcd beside the original, as documented in tests/data/pinhole_sample/README.md.
 CLOUD_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4"), ("ring", "<u2")])
 
 
@@ -25,7 +24,7 @@ def read_reference(path: Path) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def reference_ours_3() -> np.ndarray:
-    return read_reference(SAMPLE / "ours_3" / "cloud.pcd")
+    return read_reference(PINHOLE_FRAME / "cloud.pcd")
 
 
 def header_data_line(path: Path) -> str:
@@ -35,12 +34,11 @@ def header_data_line(path: Path) -> str:
     raise AssertionError(f"{path} has no DATA line")
 
 
-@pytest.mark.parametrize("frame", ["ours_1", "ours_2", "ours_3"])
-def test_binary_compressed_matches_uncompressed_point_for_point(frame: str) -> None:
-    compressed = SAMPLE / frame / "calib.pcd"
+def test_binary_compressed_matches_uncompressed_point_for_point(reference_ours_3: np.ndarray) -> None:
+    compressed = PINHOLE_FRAME / "calib.pcd"
     assert header_data_line(compressed) == "DATA binary_compressed"
     cloud = read_pcd(compressed)
-    reference = read_reference(SAMPLE / frame / "cloud.pcd")
+    reference = reference_ours_3
     assert len(cloud) == len(reference) > 80_000
     for i, axis in enumerate("xyz"):
         np.testing.assert_array_equal(cloud.points_lidar[:, i], reference[axis].astype(np.float64))
@@ -51,7 +49,7 @@ def test_binary_compressed_matches_uncompressed_point_for_point(frame: str) -> N
 
 
 def test_binary_reads_like_numpy(reference_ours_3: np.ndarray) -> None:
-    cloud = read_pcd(SAMPLE / "ours_3" / "cloud.pcd")
+    cloud = read_pcd(PINHOLE_FRAME / "cloud.pcd")
     np.testing.assert_array_equal(cloud.points_lidar[:, 2], reference_ours_3["z"].astype(np.float64))
     np.testing.assert_array_equal(cloud.ring, reference_ours_3["ring"])
 
@@ -113,7 +111,7 @@ def test_ascii_is_accepted(tmp_path: Path) -> None:
 
 
 def compressed_bytes() -> bytes:
-    return (SAMPLE / "ours_3" / "calib.pcd").read_bytes()
+    return (PINHOLE_FRAME / "calib.pcd").read_bytes()
 
 
 def body_start(raw: bytes, marker: bytes) -> int:
@@ -122,7 +120,7 @@ def body_start(raw: bytes, marker: bytes) -> int:
 
 def broken_files() -> dict[str, bytes]:
     lzf = compressed_bytes()
-    binary = (SAMPLE / "ours_3" / "cloud.pcd").read_bytes()
+    binary = (PINHOLE_FRAME / "cloud.pcd").read_bytes()
     lzf_body = body_start(lzf, b"DATA binary_compressed\n")
     return {
         "empty": b"",

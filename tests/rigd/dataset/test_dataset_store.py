@@ -26,9 +26,7 @@ from rigd.dataset import (
 )
 from rigd.dataset.store import next_pair_index
 from rigd.errors import DatasetError
-
-REPO = Path(__file__).resolve().parents[3]
-SAMPLE = REPO / ".." / "shared" / "data" / "pinhole_sample"
+from tests.testdata import PINHOLE_FRAME
 
 PANO_RIG = RigConfig(
     CameraConfig(CameraKind.EQUIRECTANGULAR, 64, 32),
@@ -224,15 +222,15 @@ def test_bad_ground_truth_names_the_file(dataset_root: Path) -> None:
 
 
 def test_pinhole_sample_as_a_dataset(tmp_path: Path) -> None:
-    """ours_3 converted by hand: rig.yaml from calibration.yaml's camera block, image.png, the LZF cloud."""
-    source = SAMPLE / "ours_3"
+    """ours_3 converted by hand: rig.yaml from calibration.yaml's camera block, the JPEG, the LZF cloud."""
+    source = PINHOLE_FRAME
     calibration = yaml.safe_load((source / "calibration.yaml").read_text())
     root = tmp_path / "ours_3"
     (root / "pairs" / "0000").mkdir(parents=True)
     rig = {"camera": calibration["camera"], "lidar": {"model": "64-ring"}}
     (root / "rig.yaml").write_text(yaml.safe_dump(rig))
     (root / "ground_truth.yaml").write_text(yaml.safe_dump({"T_camera_lidar": calibration["T_camera_lidar"]}))
-    shutil.copy(source / "image.png", root / "pairs" / "0000" / "image.png")
+    shutil.copy(source / "image.jpg", root / "pairs" / "0000" / "image.jpg")
     shutil.copy(source / "calib.pcd", root / "pairs" / "0000" / "cloud.pcd")
 
     dataset = open_dataset(root)
