@@ -1,0 +1,113 @@
+"""calib.prior and calib.assess: the MAP term, the Newton-step jackknife, the verdict."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from calib.assess import Restart, Status, TrustOptions, Uncertainty, _jackknife, _verdict, assess
+from calib.errors import CalibError
+from calib.geometry import Transform, rpy_deg_to_matrix
+from calib.gmm import Evaluator, GmmOptions
+from calib.optimize import OptimOptions, optimise
+from calib.prior import Prior
+from calib.uncertainty import TO_DISPLAY, xi_of
+from tests.calib.synthetic import TRUTH, make_pair
+
+FIELD = dataclasses.replace(GmmOptions(), evaluator=Evaluator.FIELD)
+
+
+@pytest.fixture(scope="module")
+def pairs():
+    return [make_pair(1), make_pair(2)]
+
+
+def test_prior_gradient_matches_finite_differences():
+    prior = Prior(np.array([0.1, -0.2, 0.3]), np.array([0.01, 0.02, 0.03]), rpy_deg_to_matrix(np.array([3, -5, 40])),
+                  np.radians([1.0, 2.0, 3.0]))
+    tau = Transform.from_rpy_xyz(np.array([4, -3, 42]), np.array([0.12, -0.25, 0.2])).tau
+    nll, grad = prior.nll_and_gradient(tau)
+    assert nll > 0
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = 1e-6
+        numeric = (prior.nll_and_gradient(tau + e)[0] - prior.nll_and_gradient(tau - e)[0]) / 2e-6
+        assert grad[k] == pytest.approx(numeric, rel=1e-4, abs=1e-6)
+    assert prior.nll_and_gradient(Transform(prior.rotation, prior.xyz_m).tau)[0] == pytest.approx(0.0, abs=1e-20)
+
+
+@pytest.mark.parametrize("bad", [dict(xyz_m=np.zeros(3)), dict(sigma_xyz_m=np.full(3, -1.0), xyz_m=np.zeros(3)),
+                                 dict(rotation=np.eye(3))])
+def test_incomplete_or_negative_prior_is_refused(bad):
+    with pytest.raises(CalibError):
+        Prior(**bad)
+
+
+def test_a_tight_translation_prior_holds_the_lever_arm_and_fix_keeps_it_exactly(pairs):
+    lever = TRUTH.translation_m + [0.03, -0.03, 0.02]  # a drawing 4.7 cm off
+    start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.0, -1.0, 1.0], lever)
+    free = optimise(pairs, start.tau, OptimOptions(), FIELD)
+    tight = optimise(pairs, start.tau, OptimOptions(), FIELD, prior=Prior(lever, np.full(3, 1e-4)))
+    fixed = optimise(pairs, start.tau, OptimOptions(), FIELD, prior=Prior(lever, fix_translation=True))
+    assert np.linalg.norm(free.tau[3:] - TRUTH.translation_m) < 0.01  # the images alone find the truth
+    assert np.linalg.norm(tight.tau[3:] - lever) < 0.002  # a 0.1 mm prior wins over them
+    assert np.array_equal(fixed.tau[3:], start.translation_m)
+
+
+def test_newton_jackknife_is_exact_for_quadratic_clusters():
+    rng = np.random.default_rng(1)
+    n, groups = 30, rng.integers(0, 6, 30)
+    a = [(lambda m: m @ m.T + np.eye(6))(rng.normal(size=(6, 6))) for _ in range(n)]
+    b = [rng.normal(size=6) for _ in range(n)]
+    theta = np.linalg.solve(sum(a), sum(b))
+    grads = np.array([ai @ theta - bi for ai, bi in zip(a, b, strict=True)])
+    cov = _jackknife(grads, np.array(a), np.zeros((6, 6)), groups, 6, np.ones(6, bool))
+    loo = np.array([np.linalg.solve(sum(a[i] for i in range(n) if groups[i] != g),
+                                    sum(b[i] for i in range(n) if groups[i] != g)) for g in range(6)])
+    centred = loo - loo.mean(axis=0)
+    assert np.allclose(cov, 5 / 6 * centred.T @ centred, rtol=1e-8, atol=1e-14)
+
+
+def _unc(sigma, is_min=True):
+    sigma = np.asarray(sigma, dtype=float)
+    return Uncertainty(np.diag((sigma / TO_DISPLAY) ** 2), sigma, sigma, None, 0, "", is_min, 1.0, 0.5)
+
+
+def test_verdict_trusted_weak_and_failed():
+    trust = TrustOptions()
+    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [], trust).status is Status.TRUSTED
+    weak = _verdict(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], trust)
+    assert weak.status is Status.WEAK and weak.weak_axes == ("z",) and "z" in weak.reasons[0]
+    tie = Restart(np.array([0.0, 0.5, 0.0, 0.0, 0.0, 0.0]), delta_nll=1.0)  # another pose, equally good
+    amb = _verdict(_unc([0.05] * 3 + [0.5] * 3), [tie], trust)
+    assert amb.status is Status.WEAK and amb.weak_axes == ("pitch",)
+    far_but_worse = Restart(np.array([3.0, 0, 0, 0, 0, 0]), delta_nll=50.0)  # a worse minimum: no ambiguity
+    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [far_but_worse], trust).status is Status.TRUSTED
+    far_tie = Restart(np.array([3.0, 0, 0, 0, 0, 0]), delta_nll=0.5)
+    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [far_tie], trust).status is Status.FAILED
+    assert _verdict(_unc([0.05] * 6, is_min=False), [], trust).status is Status.FAILED
+    assert _verdict(_unc([2.0] * 3 + [30.0] * 3), [], trust).status is Status.FAILED
+    loose = TrustOptions(tolerance_trans_cm=10.0)  # the rig file's tolerance decides
+    assert _verdict(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], loose).status is Status.TRUSTED
+
+
+def test_assessment_of_a_clean_synthetic_solve_is_trusted_and_covers_the_truth(pairs):
+    start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.5, -1.0, 1.0], TRUTH.translation_m + [0.04, -0.03, 0.03])
+    opts = OptimOptions()
+    result = optimise(pairs, start.tau, opts, FIELD)
+    a = assess(pairs, result, opts, FIELD, None, TrustOptions(restarts=2))
+    err = np.abs(xi_of(TRUTH.tau, a.tau) * TO_DISPLAY)
+    assert a.verdict.status is Status.TRUSTED, a.verdict.reasons
+    assert np.all(err <= 3 * a.uncertainty.sigma + 1e-9) and np.all(a.uncertainty.sigma > 0)
+    assert a.uncertainty.jackknife is not None and a.uncertainty.jackknife_groups == 8  # 2 pairs: cell groups
+    assert len(a.restarts) == 2 and a.uncertainty.is_minimum
+
+
+def test_fixed_translation_reports_no_translation_uncertainty(pairs):
+    opts = OptimOptions()
+    prior = Prior(TRUTH.translation_m, fix_translation=True)
+    start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.0, 1.0, -1.0], TRUTH.translation_m)
+    result = optimise(pairs, start.tau, opts, FIELD, prior=prior)
+    a = assess(pairs, result, opts, FIELD, prior, TrustOptions(restarts=1))
+    assert np.all(a.uncertainty.sigma[3:] == 0) and np.all(a.uncertainty.sigma[:3] > 0)
+    assert np.array_equal(a.tau[3:], TRUTH.translation_m)
