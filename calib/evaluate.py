@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
+from calib.uncertainty import TO_DISPLAY, xi_of
 
 F64 = NDArray[np.float64]
 
@@ -225,3 +226,44 @@ def random_subsets(n_pairs: int, size: int, count: int, seed: int) -> tuple[tupl
         raise EvaluationError(f"subset size must be between 1 and the dataset's {n_pairs} pairs, got {size}")
     rng = _rng(seed)
     return tuple(tuple(sorted(int(i) for i in rng.choice(n_pairs, size=size, replace=False))) for _ in range(count))
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """How honest the reported uncertainty and verdicts were over a set of runs against a reference.
+
+    ``z`` (N,6): each run's error in the uncertainty's local axes (deg about the LiDAR's x, y, z; cm) over its
+    reported sigma (NaN where a run has none); ``within_3_sigma`` the share of finite axes with |z| <= 3 (the
+    issue's calibration target: >= 95 %), per axis in ``per_axis``; ``verdicts`` the count of each verdict;
+    ``trusted_but_wrong`` the runs called trusted whose error exceeds the tolerance on some axis (the worst
+    defect: it must be 0)."""
+
+    z: F64
+    within_3_sigma: float
+    per_axis: tuple[float, ...]
+    verdicts: dict[str, int]
+    trusted_but_wrong: int
+
+
+def coverage(reference: Transform, results: Sequence[Transform | None], sigmas: Sequence[F64 | None],
+             verdicts: Sequence[str | None], tolerance: F64) -> Coverage:
+    """Coverage of ``results`` (with their per-axis ``sigmas`` (6,) deg/cm and verdict names) around
+    ``reference``; ``tolerance`` (6,) deg/cm."""
+    z = np.full((len(results), 6), np.nan)
+    wrong = 0
+    for i, (t, s, v) in enumerate(zip(results, sigmas, verdicts, strict=True)):
+        if t is None or s is None:
+            continue
+        err = xi_of(reference.tau, t.tau) * TO_DISPLAY
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z[i] = np.where(np.asarray(s) > 0, err / np.asarray(s), np.where(np.abs(err) < 1e-9, 0.0, np.inf))
+        wrong += int(v == "trusted" and bool((np.abs(err) > tolerance).any()))
+    finite = ~np.isnan(z)
+    share = float((np.abs(z[finite]) <= 3.0).mean()) if finite.any() else float("nan")
+    per_axis = tuple(float((np.abs(z[finite[:, k], k]) <= 3.0).mean()) if finite[:, k].any() else float("nan")
+                     for k in range(6))
+    counts: dict[str, int] = {}
+    for v in verdicts:
+        if v is not None:
+            counts[v] = counts.get(v, 0) + 1
+    return Coverage(z, share, per_axis, counts, wrong)

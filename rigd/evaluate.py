@@ -24,8 +24,19 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from calib.assess import TrustOptions
 from calib.errors import CalibError
-from calib.evaluate import OutlierRule, Params6, RunStats, parameter_values, random_starts, random_subsets, run_stats
+from calib.evaluate import (
+    Coverage,
+    OutlierRule,
+    Params6,
+    RunStats,
+    coverage,
+    parameter_values,
+    random_starts,
+    random_subsets,
+    run_stats,
+)
 from calib.geometry import Transform
 from calib.gmm import PairFeatures
 from calib.pipeline import CalibParams, calibrate
@@ -68,6 +79,7 @@ class EvaluationSettings:
     initial: Transform | None = None
     outlier_rule: OutlierRule = OutlierRule.PER_PARAMETER
     progress: bool = True  # a tqdm bar on stderr
+    trust: TrustOptions | None = TrustOptions()  # None: no uncertainty/verdict per run (faster, no coverage check)
 
 
 @dataclass(frozen=True)
@@ -97,6 +109,8 @@ class Run:
     final_cost: float | None
     iterations: int
     wall_s: float
+    sigma: tuple[float, ...] | None = None  # per-axis sigma, deg x3 and cm x3 (calib.assess)
+    verdict: str | None = None
 
 
 @dataclass(frozen=True)
@@ -122,21 +136,22 @@ class _Task:
 class _WorkerState:
     feats: tuple[PairFeatures, ...]
     params: CalibParams
+    trust: TrustOptions | None
     error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
 
 
 _STATE: _WorkerState | None = None  # one per worker process, set by _init_worker
 
 
-def _init_worker(root: Path, params: CalibParams) -> None:
+def _init_worker(root: Path, params: CalibParams, trust: TrustOptions | None) -> None:
     global _STATE
     cv2.setNumThreads(1)  # the pool already runs one process per core
     try:
         feats = tuple(dataset_features(open_dataset(root), params, None))
     except (RigdError, CalibError) as exc:
-        _STATE = _WorkerState((), params, f"{root}: {exc}")
+        _STATE = _WorkerState((), params, trust, f"{root}: {exc}")
         return
-    _STATE = _WorkerState(feats, params, None)
+    _STATE = _WorkerState(feats, params, trust, None)
 
 
 def _run_task(task: _Task) -> Run:
@@ -145,12 +160,14 @@ def _run_task(task: _Task) -> Run:
         raise RigdError(state.error if state else "evaluation worker was not initialised")
     started = time.monotonic()
     try:
-        result = calibrate([state.feats[i] for i in task.pairs], task.start, state.params)
+        result = calibrate([state.feats[i] for i in task.pairs], task.start, state.params, trust=state.trust)
     except CalibError as exc:  # a start that sees nothing: a failed run, counted as not converged
         return Run(task.index, task.pairs, task.start, None, str(exc), None, 0, time.monotonic() - started)
     iterations = sum(level.iterations for level in result.optim.levels)
+    a = result.assessment
     return Run(task.index, task.pairs, task.start, result.T_camera_lidar, None, result.optim.final_cost, iterations,
-               time.monotonic() - started)
+               time.monotonic() - started, None if a is None else tuple(float(v) for v in a.uncertainty.sigma),
+               None if a is None else a.verdict.status.value)
 
 
 def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
@@ -176,10 +193,11 @@ def _initial(settings: EvaluationSettings, dataset: Dataset) -> Transform | None
     return settings.initial if settings.initial is not None else dataset.rig.initial_guess
 
 
-def _pool(dataset: Dataset, params: CalibParams, workers: int) -> ProcessPoolExecutor:
+def _pool(dataset: Dataset, params: CalibParams, workers: int, trust: TrustOptions | None) -> ProcessPoolExecutor:
     # spawn, not fork: a child forked from a process whose OpenCV/BLAS threads hold locks can deadlock on
     # its first cv2 call (seen: the test suite's process hung in cv2.setNumThreads in every forked worker).
-    return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(dataset.root, params),
+    return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+                               initargs=(dataset.root, params, trust),
                                mp_context=multiprocessing.get_context("spawn"))
 
 
@@ -206,7 +224,7 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     dataset = _open(s)
     params = calib_params(s.sigmas_deg)
     pairs = tuple(range(len(dataset)))
-    with _pool(dataset, params, s.workers) as pool:
+    with _pool(dataset, params, s.workers, s.trust) as pool:
         if dataset.ground_truth is not None:
             reference, source = dataset.ground_truth, Source.GROUND_TRUTH
         else:
@@ -239,7 +257,7 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     if start is None:
         raise RigdError(f"{dataset.root}: no initial_guess in rig.yaml and no ground_truth.yaml; give the start "
                         "with --init 'r,p,y,x,y,z'")
-    with _pool(dataset, params, s.workers) as pool:
+    with _pool(dataset, params, s.workers, s.trust) as pool:
         runs = _run_all(pool, [_Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
     truth = dataset.ground_truth
     reference, source = (truth, Source.GROUND_TRUTH) if truth is not None else (start, start_source)
@@ -282,6 +300,18 @@ def _summary_yaml(stats: RunStats, runs: Sequence[Run], with_error: bool) -> dic
     return out
 
 
+def _coverage_yaml(c: Coverage, source: Source) -> dict[str, Any]:
+    return {
+        "against": source.value,
+        "within_3_sigma": c.within_3_sigma,
+        "within_3_sigma_per_axis": dict(zip(("roll", "pitch", "yaw", "x", "y", "z"), c.per_axis, strict=True)),
+        "target": 0.95,
+        "verdicts": c.verdicts,
+        "trusted_but_wrong": c.trusted_but_wrong,
+        "median_abs_z": [float(v) for v in np.nanmedian(np.abs(c.z), axis=0)] if np.isfinite(c.z).any() else None,
+    }
+
+
 def _runs_yaml(runs: Sequence[Run], stats: RunStats, protocol: Protocol) -> list[dict[str, Any]]:
     out = []
     for run, converged in zip(runs, stats.converged.tolist(), strict=True):
@@ -292,7 +322,8 @@ def _runs_yaml(runs: Sequence[Run], stats: RunStats, protocol: Protocol) -> list
             entry["start"] = _pose_yaml(run.start)
         entry["result"] = None if run.result is None else _pose_yaml(run.result)
         entry.update(converged=bool(converged), final_cost=run.final_cost, iterations=run.iterations,
-                     wall_time_s=round(run.wall_s, 3))
+                     wall_time_s=round(run.wall_s, 3), verdict=run.verdict,
+                     sigma=None if run.sigma is None else [v if np.isfinite(v) else None for v in run.sigma])
         if run.error is not None:
             entry["error"] = run.error
         out.append(entry)
@@ -322,6 +353,11 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
         "plot": plot_path.name,
         "runs": _runs_yaml(runs, stats, protocol),
     }
+    if s.trust is not None:
+        sigmas = [None if r.sigma is None else np.array(r.sigma) for r in runs]
+        check = coverage(reference, [r.result for r in runs], sigmas, [r.verdict for r in runs],
+                         s.trust.tolerance_display)
+        report["summary"]["uncertainty_check"] = _coverage_yaml(check, source)
     yaml_path = out / f"{protocol.value}.yaml"
     write_yaml(yaml_path, report)
     return EvaluationOutcome(protocol, stats, runs, reference, source, report, yaml_path, plot_path)

@@ -7,8 +7,9 @@ import math
 from pathlib import Path
 from typing import Any
 
+from calib.assess import TrustOptions
 from calib.evaluate import OutlierRule, Params6, PoseError
-from rigd.cli.calibrate import parse_init, parse_sigmas
+from rigd.cli.calibrate import parse_init, parse_sigmas, parse_tolerance
 from rigd.evaluate import (
     ConvergenceRequest,
     EvaluationOutcome,
@@ -55,6 +56,10 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         default=OutlierRule.PER_PARAMETER.value,
                         help="per-parameter (paper Fig. 19: any of roll/pitch/yaw > 0.5 deg or x/y/z > 2.5 cm from "
                         "its median) or pose (rotation angle > 0.5 deg or distance > 2.5 cm from the median pose)")
+    parser.add_argument("--no-uncertainty", action="store_true",
+                        help="skip each run's uncertainty and verdict (faster; no coverage check)")
+    parser.add_argument("--tolerance", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
+                        help="field tolerance of the verdicts (default 0.2,2)")
 
 
 def register(subparsers: Any) -> None:
@@ -121,6 +126,12 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
         med = stats.run_error_median
         lines.append(f"converged solution vs ground truth: {_fmt_error(stats.solution_error)}")
         lines.append(f"median error of converged runs: {med.rotation_deg:.3f} deg, {med.translation_cm:.2f} cm")
+    check = report["summary"].get("uncertainty_check")
+    if check is not None:
+        axes = ", ".join(f"{k} {v * 100:.0f} %" for k, v in check["within_3_sigma_per_axis"].items())
+        lines.append(f"uncertainty check vs the {check['against'].replace('_', ' ')}: truth within 3 sigma on "
+                     f"{check['within_3_sigma'] * 100:.1f} % of axes (target 95 %; {axes})")
+        lines.append(f"verdicts: {check['verdicts']}; trusted but beyond the tolerance: {check['trusted_but_wrong']}")
     lines.append(f"time: {report['wall_time_s']:.0f} s wall; per calibration median {times['median']:.1f} s, "
                  f"max {times['max']:.1f} s")
     lines.append(f"written: {outcome.yaml_path}, {outcome.plot_path}")
@@ -136,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
         sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
         initial=parse_init(args.init) if args.init else None,
         outlier_rule=OutlierRule(args.outlier_rule),
+        trust=None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions()),
     )
     if args.protocol == "convergence":
         outcome = run_convergence(ConvergenceRequest(settings, args.trials, args.rot_deg, args.trans_m))

@@ -17,7 +17,7 @@ from rigd.store.jsonsafe import json_safe
 from rigd.store.records import Change, ExtrinsicsVersion, NewVersion, VersionStatus
 
 # Decides, inside the storing transaction, whether a new version becomes active, from its change against
-# the active one (None when there is none; the first version is always activated).
+# the active one (None when there is none; the first version is activated unless its verdict distrusts it).
 ActivationPolicy = Callable[[Change | None], bool]
 
 _SELECT = """
@@ -60,7 +60,9 @@ class VersionStore:
         self.db = db
 
     def add(self, new: NewVersion, activate: ActivationPolicy) -> ExtrinsicsVersion:
-        """Store ``new`` as the next version; make it active if ``activate`` says so or none is active."""
+        """Store ``new`` as the next version; make it active if ``activate`` says so, or if none is active and
+        ``new`` is not a calibration its own verdict distrusts (docs/trust.md: an untrusted result is never
+        activated without a person asking for it)."""
         with self.db.write() as conn:
             active = self._active(conn)
             change = change_between(active, new.T_camera_lidar) if active else None
@@ -73,7 +75,8 @@ class VersionStore:
                  new.job_id, VersionStatus.CANDIDATE.value),
             )
             number = int(cursor.lastrowid or 0)
-            if active is None or activate(change):
+            verdict = (new.quality.get("verdict") or {}).get("status", "trusted")
+            if (active is None and verdict == "trusted") or activate(change):
                 self._activate(conn, number)
             return self._get(conn, number)
 

@@ -76,8 +76,12 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
         assert any("stored extrinsics version 1" in line for line in first["log_tail"])
         assert first["result_link"] == "/extrinsics/versions/1"
         v1 = client.get(first["result_link"]).json()
-        # The first version is the active one (there was none).
-        assert v1["status"] == "active" and v1["supersedes"] is None and v1["change"] is None
+        # The first version becomes active by itself (there was none) only if its own verdict trusts it; an
+        # untrusted one waits for a person to activate it.
+        assert v1["supersedes"] is None and v1["change"] is None
+        assert v1["status"] == ("active" if v1["verdict"]["status"] == "trusted" else "candidate")
+        if v1["status"] == "candidate":
+            assert client.post("/extrinsics/versions/1/activate").json()["status"] == "active"
         # Its quality figures describe its own transform: the error against the simulator's truth, recomputed.
         R = matrix(v1["T_camera_lidar"])[:3, :3]
         error = v1["quality"]["error_vs_ground_truth"]

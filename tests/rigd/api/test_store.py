@@ -1,7 +1,9 @@
+
 """The store without HTTP: immutable versions, one active, job transitions, schema version, dataset ids."""
 
 from __future__ import annotations
 
+import dataclasses
 import sqlite3
 
 import numpy as np
@@ -113,3 +115,14 @@ def test_unfinished_jobs_fail_as_interrupted(db, tmp_path):
 def test_dataset_ids_never_leave_the_datasets_folder(tmp_path, bad):
     with pytest.raises(StoreError):
         DatasetCatalog(tmp_path).path(bad)
+
+
+@pytest.mark.parametrize("status", ["weak", "failed"])
+def test_an_untrusted_first_calibration_is_not_activated_by_itself(db, status):
+    store = VersionStore(db)
+    untrusted = dataclasses.replace(new(), quality={"verdict": {"status": status, "weak_axes": ["z"]}})
+    first = store.add(untrusted, lambda change: False)
+    assert first.status is VersionStatus.CANDIDATE and store.active() is None
+    trusted = dataclasses.replace(new(yaw_deg=1.0), quality={"verdict": {"status": "trusted", "weak_axes": []}})
+    assert store.add(trusted, lambda change: False).status is VersionStatus.ACTIVE
+    assert store.activate(1).status is VersionStatus.ACTIVE  # a person may still activate the weak one
