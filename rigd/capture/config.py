@@ -12,7 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from calib.assess import TrustOptions
 from calib.geometry import Transform
+from calib.prior import Prior
 from drivers.ladybug5.sdk import DEFAULT_LIBRARY
 from drivers.ladybug5.stitch import DEFAULT_RADIUS_M
 from rigd.capture.errors import ConfigError
@@ -58,6 +60,8 @@ class RigSettings:
     lidar_model: str = "VLP-16"
     lidar_source: str = "udp"
     initial_guess: Transform | None = None
+    prior: Prior | None = None  # the rig's drawing, carried into each dataset's rig.yaml (docs/trust.md)
+    tolerance: TrustOptions | None = None
     sdk: SdkSettings = field(default_factory=SdkSettings)
     capture: CaptureDefaults = field(default_factory=CaptureDefaults)
 
@@ -99,6 +103,8 @@ def load_settings(path: Path | None) -> RigSettings:
         lidar_model=rig.lidar_model if rig else str(lidar.get("model", defaults.lidar_model)),
         lidar_source=str(lidar.get("source", defaults.lidar_source)),
         initial_guess=rig.initial_guess if rig else None,
+        prior=rig.prior if rig else None,
+        tolerance=rig.tolerance if rig else None,
         sdk=_sdk(_section(camera, "sdk", f"{where}: camera"), where),
         capture=_capture(_section(data, "capture", where), where),
     )

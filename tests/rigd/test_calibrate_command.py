@@ -71,3 +71,24 @@ def test_initial_guess_that_sees_nothing_is_refused(small_dataset, tmp_path, cap
 def test_missing_dataset_names_the_path(tmp_path, capsys):
     assert main(["calibrate", str(tmp_path / "nope")]) == 2
     assert "nope" in capsys.readouterr().err
+
+
+def test_fixed_translation_holds_the_prior_lever_arm_and_reports_no_translation_sigma(small_dataset, tmp_path, capsys):
+    truth = open_dataset(small_dataset).ground_truth
+    init = np.r_[truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m]
+    lever = truth.translation_m + [0.01, 0.0, -0.01]
+    code = main(["calibrate", str(small_dataset), f"--init={','.join(map(str, init))}", "--no-visuals", "--json",
+                 "--prior", ",".join(map(str, lever)) + ",1.0", "--fix", "translation", "--tolerance", "0.5,5",
+                 "--out", str(tmp_path)])
+    report = json.loads(capsys.readouterr().out)
+    assert code == {"trusted": 0, "weak": 3, "failed": 4}[report["verdict"]["status"]]
+    assert np.allclose(report["T_camera_lidar"]["xyz_m"], lever, atol=1e-12)
+    assert report["uncertainty"]["xyz_cm"] == [0.0, 0.0, 0.0] and all(s > 0 for s in report["uncertainty"]["rpy_deg"])
+    assert report["tolerance"] == {"rotation_deg": 0.5, "translation_cm": 5.0} and report["prior"]["fix_translation"]
+
+
+@pytest.mark.parametrize("args, words", [(["--prior", "0,0,0"], "--prior"), (["--prior", "0,0,0,-1"], "positive"),
+                                         (["--tolerance", "0.2"], "--tolerance"), (["--tolerance", "0,2"], "positive")])
+def test_bad_prior_or_tolerance_is_refused(small_dataset, args, words, capsys):
+    assert main(["calibrate", str(small_dataset), "--init", "0,0,0,0,0,0", "--no-visuals", *args]) == 2
+    assert words in capsys.readouterr().err

@@ -1,0 +1,52 @@
+"""rig.yaml's prior and tolerance sections: read, written back, and refused with the file named."""
+
+import numpy as np
+import pytest
+import yaml
+
+from rigd.dataset import open_dataset, write_rig
+from rigd.dataset.records import RigConfig
+from rigd.errors import DatasetError
+
+CAMERA = {"model": "equirectangular", "width": 64, "height": 32}
+
+
+def test_prior_and_tolerance_round_trip(tmp_path):
+    data = {"camera": CAMERA, "prior": {"xyz_m": [0.1, 0.05, -0.17], "sigma_cm": 1.0, "rpy_deg": [0, 15, -55],
+                                        "sigma_deg": [2, 2, 5]},
+            "tolerance": {"rotation_deg": 0.3, "translation_cm": 3}}
+    rig = RigConfig.from_yaml(data, "rig.yaml")
+    assert np.allclose(rig.prior.xyz_m, [0.1, 0.05, -0.17]) and np.allclose(rig.prior.sigma_xyz_m, 0.01)
+    assert np.allclose(np.degrees(rig.prior.sigma_rot_rad), [2, 2, 5])
+    assert rig.tolerance.tolerance_rot_deg == 0.3 and rig.tolerance.tolerance_trans_cm == 3.0
+    (tmp_path / "pairs").mkdir()
+    write_rig(tmp_path, rig)
+    again = open_dataset(tmp_path).rig
+    assert np.allclose(again.prior.xyz_m, rig.prior.xyz_m) and np.allclose(again.prior.rotation, rig.prior.rotation)
+    assert again.tolerance == rig.tolerance
+    assert yaml.safe_load((tmp_path / "rig.yaml").read_text())["prior"]["sigma_cm"] == [1.0, 1.0, 1.0]
+
+
+@pytest.mark.parametrize("prior, words", [
+    ({"xyz_m": [0, 0, 0]}, "sigma_cm"),
+    ({"xyz_m": [0, 0], "sigma_cm": 1}, "xyz_m"),
+    ({"xyz_m": [0, 0, 0], "sigma_cm": -1}, "positive"),
+    ({"rpy_deg": [0, 0, 0]}, "rotation"),
+    ({"lever": [0, 0, 0]}, "unknown prior keys"),
+    ([1, 2, 3], "mapping"),
+])
+def test_bad_prior_names_the_file_and_the_problem(prior, words):
+    with pytest.raises(DatasetError, match=words) as info:
+        RigConfig.from_yaml({"camera": CAMERA, "prior": prior}, "/etc/rigd/rig.yaml")
+    assert "/etc/rigd/rig.yaml" in str(info.value)
+
+
+def test_fixed_translation_needs_no_sigma():
+    rig = RigConfig.from_yaml({"camera": CAMERA, "prior": {"xyz_m": [0.1, 0, 0], "fix_translation": True}}, "r")
+    assert rig.prior.fix_translation and rig.prior.sigma_xyz_m is None
+
+
+@pytest.mark.parametrize("tolerance", [{"rotation_deg": 0}, {"translation_cm": "x"}, {"angle": 1}])
+def test_bad_tolerance_is_refused(tolerance):
+    with pytest.raises(DatasetError, match="tolerance"):
+        RigConfig.from_yaml({"camera": CAMERA, "tolerance": tolerance}, "r")
