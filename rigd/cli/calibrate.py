@@ -136,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         T = outcome.T_camera_lidar
         print(f"T_camera_lidar rpy_deg {np.round(T.rpy_deg, 3).tolist()} xyz_m {np.round(T.translation_m, 4).tolist()}")
         print(f"written: {outcome.out_dir / 'extrinsics.yaml'}")
-        _print_trust(outcome.report)
+        print_trust(outcome.report)
         err = outcome.report.get("error_vs_ground_truth")
         if err:
             print(f"error vs ground truth: {err['rotation_deg']:.3f} deg, {err['translation_cm']:.2f} cm")
@@ -147,7 +147,7 @@ def _fmt(values: list[float | None]) -> str:
     return ", ".join("unknown" if v is None else f"{v:.3g}" for v in values)
 
 
-def _print_trust(report: dict[str, Any]) -> None:
+def print_trust(report: dict[str, Any]) -> None:
     u, v = report["uncertainty"], report["verdict"]
     print(f"sigma roll, pitch, yaw: {_fmt(u['rpy_deg'])} deg; x, y, z: {_fmt(u['xyz_cm'])} cm")
     print(f"weakest: {u['weakest']}")

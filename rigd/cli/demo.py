@@ -20,6 +20,7 @@ from drivers.sim.motion import MotionRigSpec, save_spec
 from rigd.calibration import CalibrationRequest, run_calibration
 from rigd.capture import CaptureRequest, run_capture
 from rigd.capture.engine import SIM_MOVE_S, SIM_STOP_MARGIN_S, sim_stops
+from rigd.cli.calibrate import print_trust
 from rigd.cli.capture import StatusPrinter
 
 STILL_SECONDS = 2.0  # rigd capture's default
@@ -77,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"initial guess moved by {init['rotation_deg']:.2f} deg, {init['translation_cm']:.1f} cm")
     print(f"error vs ground truth: {err['rotation_deg']:.3f} deg, {err['translation_cm']:.2f} cm "
           f"(rpy {np.round(err['rpy_deg'], 3).tolist()} deg, xyz {np.round(err['xyz_cm'], 2).tolist()} cm)")
+    print_trust(rep)
     print(f"wall time {rep['quality']['wall_time_s']:.1f} s; extrinsics: {outcome.out_dir / 'extrinsics.yaml'}")
     print(f"overlays (before/after): {outcome.out_dir / 'overlays'}")
     return 0
