@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from calib.evaluate import EvaluationError, OutlierRule, random_starts, random_subsets, run_stats
+from calib.evaluate import EvaluationError, OutlierRule, coverage, random_starts, random_subsets, run_stats
 from calib.geometry import Transform, rotation_angle_deg
+from calib.uncertainty import TO_DISPLAY, tau_at
 
 REF_RPY = np.array([1.0, 2.0, 30.0])
 REF_XYZ = np.array([0.1, 0.2, 0.3])
@@ -141,3 +142,16 @@ def test_random_subsets_hold_distinct_sorted_indices():
 def test_bad_subset_settings_are_refused(n, size, count):
     with pytest.raises(EvaluationError):
         random_subsets(n, size, count, seed=0)
+
+
+def test_coverage_counts_axes_within_3_sigma_and_trusted_but_wrong_runs():
+    ref = Transform.from_rpy_xyz(np.array([1.0, 15.0, -55.0]), np.array([0.1, 0.05, -0.17]))
+    tol = np.array([0.2] * 3 + [2.0] * 3)
+    # errors in deg/cm: run 0 small (trusted, fine), run 1 z 5 cm off with sigma 1 cm (trusted: wrong, 5 sigma)
+    errs = np.array([[0.05, 0, 0, 0, 0, 0.5], [0, 0, 0, 0, 0, 5.0]])
+    results = [Transform.from_tau(tau_at(ref.tau, e / TO_DISPLAY)) for e in errs]
+    sigmas = [np.array([0.1] * 3 + [1.0] * 3)] * 2
+    c = coverage(ref, [*results, None], [*sigmas, None], ["trusted", "trusted", None], tol)
+    assert c.trusted_but_wrong == 1 and c.verdicts == {"trusted": 2}
+    assert c.within_3_sigma == pytest.approx(11 / 12) and c.per_axis[5] == pytest.approx(0.5)
+    assert np.allclose(c.z[0], [0.5, 0, 0, 0, 0, 0.5], atol=1e-9) and np.isnan(c.z[2]).all()

@@ -26,6 +26,10 @@ def test_calibrate_accepts_an_initial_guess_with_a_negative_first_angle(form: st
     [
         (["calibrate", "D"], "--init", NEGATIVE_INIT),
         (["calibrate", "D"], "--sigmas", "-1,2"),
+        (["calibrate", "D"], "--prior", "-0.1,0.05,-0.2,1"),
+        (["calibrate", "D"], "--prior-rotation", "-3,15,-55,2"),
+        (["calibrate", "D"], "--tolerance", "-0.2,2"),
+        (["evaluate", "convergence", "D"], "--tolerance", "-0.2,2"),
         (["evaluate", "convergence", "D"], "--init", NEGATIVE_INIT),
         (["evaluate", "precision", "D"], "--init", NEGATIVE_INIT),
         (["evaluate", "convergence", "D"], "--sigmas", "-.5,1"),

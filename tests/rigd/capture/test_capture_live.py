@@ -59,9 +59,11 @@ def test_capture_over_udp_then_calibrate(tmp_path: Path, monkeypatch: pytest.Mon
         assert meta["lidar"]["pps"] == "absent"
     np.testing.assert_allclose(dataset.ground_truth.rpy_deg, [-0.18, 15.47, -55.14], atol=1e-9)
 
-    assert main(["calibrate", str(out), "--no-visuals", "--out", str(tmp_path / "calibration")]) == 0
+    code = main(["calibrate", str(out), "--no-visuals", "--out", str(tmp_path / "calibration")])
     extrinsics = yaml.safe_load((tmp_path / "calibration" / "extrinsics.yaml").read_text())
     assert len(extrinsics["T_camera_lidar"]["rpy_deg"]) == 3
+    # A result with its verdict (3 small pairs are rarely enough to trust every axis): the exit code says which.
+    assert code == {"trusted": 0, "weak": 3, "failed": 4}[extrinsics["verdict"]["status"]]
 
 
 def wait_for(condition, timeout_s: float, what: str) -> None:
