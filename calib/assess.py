@@ -6,10 +6,11 @@ After the coarse-to-fine solve:
    solution's (a log-likelihood difference below ``ambiguity_nll``, with the cost's NLL scale kappa) makes
    the axes it moved ambiguous.
 2. Uncertainty: the sandwich covariance of the finest level (calib.uncertainty) and a delete-a-group
-   jackknife (the finest level rerun from the solution without each pair, or, with fewer pairs than
-   ``jackknife_min_pairs``, without each of ``jackknife_groups`` random groups of angular image cells). Each
-   axis takes the larger of the two sigmas; correlations come from the sandwich.
-3. Verdict: ``trusted`` when every axis is known to within the field tolerance (``2 sigma <= tolerance``) and
+   jackknife (each pair left out, or, with fewer than ``jackknife_min_pairs`` pairs, each of
+   ``jackknife_groups`` random groups of angular image cells), each left-out solve one Newton step of the
+   finest level from the solution with the per-cluster Hessians. Each axis takes the larger of the two
+   sigmas; correlations come from the sandwich.
+3. Verdict: ``trusted`` when every axis is known to within the field tolerance (``2.5 sigma <= tolerance``) and
    no restart found a different, equally good pose; ``weak`` naming the axes that are not; ``failed`` when
    the solution is not a minimum, is ambiguous by several tolerances, or most axes are far from known.
 """
@@ -57,11 +58,11 @@ class Status(Enum):
 @dataclass(frozen=True)
 class TrustOptions:
     """``tolerance_rot_deg`` / ``tolerance_trans_cm``: the field tolerance per axis (the rig file may change
-    it). ``sigma_factor``: an axis is known when ``sigma_factor * sigma`` is within tolerance (2: ~95 %)."""
+    it). ``sigma_factor``: an axis is known when ``sigma_factor * sigma`` is within tolerance (2.5: measured, docs/trust.md)."""
 
     tolerance_rot_deg: float = 0.2
     tolerance_trans_cm: float = 2.0
-    sigma_factor: float = 2.0
+    sigma_factor: float = 2.5
     restarts: int = 4
     restart_levels: int = 2
     restart_rot_deg: float = 0.5

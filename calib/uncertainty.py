@@ -12,8 +12,8 @@ is scaled by the data, not by an assumption: the M-estimator sandwich ``H^-1 B H
 scatter of the cost's gradient summed over independent clusters of edge points. Points of one edge share
 their errors (a silhouette's mixed returns, one image edge), so clusters are angular cells of the image
 (``cell_deg``) in each pair, not single points. The same pieces give the cost's scale in log-likelihood
-units, ``kappa = tr(B H^-1) / 6`` (for a true negative log-likelihood ``B = H`` and ``kappa = 1``), which is
-how a prior is weighed against the images.
+units, ``kappa``: for a true negative log-likelihood ``B = H`` axis by axis (``kappa = 1``), so ``kappa`` is the
+median over the axes of ``B_kk / H_kk``; it is how a prior is weighed against the images.
 """
 
 from __future__ import annotations
@@ -148,9 +148,12 @@ def positive_part(h: F64, rel_floor: float = 1e-9) -> tuple[F64, bool]:
 
 
 def nll_scale(h: F64, b: F64) -> float:
-    """kappa = tr(B H^-1) / 6: the cost's scale in negative-log-likelihood units (module docstring)."""
-    hp, _ = positive_part(h)
-    kappa = float(np.trace(np.linalg.solve(hp, b))) / 6.0
+    """kappa: the cost's scale in negative-log-likelihood units (module docstring). For a true NLL, B = H
+    axis by axis; the median over axes of B_kk / H_kk is used, which stays finite where H is not (yet)
+    positive definite, as away from the optimum, where tr(B H^-1) explodes along a flat direction."""
+    diag_h, diag_b = np.diag(h), np.diag(b)
+    ratios = diag_b[diag_h > 0] / diag_h[diag_h > 0]
+    kappa = float(np.median(ratios)) if ratios.size else float("nan")
     return kappa if np.isfinite(kappa) and kappa > 0 else 1.0
 
 

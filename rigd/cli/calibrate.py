@@ -144,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _fmt(values: list[float | None]) -> str:
-    return ", ".join("unknown" if v is None else f"{v:.3g}" for v in values)
+    return ", ".join("unknown" if v is None else (">1000" if v > 1e3 else f"{v:.3g}") for v in values)
 
 
 def print_trust(report: dict[str, Any]) -> None:
