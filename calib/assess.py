@@ -10,8 +10,8 @@ After the coarse-to-fine solve:
    ``jackknife_groups`` random groups of angular image cells), each left-out solve one Newton step of the
    finest level from the solution with the per-cluster Hessians. Each axis takes the larger of the two
    sigmas; correlations come from the sandwich.
-3. Verdict: ``trusted`` when every axis is known to within the field tolerance (``2.5 sigma <= tolerance``) and
-   no restart found a different, equally good pose; ``weak`` naming the axes that are not; ``failed`` when
+3. Verdict: ``trusted`` when every axis is known to within the field tolerance (``2.5 sigma <= tolerance``)
+   and no restart found a different, equally good pose; ``weak`` naming the axes that are not; ``failed`` when
    the solution is not a minimum, is ambiguous by several tolerances, or most axes are far from known.
 """
 
@@ -58,7 +58,8 @@ class Status(Enum):
 @dataclass(frozen=True)
 class TrustOptions:
     """``tolerance_rot_deg`` / ``tolerance_trans_cm``: the field tolerance per axis (the rig file may change
-    it). ``sigma_factor``: an axis is known when ``sigma_factor * sigma`` is within tolerance (2.5: measured, docs/trust.md)."""
+    it). ``sigma_factor``: an axis is known when ``sigma_factor * sigma`` is within tolerance (2.5: measured,
+    docs/trust.md)."""
 
     tolerance_rot_deg: float = 0.2
     tolerance_trans_cm: float = 2.0
