@@ -121,6 +121,17 @@ def check_initial_guess(feats: list[PairFeatures], tau0: F64) -> int:
     return total
 
 
+def schedule(feats: list[PairFeatures], params: CalibParams) -> OptimOptions:
+    """The optimiser's options for ``feats``: ``params.optim``, with fold edges kept on every level when the
+    pairs hold too few occlusion edges."""
+    boundaries = sum(int(np.count_nonzero(f.points.kind == BOUNDARY)) for f in feats)
+    if boundaries < params.min_boundary_points:
+        # Too few occlusion edges to pin the finest levels alone (measured: 152 in 2 small pairs put the
+        # finest cost's minimum 9.7 deg off); fold edges are biased (~0.3 deg) but keep it anchored.
+        return replace(params.optim, fold_levels=len(params.optim.sigmas_deg))
+    return params.optim
+
+
 def calibrate(
     feats: list[PairFeatures],
     initial: Transform,
@@ -139,12 +150,7 @@ def calibrate(
             f"initial guess puts the camera {np.linalg.norm(initial.translation_m):.2f} m from the LiDAR "
             f"(more than {params.max_translation_m} m): not a rig")
     check_initial_guess(feats, tau0)
-    optim = params.optim
-    boundaries = sum(int(np.count_nonzero(f.points.kind == BOUNDARY)) for f in feats)
-    if boundaries < params.min_boundary_points:
-        # Too few occlusion edges to pin the finest levels alone (measured: 152 in 2 small pairs put the
-        # finest cost's minimum 9.7 deg off); fold edges are biased (~0.3 deg) but keep it anchored.
-        optim = replace(optim, fold_levels=len(optim.sigmas_deg))
+    optim = schedule(feats, params)
     result = optimise(feats, tau0, optim, params.gmm, on_iter, prior)
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
     if trust is None:

@@ -13,7 +13,8 @@ from rigd.errors import RigdError
 from rigd.version import software_version
 
 # Each module defines register(subparsers) and sets a handler with parser.set_defaults(func=...).
-COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "evaluate", "serve", "capture", "doctor")
+COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "check", "evaluate", "serve", "capture",
+                   "doctor")
 
 
 def build_parser() -> RigdArgumentParser:

@@ -41,7 +41,7 @@ def parse_sigmas(text: str) -> tuple[float, ...]:
 EXIT_CODES = {Status.TRUSTED: 0, Status.WEAK: 3, Status.FAILED: 4}
 
 
-def _numbers(text: str, option: str, count: int) -> list[float]:
+def numbers(text: str, option: str, count: int) -> list[float]:
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError as exc:
@@ -57,10 +57,10 @@ def parse_prior(xyz_text: str | None, rotation_text: str | None) -> Prior | None
         return None
     xyz = sigma_t = rotation = sigma_r = None
     if xyz_text is not None:
-        v = _numbers(xyz_text, "--prior", 4)
+        v = numbers(xyz_text, "--prior", 4)
         xyz, sigma_t = np.array(v[:3]), np.full(3, v[3] / 100.0)
     if rotation_text is not None:
-        v = _numbers(rotation_text, "--prior-rotation", 4)
+        v = numbers(rotation_text, "--prior-rotation", 4)
         rotation, sigma_r = rpy_deg_to_matrix(np.array(v[:3])), np.full(3, np.radians(v[3]))
     try:
         return Prior(xyz, sigma_t, rotation, sigma_r)
@@ -69,7 +69,7 @@ def parse_prior(xyz_text: str | None, rotation_text: str | None) -> Prior | None
 
 
 def parse_tolerance(text: str) -> TrustOptions:
-    rot, trans = _numbers(text, "--tolerance", 2)
+    rot, trans = numbers(text, "--tolerance", 2)
     if rot <= 0 or trans <= 0:
         raise RigdError(f"--tolerance must be positive 'rotation_deg,translation_cm', got {text!r}")
     return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)

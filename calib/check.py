@@ -1,0 +1,99 @@
+"""Is an existing calibration still right for new pairs? A short search and a drift verdict (docs/check.md).
+
+From the given extrinsics, only the finest ``levels`` of the schedule are run (the pose is expected to be
+close), then the per-axis uncertainty of :mod:`calib.assess` (without restarts: the search starts at the
+answer being checked). Per axis, in the local axes of docs/conventions.md:
+- drifted: the change exceeds the threshold and ``significance`` sigmas (it is real and it matters);
+- held: the change plus ``sigma_factor`` sigmas stays within the threshold (it is known not to matter);
+- otherwise undetermined: the pairs cannot tell.
+The status is ``drifted`` if any axis drifted, ``ok`` if every axis held, else ``unknown`` (naming the axes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from enum import Enum
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.assess import TrustOptions, assess
+from calib.geometry import Transform
+from calib.gmm import PairFeatures
+from calib.optimize import optimise, tail_options
+from calib.pipeline import CalibParams, check_initial_guess, schedule
+from calib.prior import Prior
+from calib.uncertainty import AXES, TO_DISPLAY, xi_of
+
+F64 = NDArray[np.float64]
+
+
+class DriftStatus(Enum):
+    OK = "ok"
+    DRIFTED = "drifted"
+    UNKNOWN = "unknown"
+
+
+@dataclass(frozen=True)
+class DriftOptions:
+    """Thresholds of a change that matters (default the field tolerance, 0.2 deg / 2 cm per axis)."""
+
+    threshold_rot_deg: float = 0.2
+    threshold_trans_cm: float = 2.0
+    levels: int = 2
+    significance: float = 3.0
+    sigma_factor: float = 2.5
+
+    @property
+    def threshold_display(self) -> F64:
+        return np.array([self.threshold_rot_deg] * 3 + [self.threshold_trans_cm] * 3)
+
+
+@dataclass(frozen=True)
+class DriftResult:
+    """``found`` the pose the pairs prefer; ``change`` (6,) deg/cm from the checked pose to it; ``sigma`` (6,)
+    deg/cm its uncertainty; ``axes``: the drifted axes (drifted) or the undetermined ones (unknown)."""
+
+    found: Transform
+    change: F64
+    sigma: F64
+    status: DriftStatus
+    axes: tuple[str, ...]
+    reasons: tuple[str, ...]
+
+
+def drift_verdict(change: F64, sigma: F64, opts: DriftOptions) -> tuple[DriftStatus, tuple[str, ...], tuple[str, ...]]:
+    """Status, axes and reasons from the per-axis ``change`` and ``sigma`` (deg/cm)."""
+    thr = opts.threshold_display
+    size = np.abs(change)
+    drifted = (size > thr) & (size > opts.significance * sigma)
+    held = size + opts.sigma_factor * sigma <= thr
+    unit = ["deg"] * 3 + ["cm"] * 3
+    if drifted.any():
+        ks = np.flatnonzero(drifted)
+        return DriftStatus.DRIFTED, tuple(AXES[k] for k in ks), tuple(
+            f"{AXES[k]} moved {change[k]:+.3g} {unit[k]} (threshold {thr[k]:g}, sigma {sigma[k]:.2g})" for k in ks)
+    if held.all():
+        return DriftStatus.OK, (), (f"every axis within its threshold at {opts.sigma_factor:g} sigma",)
+    ks = np.flatnonzero(~held)
+    return DriftStatus.UNKNOWN, tuple(AXES[k] for k in ks), tuple(
+        f"{AXES[k]}: change {change[k]:+.3g} {unit[k]}, sigma {sigma[k]:.2g}: the pairs cannot tell" for k in ks)
+
+
+def check_drift(feats: list[PairFeatures], checked: Transform, params: CalibParams, opts: DriftOptions,
+                prior: Prior | None = None) -> DriftResult:
+    """Search the finest levels from ``checked`` on ``feats`` and judge the change (module docstring)."""
+    check_initial_guess(feats, checked.tau)
+    full = schedule(feats, params)
+    optim = tail_options(full, min(opts.levels, len(full.sigmas_deg)))
+    result = optimise(feats, checked.tau, optim, params.gmm, None, prior)
+    trust = replace(TrustOptions(), tolerance_rot_deg=opts.threshold_rot_deg,
+                    tolerance_trans_cm=opts.threshold_trans_cm, restarts=0)
+    a = assess(feats, result, optim, params.gmm, prior, trust)
+    change = xi_of(checked.tau, a.tau) * TO_DISPLAY
+    sigma = a.uncertainty.sigma
+    if not a.uncertainty.is_minimum:
+        return DriftResult(Transform.from_tau(a.tau), change, sigma, DriftStatus.UNKNOWN, AXES,
+                           ("the search did not end at a minimum of the cost",))
+    status, axes, reasons = drift_verdict(change, sigma, opts)
+    return DriftResult(Transform.from_tau(a.tau), change, sigma, status, axes, reasons)
