@@ -12,13 +12,13 @@ import dataclasses
 import multiprocessing
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import cv2
 import numpy as np
@@ -46,6 +46,9 @@ from rigd.dataset.records import transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 from rigd.evaluate_plots import plot_convergence, plot_precision
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 
 class Protocol(Enum):
@@ -154,10 +157,16 @@ def _init_worker(root: Path, params: CalibParams, trust: TrustOptions | None) ->
     _STATE = _WorkerState(feats, params, trust, None)
 
 
-def _run_task(task: _Task) -> Run:
+def worker_state() -> _WorkerState:
+    """This worker process's features and settings (raises the feature extraction's error, if any)."""
     state = _STATE
     if state is None or state.error is not None:
         raise RigdError(state.error if state else "evaluation worker was not initialised")
+    return state
+
+
+def _run_task(task: _Task) -> Run:
+    state = worker_state()
     started = time.monotonic()
     try:
         result = calibrate([state.feats[i] for i in task.pairs], task.start, state.params, trust=state.trust)
@@ -180,7 +189,7 @@ def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
     return dataclasses.replace(params, optim=dataclasses.replace(params.optim, sigmas_deg=tuple(sigmas_deg)))
 
 
-def _open(settings: EvaluationSettings) -> Dataset:
+def open_for(settings: EvaluationSettings) -> Dataset:
     if settings.workers < 1:
         raise RigdError(f"--workers must be at least 1, got {settings.workers}")
     dataset = open_dataset(settings.dataset)
@@ -193,7 +202,8 @@ def _initial(settings: EvaluationSettings, dataset: Dataset) -> Transform | None
     return settings.initial if settings.initial is not None else dataset.rig.initial_guess
 
 
-def _pool(dataset: Dataset, params: CalibParams, workers: int, trust: TrustOptions | None) -> ProcessPoolExecutor:
+def pool(dataset: Dataset, params: CalibParams, workers: int, trust: TrustOptions | None) -> ProcessPoolExecutor:
+    """Worker processes that each extract ``dataset``'s features once."""
     # spawn, not fork: a child forked from a process whose OpenCV/BLAS threads hold locks can deadlock on
     # its first cv2 call (seen: the test suite's process hung in cv2.setNumThreads in every forked worker).
     return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
@@ -201,8 +211,10 @@ def _pool(dataset: Dataset, params: CalibParams, workers: int, trust: TrustOptio
                                mp_context=multiprocessing.get_context("spawn"))
 
 
-def _run_all(pool: ProcessPoolExecutor, tasks: Sequence[_Task], desc: str, progress: bool) -> tuple[Run, ...]:
-    futures = [pool.submit(_run_task, t) for t in tasks]
+def run_all(workers: ProcessPoolExecutor, fn: Callable[[T], R], tasks: Sequence[T], desc: str,
+            progress: bool) -> list[R]:
+    """``fn`` over ``tasks`` on ``workers`` with a progress bar; results in completion order."""
+    futures = [workers.submit(fn, t) for t in tasks]
     runs = []
     try:
         for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="run", file=sys.stderr,
@@ -213,7 +225,11 @@ def _run_all(pool: ProcessPoolExecutor, tasks: Sequence[_Task], desc: str, progr
     finally:
         for fut in futures:
             fut.cancel()
-    return tuple(sorted(runs, key=lambda r: r.index))
+    return runs
+
+
+def _run_all(workers: ProcessPoolExecutor, tasks: Sequence[_Task], desc: str, progress: bool) -> tuple[Run, ...]:
+    return tuple(sorted(run_all(workers, _run_task, tasks, desc, progress), key=lambda r: r.index))
 
 
 def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
@@ -221,10 +237,10 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     first calibration from the initial guess); writes OUT/convergence.yaml and convergence.png."""
     started = time.monotonic()
     s = request.settings
-    dataset = _open(s)
+    dataset = open_for(s)
     params = calib_params(s.sigmas_deg)
     pairs = tuple(range(len(dataset)))
-    with _pool(dataset, params, s.workers, s.trust) as pool:
+    with pool(dataset, params, s.workers, s.trust) as workers:
         if dataset.ground_truth is not None:
             reference, source = dataset.ground_truth, Source.GROUND_TRUTH
         else:
@@ -232,12 +248,12 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
             if initial is None:
                 raise RigdError(f"{dataset.root}: no ground_truth.yaml and no initial_guess in rig.yaml; give a "
                                 "start for the reference calibration with --init 'r,p,y,x,y,z'")
-            (first,) = _run_all(pool, [_Task(-1, initial, pairs)], "reference calibration", s.progress)
+            (first,) = _run_all(workers, [_Task(-1, initial, pairs)], "reference calibration", s.progress)
             if first.result is None:
                 raise RigdError(f"{dataset.root}: the reference calibration failed: {first.error}")
             reference, source = first.result, Source.CALIBRATION
         starts = random_starts(reference, request.trials, request.rot_deg, request.trans_m, s.seed)
-        runs = _run_all(pool, [_Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
+        runs = _run_all(workers, [_Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
     setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m}
     return _finish(Protocol.CONVERGENCE, s, dataset, params, setup, runs, stats, reference, source, started)
@@ -248,7 +264,7 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     initial_guess or, failing both, the ground truth); writes OUT/precision.yaml and precision.png."""
     started = time.monotonic()
     s = request.settings
-    dataset = _open(s)
+    dataset = open_for(s)
     params = calib_params(s.sigmas_deg)
     subsets = random_subsets(len(dataset), request.size, request.subsets, s.seed)
     initial = _initial(s, dataset)
@@ -257,8 +273,8 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     if start is None:
         raise RigdError(f"{dataset.root}: no initial_guess in rig.yaml and no ground_truth.yaml; give the start "
                         "with --init 'r,p,y,x,y,z'")
-    with _pool(dataset, params, s.workers, s.trust) as pool:
-        runs = _run_all(pool, [_Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
+    with pool(dataset, params, s.workers, s.trust) as workers:
+        runs = _run_all(workers, [_Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
     truth = dataset.ground_truth
     reference, source = (truth, Source.GROUND_TRUTH) if truth is not None else (start, start_source)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)

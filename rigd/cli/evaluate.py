@@ -8,8 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from calib.assess import TrustOptions
+from calib.check import DriftOptions
 from calib.evaluate import OutlierRule, Params6, PoseError
-from rigd.cli.calibrate import parse_init, parse_sigmas, parse_tolerance
+from rigd.cli.calibrate import numbers, parse_init, parse_sigmas, parse_tolerance
 from rigd.evaluate import (
     ConvergenceRequest,
     EvaluationOutcome,
@@ -19,6 +20,7 @@ from rigd.evaluate import (
     run_convergence,
     run_precision,
 )
+from rigd.evaluate_drift import DriftRequest, run_drift
 
 
 def _positive_int(text: str) -> int:
@@ -88,6 +90,16 @@ def register(subparsers: Any) -> None:
     prec.add_argument("--subsets", type=_positive_int, default=100, help="number of subsets (default 100)")
     prec.add_argument("--size", type=_positive_int, default=12, help="pairs per subset (default 12)")
     prec.set_defaults(func=run)
+    drift = protocols.add_parser(
+        "drift", help="how well rigd check tells drift from none (detection and false-alarm rates)",
+        description="Injects known errors into the ground truth (none, rotations of --rot-deg, translations of "
+        "--trans-cm, random directions), runs rigd check's search from each and counts ok / drifted / unknown. "
+        "Writes OUT/drift.yaml.")
+    _common(drift)
+    drift.add_argument("--trials", type=_positive_int, default=120, help="number of trials (default 120)")
+    drift.add_argument("--rot-deg", type=str, default="0.3,0.5,1", help="injected rotations, deg (default 0.3,0.5,1)")
+    drift.add_argument("--trans-cm", type=str, default="2,5", help="injected translations, cm (default 2,5)")
+    drift.set_defaults(func=run_drift_command)
 
 
 def _fmt_params(p: Params6 | None, digits: int) -> str:
@@ -136,6 +148,27 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
                  f"max {times['max']:.1f} s")
     lines.append(f"written: {outcome.yaml_path}, {outcome.plot_path}")
     return lines
+
+
+def run_drift_command(args: argparse.Namespace) -> int:
+    settings = EvaluationSettings(dataset=args.dataset, seed=args.seed, workers=args.workers, out_dir=args.out,
+                                  sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None, trust=None)
+    tol = parse_tolerance(args.tolerance) if args.tolerance else TrustOptions()
+    opts = DriftOptions(threshold_rot_deg=tol.tolerance_rot_deg, threshold_trans_cm=tol.tolerance_trans_cm)
+    rot = numbers(args.rot_deg, "--rot-deg", len(args.rot_deg.split(",")))
+    trans = numbers(args.trans_cm, "--trans-cm", len(args.trans_cm.split(",")))
+    request = DriftRequest(settings, args.trials, tuple(rot), tuple(trans), opts)
+    outcome = run_drift(request)
+    rep = outcome.report
+    print(f"drift on {rep['dataset']} ({rep['pairs']} pairs): {rep['settings']['trials']} trials, thresholds "
+          f"{opts.threshold_rot_deg} deg / {opts.threshold_trans_cm} cm")
+    for label, row in rep["summary"].items():
+        print(f"  {label:>14}: drifted {row['drifted']}/{row['trials']} ({row['drifted_share'] * 100:.0f} %), ok "
+              f"{row['ok']}, unknown {row['unknown']}, error {row['error']}; median {row['median_time_s']:.1f} s")
+    print(f"false alarms (drifted at zero error): {rep['false_alarm_rate'] * 100:.1f} %; "
+          f"{rep['wall_time_s']:.0f} s wall")
+    print(f"written: {outcome.yaml_path}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
