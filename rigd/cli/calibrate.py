@@ -68,10 +68,11 @@ def parse_prior(xyz_text: str | None, rotation_text: str | None) -> Prior | None
         raise RigdError(str(exc)) from exc
 
 
-def parse_tolerance(text: str) -> TrustOptions:
-    rot, trans = numbers(text, "--tolerance", 2)
+def parse_tolerance(text: str, option: str = "--tolerance") -> TrustOptions:
+    """'rotation_deg,translation_cm' -> the verdict's tolerance (positive numbers)."""
+    rot, trans = numbers(text, option, 2)
     if rot <= 0 or trans <= 0:
-        raise RigdError(f"--tolerance must be positive 'rotation_deg,translation_cm', got {text!r}")
+        raise RigdError(f"{option} must be positive 'rotation_deg,translation_cm', got {text!r}")
     return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)
 
 

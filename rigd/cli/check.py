@@ -11,7 +11,7 @@ from typing import Any
 from calib.check import DriftOptions
 from calib.geometry import Transform
 from rigd.calibration.check import EXIT_CODES, extrinsics_from_file, extrinsics_from_store, run_check
-from rigd.cli.calibrate import numbers
+from rigd.cli.calibrate import parse_tolerance
 from rigd.dataset import open_dataset
 from rigd.errors import RigdError
 
@@ -55,10 +55,8 @@ def _checked(args: argparse.Namespace) -> Transform:
 def _options(text: str | None) -> DriftOptions:
     if text is None:
         return DriftOptions()
-    rot, trans = numbers(text, "--threshold", 2)
-    if rot <= 0 or trans <= 0:
-        raise RigdError(f"--threshold must be positive 'rotation_deg,translation_cm', got {text!r}")
-    return DriftOptions(threshold_rot_deg=rot, threshold_trans_cm=trans)
+    tol = parse_tolerance(text, "--threshold")
+    return DriftOptions(threshold_rot_deg=tol.tolerance_rot_deg, threshold_trans_cm=tol.tolerance_trans_cm)
 
 
 def run(args: argparse.Namespace) -> int:
