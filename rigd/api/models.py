@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, StrictInt, model_validator
 
 from calib.errors import CalibError
 from calib.geometry import Transform
@@ -112,6 +112,18 @@ class CalibrateIn(Request):
                                           "rig.yaml tolerance, else 0.2 deg / 2 cm")
 
 
+class ThresholdIn(ToleranceIn):
+    """The change per axis that matters to a check (default the field tolerance, 0.2 deg / 2 cm)."""
+
+
+class CheckIn(Request):
+    dataset: DatasetId
+    against: Literal["active"] | Annotated[StrictInt, Field(ge=1, le=2**31 - 1)] | TransformIn = Field(
+        "active", description="the extrinsics to check: the active version, a version number, or an explicit "
+        "transform")
+    threshold: ThresholdIn | None = Field(None, description="change per axis that matters; absent: 0.2 deg / 2 cm")
+
+
 class ManualVersionIn(Request):
     T_camera_lidar: TransformIn
     note: Annotated[str, Field(max_length=500)] = ""
@@ -159,7 +171,7 @@ class VersionOut(BaseModel):
 
 class JobOut(BaseModel):
     id: int
-    kind: Literal["capture", "calibrate"]
+    kind: Literal["capture", "calibrate", "check"]
     status: Literal["queued", "running", "succeeded", "failed", "cancelled"]
     stage: str
     fraction: float

@@ -1,4 +1,4 @@
-"""Runs jobs: calibrations one at a time in a worker process, captures in a thread; records everything.
+"""Runs jobs: calibrations and checks one at a time in a worker process, captures in a thread; records everything.
 
 The runner owns the decisions that must not race: starting a queued job, cancelling it, and refusing a
 second capture while the sensors are in use. Errors are store errors (never HTTP ones).
@@ -92,6 +92,24 @@ class CalibrationPlan:
                 "tolerance": self.tolerance}
 
 
+@dataclass(frozen=True)
+class CheckPlan:
+    """A validated check request: the dataset, the resolved extrinsics to check and the thresholds."""
+
+    dataset_id: str
+    checked: Transform
+    against: str  # active | version | explicit
+    against_version: int | None
+    threshold: dict[str, float]  # rotation_deg, translation_cm
+
+    def params(self) -> dict[str, Any]:
+        return {"dataset": self.dataset_id, "against": self.against, "against_version": self.against_version,
+                "checked": transform_to_yaml(self.checked), "threshold": self.threshold}
+
+
+WORKER_KINDS = (JobKind.CALIBRATE, JobKind.CHECK)  # the jobs of the queue and the worker process
+
+
 class _Throttle:
     def __init__(self) -> None:
         self.stage = ""
@@ -120,33 +138,45 @@ class JobRunner:
         self._cancelled: set[int] = set()
         self._captures: dict[int, tuple[str, threading.Event, threading.Thread]] = {}
         self._stopping = False
-        self._thread = threading.Thread(target=self._calibration_loop, name="rigd-calibrations", daemon=True)
+        self._thread = threading.Thread(target=self._worker_loop, name="rigd-worker-jobs", daemon=True)
 
     def start(self) -> None:
         self._thread.start()
 
-    # -- calibration --------------------------------------------------------------------------------------------
+    # -- calibrations and checks: one at a time in the worker process -------------------------------------------
     def submit_calibration(self, plan: CalibrationPlan) -> tuple[Job, bool]:
         """The job calibrating ``plan`` and whether it is new: the job of an identical calibration that is queued
         or running is returned rather than queuing it twice. QueueFullError when ``max_queued`` jobs wait."""
+        return self._submit(JobKind.CALIBRATE, plan.dataset_id, plan.params(),
+                            f"queued: calibrate dataset {plan.dataset_id} from {plan.init} guess")
+
+    def submit_check(self, plan: CheckPlan) -> tuple[Job, bool]:
+        """Like :meth:`submit_calibration`, for a check (same queue, bound and de-duplication)."""
+        what = f"version {plan.against_version}" if plan.against_version is not None else plan.against
+        return self._submit(JobKind.CHECK, plan.dataset_id, plan.params(),
+                            f"queued: check dataset {plan.dataset_id} against the {what} extrinsics")
+
+    def _submit(self, kind: JobKind, dataset_id: str, params: dict[str, Any], message: str) -> tuple[Job, bool]:
         with self._lock:  # two identical requests at once must not both find no job and both queue one
-            if plan.dataset_id in self.capturing():  # a capture may have started since the request was checked
-                raise ConflictError(f"dataset {plan.dataset_id} is being captured; calibrate it when the capture ends")
-            same = [j for j in self.jobs.unfinished_with(JobKind.CALIBRATE, plan.params())
-                    if j.id not in self._cancelled]
+            if dataset_id in self.capturing():  # a capture may have started since the request was checked
+                raise ConflictError(f"dataset {dataset_id} is being captured; {kind.value} it when the capture ends")
+            same = [j for j in self.jobs.unfinished_with(kind, params) if j.id not in self._cancelled]
             if same:
                 return same[0], False
-            waiting = [j.id for j in self.jobs.unfinished(JobKind.CALIBRATE) if j.status is JobStatus.QUEUED]
+            waiting = [j for j in self.jobs.unfinished() if j.kind in WORKER_KINDS and j.status is JobStatus.QUEUED]
             if len(waiting) >= self.max_queued:
-                raise QueueFullError(f"{len(waiting)} calibrations are queued already (jobs {waiting}; at most "
-                                     f"{self.max_queued}, RIGD_MAX_QUEUED_JOBS): retry when one has finished",
+                kinds = {j.kind for j in waiting}
+                noun = ("calibrations" if kinds == {JobKind.CALIBRATE} else "checks" if kinds == {JobKind.CHECK}
+                        else "calibrations and checks")
+                raise QueueFullError(f"{len(waiting)} {noun} are queued already (jobs {[j.id for j in waiting]}; at "
+                                     f"most {self.max_queued}, RIGD_MAX_QUEUED_JOBS): retry when one has finished",
                                      QUEUE_RETRY_AFTER_S)
-            job = self.jobs.create(JobKind.CALIBRATE, plan.params())
-        self.jobs.log(job.id, f"queued: calibrate dataset {plan.dataset_id} from {plan.init} guess")
+            job = self.jobs.create(kind, params)
+        self.jobs.log(job.id, message)
         self._queue.put(job.id)
         return job, True
 
-    def _calibration_loop(self) -> None:
+    def _worker_loop(self) -> None:
         while (job_id := self._queue.get()) is not None:
             with self._lock:
                 job = self.jobs.get(job_id)
@@ -154,18 +184,26 @@ class JobRunner:
                     continue
                 job = self.jobs.start(job_id, "starting the worker")
             try:
-                self._run_calibration(job)
-            except Exception as exc:  # a bug must fail its job, not stop every later calibration
+                self._run_in_worker(job)
+            except Exception as exc:  # a bug must fail its job, not stop every later calibration or check
                 self.jobs.log(job.id, traceback.format_exc())
                 self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"internal error: {exc!r}")
 
-    def _run_calibration(self, job: Job) -> None:
+    def _payload(self, job: Job) -> dict[str, Any]:
+        """The worker's job line: ``kind`` selects what it runs (absent: calibrate)."""
         params = job.params
+        dataset = str(self.datasets.path(params["dataset"]))
+        if job.kind is JobKind.CHECK:
+            return {"kind": "check", "dataset": dataset, "checked_matrix": params["checked"]["matrix"],
+                    "threshold": params["threshold"]}
         out_dir = self.jobs.job_dir(job.id) / "calibration"
-        payload = {"dataset": str(self.datasets.path(params["dataset"])), "out_dir": str(out_dir),
-                   "initial_matrix": params["initial"]["matrix"], "sigmas_deg": params["sigmas_deg"],
-                   "prior": params.get("prior"), "fix_translation": params.get("fix_translation", False),
-                   "tolerance": params.get("tolerance")}
+        return {"dataset": dataset, "out_dir": str(out_dir),
+                "initial_matrix": params["initial"]["matrix"], "sigmas_deg": params["sigmas_deg"],
+                "prior": params.get("prior"), "fix_translation": params.get("fix_translation", False),
+                "tolerance": params.get("tolerance")}
+
+    def _run_in_worker(self, job: Job) -> None:
+        payload = self._payload(job)
         with (self.jobs.job_dir(job.id) / "job.log").open("a") as stderr, self._lock:
             proc = subprocess.Popen([sys.executable, "-m", "rigd.api.worker"], stdin=subprocess.PIPE,
                                     stdout=subprocess.PIPE, stderr=stderr, text=True)
@@ -188,11 +226,14 @@ class JobRunner:
             self.jobs.finish(job.id, JobStatus.CANCELLED, "cancelled")
         elif self._stopping:
             self.jobs.finish(job.id, JobStatus.FAILED, "interrupted", error="interrupted: the service stopped")
+        elif result is not None and job.kind is JobKind.CHECK:
+            self.jobs.log(job.id, f"check: {result['report']['status']}")
+            self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result=result["report"])
         elif result is not None:
             self._store_result(job, result)
         else:
             self.jobs.finish(job.id, JobStatus.FAILED, "failed",
-                             error=error or f"the calibration worker exited with code {code} (see the job log)")
+                             error=error or f"the {job.kind.value} worker exited with code {code} (see the job log)")
 
     def _follow_worker(self, job_id: int, stdout: Any) -> tuple[dict[str, Any] | None, str | None]:
         throttle = _Throttle()

@@ -1,11 +1,12 @@
-"""The calibration worker: a child process of ``rigd serve`` (``python -m rigd.api.worker``).
+"""The calibration (and check) worker: a child process of ``rigd serve`` (``python -m rigd.api.worker``).
 
-Protocol: the parent writes one JSON line (the job) to stdin and keeps stdin open; the worker writes JSON
-lines to stdout: ``{"type": "progress", "stage", "fraction"}``, ``{"type": "log", "line"}``, and finally
-``{"type": "result", ...}`` or ``{"type": "error", "message"}``. Its stderr goes to the job log.
+Protocol: the parent writes one JSON line (the job; its ``kind`` is ``calibrate``, the default, or ``check``)
+to stdin and keeps stdin open; the worker writes JSON lines to stdout: ``{"type": "progress", "stage",
+"fraction"}``, ``{"type": "log", "line"}``, and finally ``{"type": "result", ...}`` or ``{"type": "error",
+"message"}``. Its stderr goes to the job log.
 
 A separate process keeps the service responsive (the GIL is not shared) and makes cancelling a running
-calibration a plain SIGTERM. When stdin reaches end of file the parent is gone (killed, crashed): the
+calibration or check a plain SIGTERM. When stdin reaches end of file the parent is gone (killed, crashed): the
 worker exits at once instead of finishing a job nobody will record.
 """
 
@@ -20,11 +21,13 @@ from typing import Any, TextIO
 
 import numpy as np
 
+from calib.check import DriftOptions
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.pipeline import CalibParams
 from drivers.errors import DriverError
 from rigd.calibration import CalibrationRequest, run_calibration
+from rigd.calibration.check import run_check
 from rigd.dataset import open_dataset
 from rigd.dataset.records import prior_from_yaml, tolerance_from_yaml
 from rigd.errors import RigdError
@@ -92,12 +95,26 @@ def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
     }
 
 
+def run_check_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
+    """A ``"kind": "check"`` job: run_check of the job's extrinsics on the dataset; the result is its report."""
+    threshold = job.get("threshold") or {}
+    opts = DriftOptions(**{name: float(threshold[key]) for name, key in
+                           (("threshold_rot_deg", "rotation_deg"), ("threshold_trans_cm", "translation_cm"))
+                           if key in threshold})
+    checked = Transform.from_matrix(np.asarray(job["checked_matrix"], dtype=np.float64))
+    outcome = run_check(Path(job["dataset"]), checked, opts, reporter.progress)
+    return {"type": "result", "report": json_safe(outcome.report)}
+
+
+JOBS = {"calibrate": run_job, "check": run_check_job}
+
+
 def main() -> int:
     job = json.loads(sys.stdin.readline())
     threading.Thread(target=_watch_parent, args=(sys.stdin,), daemon=True).start()
     reporter = Reporter(sys.stdout)
     try:
-        reporter.send(run_job(job, reporter))
+        reporter.send(JOBS[job.get("kind", "calibrate")](job, reporter))
     except (RigdError, DriverError, CalibError) as exc:
         reporter.send({"type": "error", "message": str(exc)})
         return 2

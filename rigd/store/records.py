@@ -59,6 +59,7 @@ class ExtrinsicsVersion:
 class JobKind(Enum):
     CAPTURE = "capture"
     CALIBRATE = "calibrate"
+    CHECK = "check"  # rigd check: is an extrinsics still right for a dataset? (docs/check.md)
 
 
 class JobStatus(Enum):
@@ -75,7 +76,7 @@ class JobStatus(Enum):
 
 @dataclass(frozen=True)
 class Job:
-    """A capture or calibration; ``fraction`` in [0, 1] of the work, ``stage`` says what it is doing."""
+    """A capture, calibration or check; ``fraction`` in [0, 1] of the work, ``stage`` says what it is doing."""
 
     id: int
     kind: JobKind

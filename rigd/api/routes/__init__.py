@@ -1,1 +1,1 @@
-"""One router per resource: status, jobs, capture, calibrate, datasets, extrinsics."""
+"""One router per resource: status, jobs, capture, calibrate, check, datasets, extrinsics."""

@@ -1,4 +1,4 @@
-"""``/jobs``: captures and calibrations, their progress, logs and results; DELETE cancels."""
+"""``/jobs``: captures, calibrations and checks, their progress, logs and results; DELETE cancels."""
 
 from __future__ import annotations
 
