@@ -6,7 +6,7 @@ from fastapi import APIRouter, Response, status
 
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.models import CalibrateIn, ErrorOut, JobOut
-from rigd.api.routes.jobs import job_link, job_out
+from rigd.api.routes.jobs import queued_out
 from rigd.api.runner import CalibrationPlan
 from rigd.api.service import Service
 from rigd.errors import RigdError
@@ -55,7 +55,4 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
                               "seconds"}})
 def calibrate(service: ServiceDep, body: CalibrateIn, response: Response) -> JobOut:
     job, new = service.runner.submit_calibration(plan(service, body))
-    if not new:
-        response.status_code = status.HTTP_200_OK
-    response.headers["Location"] = job_link(job)
-    return job_out(service, job)
+    return queued_out(service, job, new, response)

@@ -6,7 +6,7 @@ from fastapi import APIRouter, Response, status
 
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.models import CheckIn, ErrorOut, JobOut, ThresholdIn
-from rigd.api.routes.jobs import job_link, job_out
+from rigd.api.routes.jobs import queued_out
 from rigd.api.runner import CheckPlan
 from rigd.api.service import Service
 from rigd.errors import RigdError
@@ -47,7 +47,4 @@ def plan(service: Service, body: CheckIn) -> CheckPlan:
                               "seconds"}})
 def check(service: ServiceDep, body: CheckIn, response: Response) -> JobOut:
     job, new = service.runner.submit_check(plan(service, body))
-    if not new:
-        response.status_code = status.HTTP_200_OK
-    response.headers["Location"] = job_link(job)
-    return job_out(service, job)
+    return queued_out(service, job, new, response)

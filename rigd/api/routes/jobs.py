@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Path, Query, status
+from fastapi import APIRouter, Path, Query, Response, status
 
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.models import ErrorOut, JobOut
@@ -49,3 +49,12 @@ def get_job(service: ServiceDep, job_id: JobId) -> JobOut:
                responses={404: {"model": ErrorOut}, 409: {"model": ErrorOut, "description": "already finished"}})
 def cancel_job(service: ServiceDep, job_id: JobId) -> JobOut:
     return job_out(service, service.runner.cancel(job_id))
+
+
+def queued_out(service: Service, job: Job, new: bool, response: Response) -> JobOut:
+    """A job queued by ``POST /calibrate`` or ``POST /check``: 202 if new, 200 for the identical queued or running
+    job returned instead; ``Location`` names it either way."""
+    if not new:
+        response.status_code = status.HTTP_200_OK
+    response.headers["Location"] = job_link(job)
+    return job_out(service, job)
