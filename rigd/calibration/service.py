@@ -20,7 +20,7 @@ from calib.gmm import PairFeatures
 from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features, paper_params
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
-from rigd.calibration.visuals import overlay, write_coloured_ply
+from rigd.calibration.visuals import OVERLAY_STAGES, edge_views, write_coloured_ply
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.store import write_yaml
@@ -152,16 +152,19 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
     return report
 
 
-def _write_visuals(dataset: Dataset, initial: Transform, T: Transform, out: Path) -> None:
+def _write_visuals(dataset: Dataset, feats: list[PairFeatures], initial: Transform, T: Transform, out: Path) -> None:
+    """Per pair: the edge points the calibration used over the image with the initial guess and with the
+    solution, the close-up of where they moved most (overlays/NNNN_{before,after,closeup}.png), and the
+    cloud coloured from the image (clouds/NNNN.ply)."""
     camera = dataset.rig.camera.model()
     (out / "overlays").mkdir(parents=True, exist_ok=True)
     (out / "clouds").mkdir(parents=True, exist_ok=True)
     for i in range(len(dataset)):
         pair = dataset.load_pair(i)
-        pts = pair.cloud.points_lidar
-        for name, transform in (("before", initial), ("after", T)):
-            cv2.imwrite(str(out / "overlays" / f"{i:04d}_{name}.png"), overlay(pair.image, camera, transform, pts))
-        write_coloured_ply(out / "clouds" / f"{i:04d}.ply", pair.image, camera, T, pts)
+        views = edge_views(pair.image, camera, initial, T, feats[i].points.points_lidar)
+        for name in OVERLAY_STAGES:
+            cv2.imwrite(str(out / "overlays" / f"{i:04d}_{name}.png"), getattr(views, name))
+        write_coloured_ply(out / "clouds" / f"{i:04d}.ply", pair.image, camera, T, pair.cloud.points_lidar)
 
 
 def run_calibration(request: CalibrationRequest, progress: Progress | None = None,
@@ -196,5 +199,5 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     if request.write_visuals:
         if progress:
             progress("writing overlays", 0.95)
-        _write_visuals(dataset, initial, result.T_camera_lidar, out)
+        _write_visuals(dataset, feats, initial, result.T_camera_lidar, out)
     return CalibrationOutcome(result.T_camera_lidar, initial, report, out)

@@ -1,7 +1,9 @@
-"""Pictures people look at: LiDAR points over the image coloured by range, and a coloured point cloud."""
+"""Pictures people look at: LiDAR edge points over the image coloured by range (before and after a
+calibration, and an enlarged close-up of where they moved most), and a coloured point cloud."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -12,6 +14,10 @@ from calib.camera import CameraModel
 from calib.geometry import Transform
 from calib.gmm import in_image
 
+DIM = 0.6  # the photo is darkened so that the dots stand out on bright walls
+CLOSEUP_MIN_WIDTH_PX = 480  # each half of a close-up is enlarged to at least this width
+OVERLAY_STAGES = ("before", "after", "closeup")  # the EdgeViews fields, and the overlay files' suffixes
+
 
 def project_visible(camera: CameraModel, T_camera_lidar: Transform, points_lidar: NDArray[np.float64]):
     """(indices of points that land in the image, their uv (K,2) px, camera range (K,) m)."""
@@ -21,19 +27,110 @@ def project_visible(camera: CameraModel, T_camera_lidar: Transform, points_lidar
     return inside, uv[inside], np.linalg.norm(p_cam[inside], axis=1)
 
 
-def overlay(image: NDArray[np.uint8], camera: CameraModel, T_camera_lidar: Transform,
-            points_lidar: NDArray[np.float64], max_range_m: float = 30.0) -> NDArray[np.uint8]:
-    """The image (BGR) with every visible LiDAR point drawn as a dot coloured by range (turbo colormap)."""
+def dot_radius_px(width: int, height: int) -> int:
+    """Dots about 1/700 of the larger image side: 1 px on a 256-wide image, 3 px on a 2048-wide panorama."""
+    return max(1, round(max(width, height) / 700))
+
+
+def range_scale_m(ranges_m: NDArray[np.float64]) -> float:
+    """The range shown as the last turbo colour: the 95th percentile, so one far wall does not make every
+    nearer point the same blue (at least 1 m)."""
+    return max(1.0, float(np.percentile(ranges_m, 95))) if len(ranges_m) else 1.0
+
+
+def turbo_bgr(ranges_m: NDArray[np.float64], max_range_m: float) -> NDArray[np.uint8]:
+    """(N,3) uint8 BGR turbo colours of ``ranges_m`` (N,) m: near blue, far red."""
+    levels = np.clip(ranges_m / max_range_m * 255.0, 0, 255).astype(np.uint8)
+    return cv2.applyColorMap(levels.reshape(-1, 1), cv2.COLORMAP_TURBO).reshape(-1, 3)
+
+
+def _dimmed_bgr(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     canvas = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-    canvas = (canvas * 0.7).astype(np.uint8)
-    _, uv, rng = project_visible(camera, T_camera_lidar, points_lidar)
-    levels = np.clip(rng / max_range_m * 255.0, 0, 255).astype(np.uint8)
-    colours = cv2.applyColorMap(levels.reshape(-1, 1), cv2.COLORMAP_TURBO).reshape(-1, 3)
-    px = np.rint(uv).astype(np.int64)
-    px[:, 0] = np.clip(px[:, 0], 0, canvas.shape[1] - 1)
-    px[:, 1] = np.clip(px[:, 1], 0, canvas.shape[0] - 1)
-    canvas[px[:, 1], px[:, 0]] = colours
+    return (canvas * DIM).astype(np.uint8)
+
+
+def draw_dots(canvas: NDArray[np.uint8], uv: NDArray[np.float64], colours_bgr: NDArray[np.uint8],
+              radius_px: int) -> NDArray[np.uint8]:
+    """Filled dots of ``radius_px`` at ``uv`` (N,2) px with a dark rim (visible on light and dark pixels).
+    All rims go first, so close dots keep their colour; give far points first so that near ones, which
+    occlude them in the scene, stay on top."""
+    centres = [(int(u), int(v)) for u, v in np.rint(uv).astype(int)]
+    for centre in centres:
+        cv2.circle(canvas, centre, radius_px + 1, (0, 0, 0), -1, cv2.LINE_AA)
+    for centre, colour in zip(centres, colours_bgr, strict=True):
+        cv2.circle(canvas, centre, radius_px, tuple(int(c) for c in colour), -1, cv2.LINE_AA)
     return canvas
+
+
+@dataclass(frozen=True)
+class EdgeViews:
+    """Overlays of one pair's edge points: ``before`` (initial guess) and ``after`` (solution) at the image's
+    full resolution, and ``closeup``: before | after of the region where the points moved most, enlarged."""
+
+    before: NDArray[np.uint8]
+    after: NDArray[np.uint8]
+    closeup: NDArray[np.uint8]
+
+
+def edge_views(image: NDArray[np.uint8], camera: CameraModel, before: Transform, after: Transform,
+               edge_points_lidar: NDArray[np.float64]) -> EdgeViews:
+    """The edge points (N,3) m, LiDAR frame, drawn as range-coloured dots with each transform."""
+    radius = dot_radius_px(camera.width, camera.height)
+    idx_b, uv_b, rng_b = project_visible(camera, before, edge_points_lidar)
+    idx_a, uv_a, rng_a = project_visible(camera, after, edge_points_lidar)
+    scale = range_scale_m(rng_a)
+    base = _dimmed_bgr(image)
+    views = {}
+    for name, uv, rng in (("before", uv_b, rng_b), ("after", uv_a, rng_a)):
+        order = np.argsort(-rng)
+        views[name] = draw_dots(base.copy(), uv[order], turbo_bgr(rng[order], scale), radius)
+    box = largest_change_box(camera, idx_b, uv_b, idx_a, uv_a)
+    halves = [_closeup(base, box, uv, rng, scale, radius, label)
+              for label, uv, rng in (("before", uv_b, rng_b), ("after", uv_a, rng_a))]
+    gap = np.full((halves[0].shape[0], max(4, halves[0].shape[1] // 100), 3), 255, np.uint8)
+    return EdgeViews(views["before"], views["after"], np.hstack([halves[0], gap, halves[1]]))
+
+
+def largest_change_box(camera: CameraModel, idx_before: NDArray[np.intp], uv_before: NDArray[np.float64],
+                       idx_after: NDArray[np.intp], uv_after: NDArray[np.float64]) -> tuple[int, int, int, int]:
+    """(u0, v0, width, height) px of the window (a sixth of the width, a third of the height, at least
+    32 px, inside the image) holding the largest summed image-space displacement of the points seen both
+    before and after; the image's centre window when none is."""
+    w, h = camera.width, camera.height
+    bw, bh = min(w, max(32, w // 6)), min(h, max(32, h // 3))
+    common, ib, ia = np.intersect1d(idx_before, idx_after, return_indices=True)
+    if len(common) == 0:
+        return (w - bw) // 2, (h - bh) // 2, bw, bh
+    moved = np.linalg.norm(camera.displacement(uv_after[ia], uv_before[ib]), axis=1)
+    # Each point's displacement at its mid position, summed over every window by a box filter.
+    mid = np.clip(np.rint((uv_after[ia] + uv_before[ib]) / 2), 0, [w - 1, h - 1]).astype(int)
+    heat = np.zeros((h, w), np.float64)
+    np.add.at(heat, (mid[:, 1], mid[:, 0]), moved)
+    summed = cv2.boxFilter(heat, -1, (bw, bh), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    cv, cu = np.unravel_index(int(np.argmax(summed)), summed.shape)
+    u0 = int(np.clip(cu - bw // 2, 0, w - bw))
+    v0 = int(np.clip(cv - bh // 2, 0, h - bh))
+    return u0, v0, bw, bh
+
+
+def _closeup(base: NDArray[np.uint8], box: tuple[int, int, int, int], uv: NDArray[np.float64],
+             rng: NDArray[np.float64], scale_m: float, radius_px: int, label: str) -> NDArray[np.uint8]:
+    """The box of ``base`` enlarged (whole factor, at least CLOSEUP_MIN_WIDTH_PX wide) with the dots drawn
+    at the enlarged scale (sharp, not blown-up pixels) and ``label`` in a corner."""
+    u0, v0, bw, bh = box
+    factor = max(2, -(-CLOSEUP_MIN_WIDTH_PX // bw))
+    crop = cv2.resize(base[v0:v0 + bh, u0:u0 + bw], (bw * factor, bh * factor), interpolation=cv2.INTER_CUBIC)
+    inside = (uv[:, 0] >= u0 - 0.5) & (uv[:, 0] < u0 + bw - 0.5) & (uv[:, 1] >= v0 - 0.5) & (uv[:, 1] < v0 + bh - 0.5)
+    local = (uv[inside] - [u0, v0] + 0.5) * factor
+    order = np.argsort(-rng[inside])
+    draw_dots(crop, local[order], turbo_bgr(rng[inside][order], scale_m), max(radius_px * 2, 3))
+    height = crop.shape[0]
+    font_scale = max(0.5, height / 400)
+    cv2.putText(crop, label, (8, 8 + int(22 * font_scale)), cv2.FONT_HERSHEY_SIMPLEX, font_scale, (0, 0, 0),
+                max(3, int(4 * font_scale)), cv2.LINE_AA)
+    cv2.putText(crop, label, (8, 8 + int(22 * font_scale)), cv2.FONT_HERSHEY_SIMPLEX, font_scale, (255, 255, 255),
+                max(1, int(2 * font_scale)), cv2.LINE_AA)
+    return crop
 
 
 def write_coloured_ply(path: Path, image: NDArray[np.uint8], camera: CameraModel, T_camera_lidar: Transform,

@@ -39,6 +39,7 @@ def test_calibrate_json_prints_one_object_and_writes_outputs(small_dataset, tmp_
     written = yaml.safe_load((out / "extrinsics.yaml").read_text())
     assert np.allclose(written["T_camera_lidar"]["matrix"], report["T_camera_lidar"]["matrix"])
     assert (out / "overlays" / "0000_before.png").is_file() and (out / "overlays" / "0001_after.png").is_file()
+    assert (out / "overlays" / "0001_closeup.png").is_file()
     assert (out / "clouds" / "0000.ply").read_bytes().startswith(b"ply\n")
     # It must end closer to the truth than it started (1.7 deg, 3.5 cm off).
     err = report["error_vs_ground_truth"]

@@ -96,10 +96,11 @@ def overlay_path(service: Service, version: ExtrinsicsVersion, pair: int, stage:
 
 
 @router.get("/versions/{number}/overlays/{pair}.png", response_class=FileResponse,
-            responses={200: {"content": {"image/png": {}}, "description": "LiDAR points over the image, coloured "
-                             "by range"}, 404: {"model": ErrorOut}})
+            responses={200: {"content": {"image/png": {}}, "description": "the LiDAR edge points over the image, "
+                             "coloured by range"}, 404: {"model": ErrorOut}})
 def get_overlay(service: ServiceDep, number: VersionNumber, pair: Annotated[int, Path(ge=0, le=99999)],
-                stage: Annotated[str, Query(pattern="^(after|before)$",
-                                            description="after: with this version; before: with its initial guess")
+                stage: Annotated[str, Query(pattern="^(after|before|closeup)$",
+                                            description="after: with this version; before: with its initial guess; "
+                                            "closeup: before | after where the points moved most, enlarged")
                                  ] = "after") -> FileResponse:
     return FileResponse(overlay_path(service, service.versions.get(number), pair, stage), media_type="image/png")

@@ -181,4 +181,7 @@ def check_overlays(client, version):
         images[stage] = cv2.imdecode(np.frombuffer(response.content, np.uint8), cv2.IMREAD_COLOR)
         assert images[stage].shape == (128, 256, 3)  # the dataset's panorama size
     assert np.any(images["before"] != images["after"])  # the points moved with the calibration
+    closeup = client.get(version["overlays"][1], params={"stage": "closeup"})
+    assert closeup.status_code == 200 and closeup.headers["content-type"] == "image/png"
+    assert client.get(version["overlays"][1], params={"stage": "sideways"}).status_code == 422
     assert client.get(f"/extrinsics/versions/{version['number']}/overlays/7.png").status_code == 404
