@@ -18,7 +18,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from calib.errors import CalibError
 from drivers.errors import DriverError
 from rigd.api.errors import QueueFullError
-from rigd.api.routes import calibrate, capture, check, datasets, extrinsics, jobs
+from rigd.api.routes import calibrate, capture, check, datasets, extrinsics, jobs, page
 from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
 from rigd.errors import DatasetError, RigdError
@@ -149,4 +149,5 @@ def create_app(service: Service) -> FastAPI:
     app.add_middleware(BodyLimit, max_bytes=service.settings.max_body_bytes)  # added last: runs first
     for module in (status_routes, jobs, capture, calibrate, check, datasets, extrinsics):
         app.include_router(module.router)
+    page.install(app)
     return app

@@ -53,7 +53,8 @@ def capture_work(service: Service, request: CaptureRequest) -> Callable[[Job, th
                 last_state = s.state
             service.capture_figures.set(LidarStatus(
                 source=request.lidar, state="busy", packet_rate_hz=s.packet_rate_hz, packets_lost=s.packets_lost,
-                message=f"in use by capture job {job.id}"))
+                message=f"in use by capture job {job.id}: {s.state.replace('_', ' ')}, "
+                        f"still for {s.still_for_s:.1f} s"))
 
         with service.sensors.lidar_lock:  # waits for a running sensor probe to release the LiDAR port
             try:

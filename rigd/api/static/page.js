@@ -1,0 +1,182 @@
+// rigd operator page: refreshes the server-rendered parts from GET /ui/live and sends the buttons' requests
+// to the JSON API with fetch(). The bearer token (when the service has one) lives in this tab's sessionStorage.
+"use strict";
+
+const TOKEN_KEY = "rigd-token";
+const tokenRequired = document.body.dataset.tokenRequired === "true";
+const shown = {};              // part name -> the HTML last put into it
+let viewer = {version: null, pair: null, chosen: false};
+let timer = null;
+
+function token() { return sessionStorage.getItem(TOKEN_KEY); }
+
+function showToken() {
+  const has = Boolean(token());
+  document.getElementById("token-form").hidden = !tokenRequired || has;
+  document.getElementById("token-set").hidden = !tokenRequired || !has;
+  for (const b of document.querySelectorAll("[data-needs-token]")) {
+    b.classList.toggle("locked", tokenRequired && !has);
+  }
+}
+
+function say(text, isError) {
+  const box = document.getElementById("message");
+  box.textContent = text;
+  box.className = isError ? "error" : "";
+  box.hidden = !text;
+}
+
+async function call(method, url, body) {
+  if (tokenRequired && !token()) {
+    say("This service needs its API token: enter it above.", true);
+    document.getElementById("token-input").focus();
+    return null;
+  }
+  const headers = {"Accept": "application/json"};
+  if (body !== undefined) headers["Content-Type"] = "application/json";
+  if (token()) headers["Authorization"] = "Bearer " + token();
+  let response;
+  try {
+    response = await fetch(url, {method, headers, body: body === undefined ? undefined : JSON.stringify(body)});
+  } catch (err) {
+    say("The service did not answer: " + err.message, true);
+    return null;
+  }
+  const answer = await response.json().catch(() => ({}));
+  if (response.status === 401) {
+    sessionStorage.removeItem(TOKEN_KEY);
+    showToken();
+    say("The token was refused: enter it again.", true);
+    return null;
+  }
+  if (!response.ok) {
+    const detail = typeof answer.detail === "string" ? answer.detail : JSON.stringify(answer.detail);
+    say(response.status + ": " + detail, true);
+    return null;
+  }
+  refresh();
+  return answer;
+}
+
+const actions = {
+  async calibrate(el) {
+    const body = {dataset: el.dataset.dataset, init: document.getElementById("init-select").value,
+                  auto_activate: document.getElementById("auto-activate").checked};
+    const job = await call("POST", "/calibrate", body);
+    if (job) say("Calibration of " + body.dataset + ": job " + job.id + " " + job.status + ".");
+  },
+  async check(el) {
+    const job = await call("POST", "/check", {dataset: el.dataset.dataset, against: "active"});
+    if (job) say("Check of the active version on " + el.dataset.dataset + ": job " + job.id + " " + job.status + ".");
+  },
+  async activate(el) {
+    const v = await call("POST", "/extrinsics/versions/" + el.dataset.version + "/activate");
+    if (v) say("Version " + v.number + " is " + v.status + ".");
+  },
+  async cancel(el) {
+    const job = await call("DELETE", "/jobs/" + el.dataset.job);
+    if (job) say("Job " + job.id + ": " + job.status + ".");
+  },
+  view(el) {
+    viewer = {version: Number(el.dataset.version), pair: null, chosen: true};
+    showOverlays();
+    document.getElementById("overlays").scrollIntoView({behavior: "smooth"});
+  },
+  pair(el) {
+    viewer.pair = Number(el.dataset.pair);
+    viewer.chosen = true;
+    showOverlays();
+  },
+  "forget-token"() {
+    sessionStorage.removeItem(TOKEN_KEY);
+    showToken();
+  },
+};
+
+document.addEventListener("click", (event) => {
+  const el = event.target.closest("[data-action]");
+  if (!el || el.disabled) return;
+  event.preventDefault();
+  actions[el.dataset.action](el);
+});
+
+document.getElementById("capture-form").addEventListener("submit", async (event) => {
+  event.preventDefault();
+  const fields = event.target.elements;  // (form.dataset would be the form's data-* attributes)
+  const body = {source: fields.namedItem("source").value};
+  if (fields.namedItem("dataset").value) body.dataset = fields.namedItem("dataset").value;
+  if (fields.namedItem("n").value) body.n = Number(fields.namedItem("n").value);
+  const job = await call("POST", "/capture", body);
+  if (job) say("Capture into " + job.params.dataset + ": job " + job.id + ".");
+});
+
+document.getElementById("token-form").addEventListener("submit", (event) => {
+  event.preventDefault();
+  const input = document.getElementById("token-input");
+  sessionStorage.setItem(TOKEN_KEY, input.value);
+  input.value = "";
+  showToken();
+  say("");
+});
+
+function overlayUrl(version, pair, stage) {
+  return "/extrinsics/versions/" + version + "/overlays/" + pair + ".png?stage=" + stage;
+}
+
+// The viewer follows the newest version with overlays until the operator picks one.
+function showOverlays() {
+  const rows = [...document.querySelectorAll(".version[data-pairs]")].filter((r) => r.dataset.pairs !== "");
+  if (!viewer.chosen || !rows.some((r) => Number(r.dataset.version) === viewer.version)) {
+    viewer.version = rows.length ? Number(rows[0].dataset.version) : null;
+    viewer.pair = null;
+  }
+  const row = rows.find((r) => Number(r.dataset.version) === viewer.version);
+  const pairs = row ? row.dataset.pairs.split(",").map(Number) : [];
+  if (!pairs.includes(viewer.pair)) viewer.pair = pairs.length ? pairs[0] : null;
+  document.getElementById("overlay-empty").hidden = Boolean(row);
+  document.getElementById("overlay-title").textContent = row ? "version " + viewer.version + ", pair " + viewer.pair : "";
+  const chips = document.getElementById("overlay-pairs");
+  chips.replaceChildren(...pairs.map((p) => {
+    const b = document.createElement("button");
+    b.type = "button";
+    b.dataset.action = "pair";
+    b.dataset.pair = p;
+    b.textContent = "pair " + p;
+    b.classList.toggle("current", p === viewer.pair);
+    return b;
+  }));
+  for (const stage of ["before", "after", "closeup"]) {
+    const img = document.getElementById("ov-" + stage);
+    const link = document.getElementById("ov-" + stage + "-link");
+    if (!row) { img.hidden = true; link.removeAttribute("href"); continue; }
+    const url = overlayUrl(viewer.version, viewer.pair, stage);
+    if (img.getAttribute("src") !== url) img.src = url;
+    link.href = url;
+    img.hidden = false;
+  }
+}
+
+async function refresh() {
+  clearTimeout(timer);
+  let busy = false;
+  try {
+    const response = await fetch("/ui/live", {headers: {"Accept": "application/json"}});
+    if (!response.ok) throw new Error("GET /ui/live: " + response.status);
+    const live = await response.json();
+    busy = live.busy;
+    for (const [name, html] of Object.entries(live.parts)) {
+      if (shown[name] === html) continue;
+      document.querySelector('[data-part="' + name + '"]').innerHTML = html;
+      shown[name] = html;
+    }
+    showToken();
+    showOverlays();
+  } catch (err) {
+    say("Cannot refresh: " + err.message, true);
+  }
+  timer = setTimeout(refresh, busy ? 1000 : 4000);
+}
+
+showToken();
+showOverlays();
+timer = setTimeout(refresh, 1000);
