@@ -108,8 +108,12 @@ def largest_change_box(camera: CameraModel, idx_before: NDArray[np.intp], uv_bef
     np.add.at(heat, (mid[:, 1], mid[:, 0]), moved)
     summed = cv2.boxFilter(heat, -1, (bw, bh), normalize=False, borderType=cv2.BORDER_CONSTANT)
     cv, cu = np.unravel_index(int(np.argmax(summed)), summed.shape)
-    u0 = int(np.clip(cu - bw // 2, 0, w - bw))
-    v0 = int(np.clip(cv - bh // 2, 0, h - bh))
+    # Many windows hold the same points (argmax takes the first): centre the best one on what moved in it.
+    inside = (np.abs(mid[:, 0] - cu) <= bw // 2) & (np.abs(mid[:, 1] - cv) <= bh // 2)
+    if moved[inside].sum() > 0:
+        cu, cv = np.average(mid[inside], axis=0, weights=moved[inside])
+    u0 = int(np.clip(round(cu) - bw // 2, 0, w - bw))
+    v0 = int(np.clip(round(cv) - bh // 2, 0, h - bh))
     return u0, v0, bw, bh
 
 
