@@ -6,6 +6,7 @@ import pathlib
 from dataclasses import asdict
 from typing import Annotated
 
+import cv2
 from fastapi import APIRouter, Path, Query, Response, status
 from fastapi.responses import FileResponse
 
@@ -13,6 +14,7 @@ from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.exports import ExportFormat, render
 from rigd.api.models import ChangeOut, ErrorOut, ManualVersionIn, TransformOut, VersionOut
 from rigd.api.service import Service
+from rigd.errors import RigdError
 from rigd.store import ExtrinsicsVersion, NewVersion, NotFoundError
 
 router = APIRouter(prefix="/extrinsics", tags=["extrinsics"])
@@ -102,5 +104,24 @@ def get_overlay(service: ServiceDep, number: VersionNumber, pair: Annotated[int,
                 stage: Annotated[str, Query(pattern="^(after|before|closeup)$",
                                             description="after: with this version; before: with its initial guess; "
                                             "closeup: before | after where the points moved most, enlarged")
-                                 ] = "after") -> FileResponse:
-    return FileResponse(overlay_path(service, service.versions.get(number), pair, stage), media_type="image/png")
+                                 ] = "after",
+                width: Annotated[int | None, Query(ge=64, le=8192, description="at most this wide (px): a smaller "
+                                                   "copy for a screen; absent: full resolution")] = None) -> Response:
+    path = overlay_path(service, service.versions.get(number), pair, stage)
+    if width is None:
+        return FileResponse(path, media_type="image/png")
+    return Response(narrowed_png(path, width), media_type="image/png")
+
+
+def narrowed_png(path: pathlib.Path, width: int) -> bytes:
+    """The PNG at ``path``, scaled down (area averaging) to ``width`` px if it is wider."""
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        raise NotFoundError(f"the overlay {path.name} cannot be read as an image")
+    if image.shape[1] > width:
+        height = max(1, round(image.shape[0] * width / image.shape[1]))
+        image = cv2.resize(image, (width, height), interpolation=cv2.INTER_AREA)
+    ok, encoded = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not ok:
+        raise RigdError(f"the overlay {path.name} could not be encoded")
+    return encoded.tobytes()

@@ -123,6 +123,12 @@ function overlayUrl(version, pair, stage) {
   return "/extrinsics/versions/" + version + "/overlays/" + pair + ".png?stage=" + stage;
 }
 
+// Shown at most as wide as the screen can use (a phone need not fetch a 2048 px panorama); the link is full size.
+function shownWidth(figure) {
+  const wanted = Math.max(figure.clientWidth, 320) * (window.devicePixelRatio || 1);
+  return Math.min(4096, Math.ceil(wanted / 256) * 256);
+}
+
 // The viewer follows the newest version with overlays until the operator picks one.
 function showOverlays() {
   const rows = [...document.querySelectorAll(".version[data-pairs]")].filter((r) => r.dataset.pairs !== "");
@@ -134,6 +140,8 @@ function showOverlays() {
   const pairs = row ? row.dataset.pairs.split(",").map(Number) : [];
   if (!pairs.includes(viewer.pair)) viewer.pair = pairs.length ? pairs[0] : null;
   document.getElementById("overlay-empty").hidden = Boolean(row);
+  document.getElementById("overlay-views").hidden = !row;
+  document.getElementById("overlay-closeup").hidden = !row;
   document.getElementById("overlay-title").textContent = row ? "version " + viewer.version + ", pair " + viewer.pair : "";
   const chips = document.getElementById("overlay-pairs");
   chips.replaceChildren(...pairs.map((p) => {
@@ -150,7 +158,8 @@ function showOverlays() {
     const link = document.getElementById("ov-" + stage + "-link");
     if (!row) { img.hidden = true; link.removeAttribute("href"); continue; }
     const url = overlayUrl(viewer.version, viewer.pair, stage);
-    if (img.getAttribute("src") !== url) img.src = url;
+    const src = url + "&width=" + shownWidth(img.closest("figure"));
+    if (img.getAttribute("src") !== src) img.src = src;
     link.href = url;
     img.hidden = false;
   }

@@ -10,6 +10,7 @@ The page's load time (navigation start to the load event) is printed: ``pytest -
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import time
 from pathlib import Path
@@ -152,7 +153,12 @@ def test_page_capture_calibrate_check_activate(browser, server, figures):
     # A capture of 2 pairs from the simulated rig (the rig file's sources), seen progressing.
     browser.find_element(By.NAME, "dataset").send_keys("field")
     click(browser, "#capture-form button[type=submit]")
-    shown = watch(browser, "#capture-job", lambda t: "succeeded" in t or "failed" in t, 120)
+    finished = lambda t: "succeeded" in t or "failed" in t  # noqa: E731
+    receiving = re.compile(r"[1-9][0-9]* packets/s")
+    shown = watch(browser, "#capture-job", lambda t: bool(receiving.search(t)) or finished(t), 120)
+    assert "running" in shown[-1] and receiving.search(shown[-1]) and "still for" in shown[-1], shown  # live
+    browser.save_screenshot(str(figures / "page-capturing.png"))
+    shown += watch(browser, "#capture-job", finished, 120)
     assert "succeeded" in shown[-1], shown
     assert any("running" in s and "pairs" in s for s in shown), shown  # its state and pair count, live
     assert "2 pairs written" in shown[-1]
@@ -163,7 +169,7 @@ def test_page_capture_calibrate_check_activate(browser, server, figures):
     Select(browser.find_element(By.ID, "init-select")).select_by_value("rig")
     click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
     until(browser, 10, lambda d: d.find_elements(By.CSS_SELECTOR, '.job[data-kind="calibrate"]'))
-    shown = watch(browser, '.job[data-kind="calibrate"]', lambda t: "succeeded" in t or "failed" in t, 240)
+    shown = watch(browser, '.job[data-kind="calibrate"]', finished, 240)
     assert "succeeded" in shown[-1] and "version 1" in shown[-1], shown
     assert any("running" in s for s in shown), shown
     assert len(shown) >= 2, shown  # the stage moved on while it ran (edges, optimising, overlays)
@@ -201,7 +207,7 @@ def test_page_capture_calibrate_check_activate(browser, server, figures):
     # A check of the active version (2, 3 cm and 0.5 deg off the calibration) against the dataset.
     click(browser, 'button[data-action="check"][data-dataset="field"]')
     until(browser, 10, lambda d: d.find_elements(By.CSS_SELECTOR, '.job[data-kind="check"]'))
-    shown = watch(browser, '.job[data-kind="check"]', lambda t: "succeeded" in t or "failed" in t, 180)
+    shown = watch(browser, '.job[data-kind="check"]', finished, 180)
     assert "succeeded" in shown[-1] and any(v in shown[-1] for v in ("ok", "drifted", "unknown")), shown
     with server.client() as client:
         check = client.get("/jobs", params={"kind": "check"}).json()[0]

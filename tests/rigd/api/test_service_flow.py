@@ -184,4 +184,9 @@ def check_overlays(client, version):
     closeup = client.get(version["overlays"][1], params={"stage": "closeup"})
     assert closeup.status_code == 200 and closeup.headers["content-type"] == "image/png"
     assert client.get(version["overlays"][1], params={"stage": "sideways"}).status_code == 422
+    small = client.get(version["overlays"][1], params={"stage": "before", "width": 64})
+    assert small.status_code == 200 and small.headers["content-type"] == "image/png"
+    small_image = cv2.imdecode(np.frombuffer(small.content, np.uint8), cv2.IMREAD_COLOR)
+    assert small_image.shape == (32, 64, 3)
+    assert client.get(version["overlays"][1], params={"width": 10}).status_code == 422
     assert client.get(f"/extrinsics/versions/{version['number']}/overlays/7.png").status_code == 404
