@@ -47,6 +47,17 @@ def start(data: Path, port: int) -> subprocess.Popen[bytes]:
     raise SystemExit("rigd serve did not start")
 
 
+def bench_data_dir(tmp: Path, pairs: int, width: int) -> tuple[Path, dict[str, list[float]]]:
+    """A data directory holding dataset ``bench`` (simulated, indoor, seed 3) and an initial guess for it
+    2 deg / 3 cm off its ground truth."""
+    data = tmp / "data"
+    dataset = write_simulated_dataset(data / "datasets" / "bench", "indoor", pairs, 3, width, width // 2,
+                                      progress=False)
+    truth = open_dataset(dataset).ground_truth
+    assert truth is not None
+    return data, {"rpy_deg": (truth.rpy_deg + 2.0).tolist(), "xyz_m": (truth.translation_m + 0.03).tolist()}
+
+
 def timed_status(client: httpx.Client) -> float:
     started = time.perf_counter()
     response = client.get("/status")
@@ -68,12 +79,7 @@ def main() -> None:
     parser.add_argument("--idle-requests", type=int, default=300)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        data = Path(tmp) / "data"
-        dataset = write_simulated_dataset(data / "datasets" / "bench", "indoor", args.pairs, 3, args.width,
-                                          args.width // 2, progress=False)
-        truth = open_dataset(dataset).ground_truth
-        assert truth is not None
-        init = {"rpy_deg": (truth.rpy_deg + 2.0).tolist(), "xyz_m": (truth.translation_m + 0.03).tolist()}
+        data, init = bench_data_dir(Path(tmp), args.pairs, args.width)
         port = free_port()
         proc = start(data, port)
         try:
