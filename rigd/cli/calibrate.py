@@ -81,8 +81,9 @@ def register(subparsers: Any) -> None:
         "calibrate",
         help="estimate T_camera_lidar from a dataset",
         description="Targetless calibration (Kang & Doh 2020): aligns image edges and LiDAR edges with a "
-        "Gaussian mixture model, coarse to fine. Writes OUT/extrinsics.yaml, overlays/ (LiDAR points over "
-        "each image before and after, coloured by range) and clouds/ (coloured PLY per pair).",
+        "Gaussian mixture model, coarse to fine. Writes OUT/extrinsics.yaml, overlays/ (the LiDAR edge "
+        "points over each image before and after, coloured by range, and a close-up of where they moved most) and "
+        "clouds/ (coloured PLY per pair).",
     )
     parser.add_argument("dataset", type=Path, metavar="DATASET")
     parser.add_argument("--init", type=str, default=None,

@@ -183,8 +183,11 @@ async function refresh() {
   } catch (err) {
     say("Cannot refresh: " + err.message, true);
   }
-  timer = setTimeout(refresh, busy ? 1000 : 4000);
+  // A tab in the background (a phone in a pocket) asks rarely, and at once when it is looked at again.
+  timer = setTimeout(refresh, document.hidden ? 30000 : busy ? 1000 : 4000);
 }
+
+document.addEventListener("visibilitychange", () => { if (!document.hidden) refresh(); });
 
 showToken();
 showOverlays();
