@@ -21,12 +21,12 @@ keeps roll and pitch within ``tilt_deg`` of looking level along the LiDAR's hori
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.camera import CameraModel, Equirectangular
+from calib.camera import CameraModel, Equirectangular, Pinhole
 from calib.errors import InitialGuessError
 from calib.geometry import rotation_angle_deg, rpy_deg_to_matrix, so3_exp, so3_log
 from calib.gmm import PairFeatures
@@ -83,9 +83,26 @@ def base_rotation(camera: CameraModel) -> F64:
     return OPTICAL_FROM_LIDAR_AXES.copy()
 
 
+def default_search(camera: CameraModel) -> SearchOptions:
+    """The search's range for ``camera`` when the rig file sets none: every yaw and +-30 deg of tilt for a
+    panorama; for a pinhole camera the rotations that keep the LiDAR's forward axis in the field of view
+    (yaw within half the horizontal, roll and pitch within half the vertical field of view), with grid steps
+    of an eighth of the horizontal field and the Gaussian narrowed with them."""
+    opts = SearchOptions()
+    if not isinstance(camera, Pinhole):
+        return opts
+    fx, fy = float(camera.K[0, 0]), float(camera.K[1, 1])
+    hfov = float(np.degrees(2.0 * np.arctan(camera.width / (2.0 * fx))))
+    vfov = float(np.degrees(2.0 * np.arctan(camera.height / (2.0 * fy))))
+    step = min(opts.yaw_step_deg, hfov / 8.0)
+    return replace(opts, yaw_range_deg=min(opts.yaw_range_deg, hfov / 2.0), tilt_deg=min(opts.tilt_deg, vfov / 2.0),
+                   yaw_step_deg=step, tilt_step_deg=step, sigma_deg=min(opts.sigma_deg, step / 2.5))
+
+
 def grid_mounts(opts: SearchOptions) -> F64:
     """(K,3) roll, pitch, yaw in degrees of every grid mount."""
-    yaws = np.arange(-opts.yaw_range_deg, opts.yaw_range_deg - 1e-9, opts.yaw_step_deg)
+    full_turn = opts.yaw_range_deg >= 180.0  # -180 and +180 are one mount
+    yaws = np.arange(-opts.yaw_range_deg, opts.yaw_range_deg + (-1e-9 if full_turn else 1e-9), opts.yaw_step_deg)
     n_tilt = int(np.floor(opts.tilt_deg / opts.tilt_step_deg + 1e-9))
     tilts = opts.tilt_step_deg * np.arange(-n_tilt, n_tilt + 1)
     r, p, y = np.meshgrid(tilts, tilts, yaws, indexing="ij")
@@ -171,7 +188,7 @@ def search_initial(
 ) -> SearchResult:
     """Distinct starts for the coarse-to-fine solve, best first; ``translation_m`` (3,) the lever arm
     (the translation of T_camera_lidar) held during the search. ``on_progress(done, total)`` per pair."""
-    opts = opts or SearchOptions()
+    opts = opts or default_search(feats[0].camera)
     base = base_rotation(feats[0].camera)
     mounts = grid_mounts(opts)
     rotations = _rotations(base, mounts)

@@ -17,7 +17,7 @@ from calib.assess import Assessment, TrustOptions
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
-from calib.initial import SearchOptions, SearchResult
+from calib.initial import SearchOptions, SearchResult, default_search
 from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features, paper_params
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
@@ -196,7 +196,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
     feats = dataset_features(dataset, params, progress)
-    search = dataset.rig.search or SearchOptions()
+    search = dataset.rig.search or default_search(dataset.rig.camera.model())
 
     def on_search(done: int, total: int) -> None:
         if progress and (done == total or done % 50 == 0):

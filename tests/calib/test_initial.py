@@ -9,7 +9,7 @@ from calib.assess import TrustOptions, assess
 from calib.camera import Pinhole
 from calib.geometry import Transform, rotation_angle_deg, so3_exp
 from calib.gmm import Evaluator, GmmOptions
-from calib.initial import SearchOptions, base_rotation, grid_mounts, search_initial
+from calib.initial import SearchOptions, base_rotation, default_search, grid_mounts, search_initial
 from calib.optimize import OptimOptions, optimise
 from calib.pipeline import CalibParams, calibrate
 from tests.calib.synthetic import TRUTH, make_pair
@@ -30,13 +30,20 @@ def test_grid_covers_every_yaw_and_the_tilt_range():
     assert len(np.unique(mounts, axis=0)) == len(mounts)
 
 
-def test_pinhole_search_looks_along_the_lidar_forward_axis(pairs):
-    base = base_rotation(Pinhole(np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]]), np.zeros(5), 640, 480))
+def test_pinhole_search_looks_along_the_lidar_forward_axis_within_the_field_of_view(pairs):
+    pinhole = Pinhole(np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]]), np.zeros(5), 640, 480)
+    base = base_rotation(pinhole)
     # LiDAR forward, left, up -> optical z, -x, -y
     np.testing.assert_array_equal(base @ [1, 0, 0], [0, 0, 1])
     np.testing.assert_array_equal(base @ [0, 1, 0], [-1, 0, 0])
     np.testing.assert_array_equal(base @ [0, 0, 1], [0, -1, 0])
     np.testing.assert_array_equal(base_rotation(pairs[0].camera), np.eye(3))
+    opts = default_search(pinhole)  # 65.2 x 51.3 deg field of view
+    assert opts.yaw_range_deg == pytest.approx(np.degrees(np.arctan(0.64)))
+    assert opts.tilt_deg == pytest.approx(np.degrees(np.arctan(0.48)))
+    mounts = grid_mounts(opts)
+    assert mounts[:, 2].min() == pytest.approx(-opts.yaw_range_deg) and mounts[:, 2].max() <= opts.yaw_range_deg
+    assert default_search(pairs[0].camera) == SearchOptions()
 
 
 def test_search_finds_a_mount_far_outside_the_local_basin(pairs):
