@@ -71,6 +71,7 @@ class TrustOptions:
     ambiguity_nll: float = 4.5  # 2 * delta NLL < 9: within 3 sigma of the best, statistically a tie
     jackknife_min_pairs: int = 4  # fewer pairs: the jackknife leaves out groups of image cells instead
     jackknife_groups: int = 8
+    search_runners_up: int = 1  # without an initial guess: the global search's next starts solved in full
     failed_tolerances: float = 5.0  # ambiguity or sigma beyond this many tolerances on most axes: failed
     seed: int = 0
 
@@ -103,6 +104,7 @@ class Restart:
 
     offset: F64
     delta_nll: float
+    origin: str = "restart"  # or "search runner-up": a full solve from the global search's next start
 
 
 @dataclass(frozen=True)
@@ -241,7 +243,7 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> 
             names = [AXES[k] for k in np.flatnonzero(moved)]
             weak.update(names)
             where = ", ".join(f"{AXES[k]} {r.offset[k]:+.3g}" for k in np.flatnonzero(moved))
-            reasons.append(f"restart {i + 1} ended {where} away at a cost the data cannot tell apart "
+            reasons.append(f"{r.origin} {i + 1} ended {where} away at a cost the data cannot tell apart "
                            f"(delta NLL {r.delta_nll:.2f})")
             ambiguous_far |= bool((np.abs(r.offset) > trust.failed_tolerances * tol).any())
     far = trust.sigma_factor * unc.sigma > trust.failed_tolerances * tol
@@ -256,12 +258,16 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> 
 
 
 def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions,
-           prior: Prior | None, trust: TrustOptions) -> Assessment:
-    """Restarts, uncertainty and verdict of ``result`` (the coarse-to-fine solution on ``feats``)."""
+           prior: Prior | None, trust: TrustOptions, alternatives: tuple[OptimResult, ...] = ()) -> Assessment:
+    """Restarts, uncertainty and verdict of ``result`` (the coarse-to-fine solution on ``feats``).
+    ``alternatives``: full solves from other starts (the global search's runners-up); they count as
+    restarts, so one that ends lower becomes the solution and one that ends elsewhere as low is ambiguity."""
     best, runs = _run_restarts(feats, result, opts, gmm, prior, trust)
+    best = min([best, *alternatives], key=lambda r: r.final_cost)
     unc = _uncertainty(feats, best.tau, opts, gmm, prior, trust)
+    origins = ["solution"] + ["restart"] * len(runs) + ["search runner-up"] * len(alternatives)
     restarts = tuple(
-        Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (r.final_cost - best.final_cost) / unc.kappa)
-        for r in [result, *runs] if r is not best
+        Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (r.final_cost - best.final_cost) / unc.kappa, origin)
+        for r, origin in zip([result, *runs, *alternatives], origins, strict=True) if r is not best
     )
     return Assessment(best.tau, best, unc, restarts, _verdict(unc, list(restarts), trust))

@@ -25,6 +25,7 @@ from calib.errors import FeaturelessError, InitialGuessError
 from calib.fields import EdgeFields
 from calib.geometry import Transform
 from calib.gmm import Evaluator, GmmOptions, KernelNorm, PairFeatures, in_image, transform_points
+from calib.initial import SearchOptions, SearchResult, search_initial
 from calib.optimize import OptimOptions, OptimResult, optimise
 from calib.prior import Prior
 
@@ -73,6 +74,7 @@ class CalibResult:
     optim: OptimResult
     pairs: tuple[PairStats, ...]
     assessment: Assessment | None = None
+    search: SearchResult | None = None  # the global search, when no initial guess was given
 
 
 def paper_params() -> CalibParams:
@@ -132,16 +134,35 @@ def schedule(feats: list[PairFeatures], params: CalibParams) -> OptimOptions:
     return params.optim
 
 
+def _alternatives(feats: list[PairFeatures], found: SearchResult | None, optim: OptimOptions, gmm: GmmOptions,
+                  prior: Prior | None, runners_up: int) -> tuple[OptimResult, ...]:
+    """Full solves from the global search's next-best distinct starts (the assessment weighs them)."""
+    if found is None:
+        return ()
+    single = replace(optim, alternative_schedules=0)
+    return tuple(optimise(feats, c.tau, single, gmm, None, prior) for c in found.candidates[1:1 + runners_up])
+
+
 def calibrate(
     feats: list[PairFeatures],
-    initial: Transform,
+    initial: Transform | None,
     params: CalibParams,
     on_iter: Callable[[int, int, float], None] | None = None,
     prior: Prior | None = None,
     trust: TrustOptions | None = None,
+    search: SearchOptions | None = None,
+    on_search: Callable[[int, int], None] | None = None,
 ) -> CalibResult:
     """Algorithm 1 from ``initial`` (with the prior's MAP term if given), then, with ``trust``, the restarts,
-    per-axis uncertainty and verdict of :mod:`calib.assess` (a restart that ends lower is the solution)."""
+    per-axis uncertainty and verdict of :mod:`calib.assess` (a restart that ends lower is the solution).
+
+    ``initial`` None: the global search of :mod:`calib.initial` (``search`` options, the lever arm from the
+    prior or zero) gives the start, and its runner-up is solved in full too and weighed by the assessment."""
+    found = None
+    if initial is None:
+        lever_arm = prior.xyz_m if prior is not None and prior.xyz_m is not None else np.zeros(3)
+        found = search_initial(feats, lever_arm, search, on_search)
+        initial = Transform.from_tau(found.best.tau)
     if prior is not None and prior.fix_translation and prior.xyz_m is not None:
         initial = Transform(initial.rotation, prior.xyz_m)
     tau0 = initial.tau
@@ -154,6 +175,7 @@ def calibrate(
     result = optimise(feats, tau0, optim, params.gmm, on_iter, prior)
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
     if trust is None:
-        return CalibResult(Transform.from_tau(result.tau), result, stats)
-    assessment = assess(feats, result, optim, params.gmm, prior, trust)
-    return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment)
+        return CalibResult(Transform.from_tau(result.tau), result, stats, search=found)
+    others = _alternatives(feats, found, optim, params.gmm, prior, trust.search_runners_up)
+    assessment = assess(feats, result, optim, params.gmm, prior, trust, others)
+    return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found)

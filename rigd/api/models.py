@@ -98,9 +98,10 @@ class ToleranceIn(Request):
 
 class CalibrateIn(Request):
     dataset: DatasetId
-    init: Literal["active", "rig"] | TransformIn = Field(
+    init: Literal["active", "rig", "search"] | TransformIn = Field(
         "active", description="initial guess: the active extrinsics version, the rig file's (the dataset's "
-        "rig.yaml, else the service's rig file), or an explicit transform")
+        "rig.yaml, else the service's rig file; neither has one: the global search), 'search' (a global search, "
+        "after a reassembly), or an explicit transform")
     sigmas_deg: Annotated[list[Annotated[float, Field(gt=0.0, le=30.0)]], Field(min_length=1, max_length=6)] | None = (
         Field(None, description="sigma_in per coarse-to-fine level, deg at 1 m; absent: the calibration's default "
               "schedule (the levels used are in the version's quality figures)"))

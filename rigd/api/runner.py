@@ -75,8 +75,8 @@ class CalibrationPlan:
     """A validated calibration request: the dataset and the resolved initial guess."""
 
     dataset_id: str
-    initial: Transform
-    init: str  # active | rig | explicit
+    initial: Transform | None  # None: the global search for a start (init "search")
+    init: str  # active | rig | search | explicit
     init_version: int | None
     sigmas_deg: tuple[float, ...] | None  # None: the calibration's default schedule
     auto_activate: bool
@@ -86,7 +86,7 @@ class CalibrationPlan:
 
     def params(self) -> dict[str, Any]:
         return {"dataset": self.dataset_id, "init": self.init, "init_version": self.init_version,
-                "initial": transform_to_yaml(self.initial),
+                "initial": transform_to_yaml(self.initial) if self.initial is not None else None,
                 "sigmas_deg": list(self.sigmas_deg) if self.sigmas_deg is not None else None,
                 "auto_activate": self.auto_activate, "prior": self.prior, "fix_translation": self.fix_translation,
                 "tolerance": self.tolerance}
@@ -198,7 +198,8 @@ class JobRunner:
                     "threshold": params["threshold"]}
         out_dir = self.jobs.job_dir(job.id) / "calibration"
         return {"dataset": dataset, "out_dir": str(out_dir),
-                "initial_matrix": params["initial"]["matrix"], "sigmas_deg": params["sigmas_deg"],
+                "initial_matrix": params["initial"]["matrix"] if params["initial"] else None,
+                "sigmas_deg": params["sigmas_deg"],
                 "prior": params.get("prior"), "fix_translation": params.get("fix_translation", False),
                 "tolerance": params.get("tolerance")}
 
@@ -260,7 +261,7 @@ class JobRunner:
         params, report = job.params, result["report"]
         pairs = result["pair_numbers"]
         quality = {**report["quality"], "pairs_used": len(pairs)}
-        for key in ("error_vs_ground_truth", "uncertainty", "verdict"):
+        for key in ("error_vs_ground_truth", "uncertainty", "verdict", "initial_search"):
             if key in report:
                 quality[key] = report[key]
         decision: dict[str, Any] = {"requested": params["auto_activate"]}

@@ -79,7 +79,9 @@ def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
     request = CalibrationRequest(
         dataset=dataset.root,
         out_dir=Path(job["out_dir"]),
-        initial=Transform.from_matrix(np.asarray(job["initial_matrix"], dtype=np.float64)),
+        initial=Transform.from_matrix(np.asarray(job["initial_matrix"], dtype=np.float64))
+        if job["initial_matrix"] is not None else None,
+        search=job["initial_matrix"] is None,
         prior=prior_from_yaml(job["prior"], "request prior") if job.get("prior") else None,
         fix_translation=bool(job.get("fix_translation", False)),
         tolerance=tolerance_from_yaml(job["tolerance"], "request tolerance") if job.get("tolerance") else None,

@@ -17,6 +17,7 @@ from calib.assess import Assessment, TrustOptions
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
+from calib.initial import SearchOptions, SearchResult, default_search
 from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features, paper_params
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
@@ -47,6 +48,7 @@ class CalibrationRequest:
     prior: Prior | None = None  # None: the dataset's rig.yaml prior (if any)
     fix_translation: bool = False  # hold the translation at the prior's (or the initial guess's) lever arm
     tolerance: TrustOptions | None = None  # None: rig.yaml's tolerance, else 0.2 deg / 2 cm
+    search: bool = False  # True: the global search even if a guess exists (it runs anyway without one)
 
 
 @dataclass(frozen=True)
@@ -60,12 +62,27 @@ class CalibrationOutcome:
 Progress = Callable[[str, float], None]
 
 
-def _initial(request: CalibrationRequest, dataset: Dataset) -> Transform:
-    if request.initial is not None:
-        return request.initial
-    if dataset.rig.initial_guess is not None:
-        return dataset.rig.initial_guess
-    raise RigdError(f"{dataset.root / 'rig.yaml'}: no initial_guess; give one with --init 'r,p,y,x,y,z'")
+def _initial(request: CalibrationRequest, dataset: Dataset) -> Transform | None:
+    """The request's guess, else rig.yaml's; None (the global search) when neither or ``request.search``."""
+    if request.search:
+        return None
+    return request.initial if request.initial is not None else dataset.rig.initial_guess
+
+
+def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> dict[str, Any]:
+    """The ``initial_search`` section of a report: which grid mount won and where the runners-up ended."""
+    best = Transform.from_tau(found.best.tau)
+    return {
+        "grid": {"mounts": found.evaluations, "sigma_deg": opts.sigma_deg, "yaw_range_deg": opts.yaw_range_deg,
+                 "yaw_step_deg": opts.yaw_step_deg, "tilt_deg": opts.tilt_deg, "tilt_step_deg": opts.tilt_step_deg},
+        "start": {"grid_rpy_deg": found.best.grid_rpy_deg.tolist(), "rpy_deg": best.rpy_deg.tolist(),
+                  "xyz_m": best.translation_m.tolist()},
+        "candidates": [{"grid_rpy_deg": c.grid_rpy_deg.tolist(), "rpy_deg": Transform.from_tau(c.tau).rpy_deg.tolist(),
+                        "cost": c.cost, "grid_rank": c.grid_rank,
+                        "from_start_deg": rotation_angle_deg(best.rotation, Transform.from_tau(c.tau).rotation)}
+                       for c in found.candidates],
+        "wall_time_s": round(wall_s, 3),
+    }
 
 
 def _prior(request: CalibrationRequest, dataset: Dataset) -> Prior | None:
@@ -182,13 +199,25 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
     feats = dataset_features(dataset, params, progress)
+    search = dataset.rig.search or default_search(dataset.rig.camera.model())
+
+    def on_search(done: int, total: int) -> None:
+        if progress and (done == total or done % 50 == 0):
+            progress(f"no initial guess: global search, mount {done}/{total}", 0.5 + 0.2 * done / total)
+
     if progress:
-        progress("optimising", 0.5)
+        progress("optimising" if initial is not None else "no initial guess: global search", 0.5)
+    searched = time.monotonic()
     try:
-        result = calibrate(feats, initial, params, on_iter, prior, trust)
+        result = calibrate(feats, initial, params, on_iter, prior, trust, search, on_search)
     except CalibError as exc:
         raise RigdError(f"{dataset.root}: {exc}") from exc
+    if result.search is not None:
+        initial = Transform.from_tau(result.search.best.tau)
+    assert initial is not None
     report = _report(result, initial, dataset, time.monotonic() - started)
+    if result.search is not None:
+        report["initial_search"] = search_yaml(result.search, search, time.monotonic() - searched)
     report["method"] = {"name": request.method.value, "sigmas_deg": list(params.optim.sigmas_deg)}
     if prior is not None:
         report["prior"] = prior_to_yaml(prior)

@@ -14,6 +14,7 @@ from typing import Any
 
 from calib.assess import TrustOptions
 from calib.geometry import Transform
+from calib.initial import SearchOptions
 from calib.prior import Prior
 from drivers.ladybug5.sdk import DEFAULT_LIBRARY
 from drivers.ladybug5.stitch import DEFAULT_RADIUS_M
@@ -62,6 +63,7 @@ class RigSettings:
     initial_guess: Transform | None = None
     prior: Prior | None = None  # the rig's drawing, carried into each dataset's rig.yaml (docs/trust.md)
     tolerance: TrustOptions | None = None
+    search: SearchOptions | None = None
     sdk: SdkSettings = field(default_factory=SdkSettings)
     capture: CaptureDefaults = field(default_factory=CaptureDefaults)
 
@@ -105,6 +107,7 @@ def load_settings(path: Path | None) -> RigSettings:
         initial_guess=rig.initial_guess if rig else None,
         prior=rig.prior if rig else None,
         tolerance=rig.tolerance if rig else None,
+        search=rig.search if rig else None,
         sdk=_sdk(_section(camera, "sdk", f"{where}: camera"), where),
         capture=_capture(_section(data, "capture", where), where),
     )

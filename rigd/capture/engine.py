@@ -332,7 +332,7 @@ class _Session:
             return
         camera = CameraConfig(CameraKind.EQUIRECTANGULAR, width, height)
         write_rig(self.out, RigConfig(camera, self.settings.lidar_model, self.settings.initial_guess,
-                                      self.settings.prior, self.settings.tolerance))
+                                      self.settings.prior, self.settings.tolerance, self.settings.search))
         spec = self.sources.sim_spec
         if spec is not None and not (self.out / "ground_truth.yaml").is_file():
             write_ground_truth(self.out, Transform.from_matrix(spec.T_camera_lidar.matrix))

@@ -86,8 +86,14 @@ def register(subparsers: Any) -> None:
         "clouds/ (coloured PLY per pair).",
     )
     parser.add_argument("dataset", type=Path, metavar="DATASET")
-    parser.add_argument("--init", type=str, default=None,
-                        help="initial guess 'roll,pitch,yaw,x,y,z' in deg and m (default: rig.yaml initial_guess)")
+    start = parser.add_mutually_exclusive_group()
+    start.add_argument("--init", type=str, default=None,
+                       help="initial guess 'roll,pitch,yaw,x,y,z' in deg and m (default: rig.yaml initial_guess; "
+                       "without one rigd searches globally)")
+    start.add_argument("--search", action="store_true",
+                       help="search globally for the initial guess even if rig.yaml has one (after a reassembly): "
+                       "any yaw, roll and pitch within rig.yaml search.tilt_deg (default 30), the lever arm from "
+                       "the prior or zero")
     parser.add_argument("--sigmas", type=str, default=None,
                         help="sigma_in per coarse-to-fine level, degrees at 1 m (default: "
                         f"{','.join(map(str, DEFAULT_SIGMAS_DEG))}; with --method paper the paper's 15,10,5 px of a "
@@ -129,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         prior=parse_prior(args.prior, args.prior_rotation),
         fix_translation=args.fix == "translation",
         tolerance=parse_tolerance(args.tolerance) if args.tolerance else None,
+        search=args.search,
     )
     outcome = run_calibration(request, _progress, _on_iter)
     verdict = outcome.report["verdict"]
@@ -138,6 +145,8 @@ def run(args: argparse.Namespace) -> int:
         T = outcome.T_camera_lidar
         print(f"T_camera_lidar rpy_deg {np.round(T.rpy_deg, 3).tolist()} xyz_m {np.round(T.translation_m, 4).tolist()}")
         print(f"written: {outcome.out_dir / 'extrinsics.yaml'}")
+        if "initial_search" in outcome.report:
+            print_search(outcome.report["initial_search"])
         print_trust(outcome.report)
         err = outcome.report.get("error_vs_ground_truth")
         if err:
@@ -147,6 +156,15 @@ def run(args: argparse.Namespace) -> int:
 
 def _fmt(values: list[float | None]) -> str:
     return ", ".join("unknown" if v is None else (">1000" if v > 1e3 else f"{v:.3g}") for v in values)
+
+
+def print_search(section: dict[str, Any]) -> None:
+    start = section["start"]
+    print(f"initial guess by global search ({section['grid']['mounts']} mounts, {section['wall_time_s']:.0f} s): "
+          f"start rpy_deg {np.round(start['rpy_deg'], 1).tolist()} from grid mount {start['grid_rpy_deg']}")
+    for c in section["candidates"][1:]:
+        print(f"  runner-up: {c['from_start_deg']:.1f} deg away, cost {c['cost']:.3f} "
+              f"(winner {section['candidates'][0]['cost']:.3f})")
 
 
 def print_trust(report: dict[str, Any]) -> None:

@@ -13,6 +13,7 @@ from calib.assess import TrustOptions
 from calib.camera import CameraModel, Equirectangular, Pinhole
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
+from calib.initial import SearchOptions
 from calib.prior import Prior
 from rigd.errors import DatasetError
 
@@ -143,16 +144,34 @@ def tolerance_from_yaml(data: Any, where: str) -> TrustOptions:
     return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)
 
 
+SEARCH_KEYS = ("tilt_deg", "yaw_range_deg")
+
+
+def search_from_yaml(data: Any, where: str) -> SearchOptions:
+    """``search: {tilt_deg: 30, yaw_range_deg: 180}``: how far the global search for an initial guess looks
+    (roll and pitch within +-tilt_deg, yaw within +-yaw_range_deg of the LiDAR's forward axis)."""
+    if not isinstance(data, dict) or set(data) - set(SEARCH_KEYS):
+        raise DatasetError(f"{where}: 'search' must be a mapping with tilt_deg and/or yaw_range_deg")
+    try:
+        values = {k: float(data[k]) for k in SEARCH_KEYS if k in data}
+    except (TypeError, ValueError) as exc:
+        raise DatasetError(f"{where}: search values must be numbers ({exc})") from exc
+    if not all(np.isfinite(v) and v >= 0 for v in values.values()) or values.get("yaw_range_deg", 180) > 180:
+        raise DatasetError(f"{where}: search angles must be >= 0 (yaw_range_deg <= 180), got {values}")
+    return SearchOptions(**values)
+
+
 @dataclass(frozen=True)
 class RigConfig:
     """``rig.yaml``: the camera, the LiDAR model, an optional initial guess of T_camera_lidar, an optional
-    prior from the rig's drawing and the field tolerance of the verdict."""
+    prior from the rig's drawing, the field tolerance of the verdict and the global search's range."""
 
     camera: CameraConfig
     lidar_model: str = "VLP-16"
     initial_guess: Transform | None = None
     prior: Prior | None = None
     tolerance: TrustOptions | None = None
+    search: SearchOptions | None = None
 
     def to_yaml(self) -> dict[str, Any]:
         out: dict[str, Any] = {"camera": self.camera.to_yaml(), "lidar": {"model": self.lidar_model}}
@@ -166,6 +185,8 @@ class RigConfig:
         if self.tolerance is not None:
             out["tolerance"] = {"rotation_deg": self.tolerance.tolerance_rot_deg,
                                 "translation_cm": self.tolerance.tolerance_trans_cm}
+        if self.search is not None:
+            out["search"] = {"tilt_deg": self.search.tilt_deg, "yaw_range_deg": self.search.yaw_range_deg}
         return out
 
     @classmethod
@@ -180,4 +201,5 @@ class RigConfig:
         initial = transform_from_yaml(guess, where) if guess else None
         prior = prior_from_yaml(data["prior"], where) if data.get("prior") is not None else None
         tolerance = tolerance_from_yaml(data["tolerance"], where) if data.get("tolerance") is not None else None
-        return cls(camera, str(lidar.get("model", "VLP-16")), initial, prior, tolerance)
+        search = search_from_yaml(data["search"], where) if data.get("search") is not None else None
+        return cls(camera, str(lidar.get("model", "VLP-16")), initial, prior, tolerance, search)

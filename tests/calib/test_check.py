@@ -33,6 +33,20 @@ def test_drift_verdict_rules():
                          DriftOptions(threshold_trans_cm=5.0))[0] is DriftStatus.OK
 
 
+def test_a_diagonal_drift_counts_by_its_length():
+    opts = DriftOptions()
+    diagonal = np.array([0, 0, 0, 1.73, -1.73, 1.73])  # 3 cm, no axis over the 2 cm threshold
+    sigma = np.array([0.01] * 3 + [0.2] * 3)
+    status, axes, reasons = drift_verdict(diagonal, sigma, opts)
+    assert status is DriftStatus.DRIFTED and axes == ("x", "y", "z") and "translation moved 3" in reasons[0]
+    # the same length, but the pairs know it only to 2 cm along that direction: not evidence
+    loose = np.diag(sigma**2)
+    d = diagonal[3:] / np.linalg.norm(diagonal[3:])
+    loose[3:, 3:] += 4.0 * np.outer(d, d)
+    assert drift_verdict(diagonal, sigma, opts, loose)[0] is DriftStatus.UNKNOWN
+    assert drift_verdict(diagonal * 0.6, sigma, opts)[0] is not DriftStatus.DRIFTED  # 1.8 cm: under it
+
+
 def test_check_finds_injected_drift_and_passes_the_truth(pairs):
     opts = DriftOptions(threshold_rot_deg=0.3, threshold_trans_cm=3.0)
     at_truth = check_drift(pairs, TRUTH, PARAMS, opts)

@@ -93,3 +93,29 @@ def test_fixed_translation_holds_the_prior_lever_arm_and_reports_no_translation_
 def test_bad_prior_or_tolerance_is_refused(small_dataset, args, words, capsys):
     assert main(["calibrate", str(small_dataset), "--init", "0,0,0,0,0,0", "--no-visuals", *args]) == 2
     assert words in capsys.readouterr().err
+
+
+def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path):
+    # Simulated datasets carry no initial_guess: the global search finds the start.
+    out = tmp_path / "searched"
+    proc = subprocess.run([sys.executable, "-m", "rigd", "calibrate", str(small_dataset), "--out", str(out),
+                           "--json", "--no-visuals"], capture_output=True, text=True, timeout=900)
+    report = json.loads(proc.stdout)
+    assert proc.returncode in (0, 3, 4), proc.stderr
+    search = report["initial_search"]
+    assert search["grid"]["mounts"] == 600 and search["candidates"][0]["from_start_deg"] == 0.0
+    assert "global search" in proc.stderr
+    truth = open_dataset(small_dataset).ground_truth
+    start = np.array(search["start"]["rpy_deg"])
+    assert np.abs((start - truth.rpy_deg + 180.0) % 360.0 - 180.0).max() < 10.0  # inside the local basin
+    assert report["error_vs_ground_truth"]["rotation_deg"] < 1.0
+
+
+def test_bad_search_range_in_rig_yaml_is_refused(small_dataset, tmp_path, capsys):
+    root = tmp_path / "badsearch"
+    (root / "pairs").mkdir(parents=True)
+    rig = yaml.safe_load((small_dataset / "rig.yaml").read_text())
+    rig["search"] = {"tilt_deg": "steep"}
+    (root / "rig.yaml").write_text(yaml.safe_dump(rig))
+    assert main(["calibrate", str(root), "--no-visuals"]) == 2
+    assert "search" in capsys.readouterr().err

@@ -30,10 +30,10 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
         initial, init_version, init = active.T_camera_lidar, active.number, "active"
     elif body.init == "rig":
         guess = dataset.rig.initial_guess or service.rig.initial_guess
-        if guess is None:
-            raise RigdError(f"neither dataset {body.dataset}'s rig.yaml nor the service's rig file has an "
-                            "initial_guess; give the transform explicitly")
-        initial, init = guess, "rig"
+        # no guess in either rig file: the global search finds the start
+        initial, init = guess, "rig" if guess is not None else "search"
+    elif body.init == "search":
+        initial, init = None, "search"
     else:
         initial, init = body.init.transform, "explicit"
     sigmas = tuple(body.sigmas_deg) if body.sigmas_deg is not None else None

@@ -1,0 +1,206 @@
+"""Global search for the initial guess: no hand-typed start (docs/method.md, "Automatic initial guess").
+
+After a reassembly the camera may sit at any yaw about the LiDAR's up axis and be tilted by tens of degrees,
+far outside the basin of the coarse-to-fine solve (about 5-10 deg). The search:
+
+1. evaluates the weighted GMM cost (eqs. 8-10) with one wide Gaussian for every point (``sigma_deg``, the
+   uniform-sigma model: a single rung of the precomputed edge fields serves all points, and all mounts of a
+   pair are projected in one batch) on a grid of mounts ``R = R_base @ Rz(yaw) Ry(pitch) Rx(roll)`` (yaw over
+   ``yaw_range_deg``, roll and pitch within ``tilt_deg``), the translation held at the lever arm;
+2. polishes the ``keep`` best grid minima (one per neighbourhood) by a pattern search over rotations with
+   steps halving from 8 to 1 deg and the Gaussian narrowing with them (the same batched cost; at ranges of
+   metres a lever-arm error of decimetres moves edges by a few degrees, so rotation alone is searched);
+3. merges polished poses closer than ``distinct_deg`` and sorts them by their cost at the last width, which
+   every candidate shares, so the costs compare. The coarse-to-fine solve starts from the best.
+
+``R_base`` turns the LiDAR's axes (x forward, z up) into the camera's: the identity for a panorama (whose
+frame is x forward, z up), the OpenCV optical frame (z forward, y down) for a pinhole camera, whose search
+keeps roll and pitch within ``tilt_deg`` of looking level along the LiDAR's horizon.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.camera import CameraModel, Equirectangular, Pinhole
+from calib.errors import InitialGuessError
+from calib.geometry import rotation_angle_deg, rpy_deg_to_matrix, so3_exp, so3_log
+from calib.gmm import PairFeatures
+
+F64 = NDArray[np.float64]
+
+# LiDAR axes (x forward, y left, z up) -> OpenCV optical axes (x right, y down, z forward).
+OPTICAL_FROM_LIDAR_AXES = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """The grid, the refinement and what counts as a distinct candidate (angles in degrees)."""
+
+    sigma_deg: float = 6.0  # the grid's Gaussian width (uniform; capped by the fields' widest rung)
+    batch: int = 64  # mounts projected at once (memory: batch x edge points x 24 bytes)
+    yaw_range_deg: float = 180.0  # yaw in [-range, range)
+    yaw_step_deg: float = 15.0
+    tilt_deg: float = 30.0  # roll and pitch in [-tilt, tilt]
+    tilt_step_deg: float = 15.0
+    keep: int = 3  # grid minima polished (each the best mount of its neighbourhood)
+    polish: tuple[tuple[float, float], ...] = ((8.0, 6.0), (4.0, 4.0), (2.0, 3.0), (1.0, 3.0))  # (step, sigma) deg
+    polish_rounds: int = 4  # moves per step at most
+    distinct_deg: float = 5.0
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A refined start: ``tau`` (6,) [omega rad, t m], the grid mount it came from (roll, pitch, yaw deg),
+    its cost at the last refine level, and its rank in the grid (0 = the lowest grid cost)."""
+
+    tau: F64
+    grid_rpy_deg: F64
+    cost: float
+    grid_rank: int
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """``candidates`` distinct refined starts, lowest cost first; ``evaluations`` cost evaluations of the grid."""
+
+    candidates: tuple[Candidate, ...]
+    evaluations: int
+
+    @property
+    def best(self) -> Candidate:
+        return self.candidates[0]
+
+
+def base_rotation(camera: CameraModel) -> F64:
+    """R_base (3,3): the identity for panoramas, LiDAR axes to the optical frame for pinhole cameras."""
+    if isinstance(camera, Equirectangular):
+        return np.eye(3)
+    return OPTICAL_FROM_LIDAR_AXES.copy()
+
+
+def default_search(camera: CameraModel) -> SearchOptions:
+    """The search's range for ``camera`` when the rig file sets none: every yaw and +-30 deg of tilt for a
+    panorama; for a pinhole camera the rotations that keep the LiDAR's forward axis in the field of view
+    (yaw within half the horizontal, roll and pitch within half the vertical field of view), with grid steps
+    of an eighth of the horizontal field and the Gaussian narrowed with them."""
+    opts = SearchOptions()
+    if not isinstance(camera, Pinhole):
+        return opts
+    fx, fy = float(camera.K[0, 0]), float(camera.K[1, 1])
+    hfov = float(np.degrees(2.0 * np.arctan(camera.width / (2.0 * fx))))
+    vfov = float(np.degrees(2.0 * np.arctan(camera.height / (2.0 * fy))))
+    step = min(opts.yaw_step_deg, hfov / 8.0)
+    return replace(opts, yaw_range_deg=min(opts.yaw_range_deg, hfov / 2.0), tilt_deg=min(opts.tilt_deg, vfov / 2.0),
+                   yaw_step_deg=step, tilt_step_deg=step, sigma_deg=min(opts.sigma_deg, step / 2.5))
+
+
+def grid_mounts(opts: SearchOptions) -> F64:
+    """(K,3) roll, pitch, yaw in degrees of every grid mount."""
+    full_turn = opts.yaw_range_deg >= 180.0  # -180 and +180 are one mount
+    yaws = np.arange(-opts.yaw_range_deg, opts.yaw_range_deg + (-1e-9 if full_turn else 1e-9), opts.yaw_step_deg)
+    n_tilt = int(np.floor(opts.tilt_deg / opts.tilt_step_deg + 1e-9))
+    tilts = opts.tilt_step_deg * np.arange(-n_tilt, n_tilt + 1)
+    r, p, y = np.meshgrid(tilts, tilts, yaws, indexing="ij")
+    return np.stack([r.ravel(), p.ravel(), y.ravel()], axis=1)
+
+
+def _grid_costs(feat: PairFeatures, rotations: F64, translation_m: F64, sigma_px: float) -> F64:
+    """The weighted GMM cost (eqs. 8-10) of one pair at every mount (K,), all points at one width
+    ``sigma_px`` (the uniform-sigma model) so one rung of the precomputed fields serves every point and
+    every mount is sampled in one batch. ``rotations`` (K,3,3)."""
+    if feat.fields is None:
+        raise InitialGuessError("the global search needs the edge fields (Evaluator.FIELD or AUTO)")
+    pts = feat.points.points_lidar
+    p_cam = np.einsum("kij,nj->kni", rotations, pts) + translation_m  # (K,N,3) m
+    uv, valid = feat.camera.project(p_cam.reshape(-1, 3))
+    sel = np.flatnonzero(valid)
+    sums = feat.fields.sample(uv[sel], np.full(len(sel), sigma_px))
+    count = (np.maximum(sums[:, 6], 0.0) ** 4 + (6.0 * sigma_px) ** 4) ** 0.25  # |Omega_i| as in calib.gmm
+    score = np.tile(feat.points.score, len(rotations))[sel]
+    value = (sums[:, 0] + score * sums[:, 3]) / (2.0 * count)
+    return np.asarray(-np.bincount(sel // len(pts), weights=value, minlength=len(rotations)), dtype=np.float64)
+
+
+def _rotations(base: F64, mounts: F64) -> F64:
+    return np.stack([base @ rpy_deg_to_matrix(m) for m in mounts])
+
+
+def _costs(feats: list[PairFeatures], rotations: F64, translation_m: F64, sigma_deg: float, batch: int) -> F64:
+    """The grid cost (K,) of every rotation (K,3,3), summed over the pairs."""
+    total = np.zeros(len(rotations))
+    for feat in feats:
+        sigma_px = float(np.radians(sigma_deg)) * feat.camera.pixels_per_radian
+        for lo in range(0, len(rotations), batch):
+            total[lo:lo + batch] += _grid_costs(feat, rotations[lo:lo + batch], translation_m, sigma_px)
+    return total
+
+
+# The 27 rotations {-1, 0, 1}^3 about the LiDAR's axes that a polishing round tries around its centre.
+_STENCIL = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], indexing="ij"), -1).reshape(-1, 3)
+
+
+def _polish(feats: list[PairFeatures], rotation: F64, translation_m: F64, opts: SearchOptions) -> tuple[F64, float]:
+    """Pattern search from a grid mount: the best of the 27 neighbours ``step`` apart, at a Gaussian width
+    that narrows with the step, until the centre is best; then the next step. Returns the rotation and its
+    cost at the last width (the same for every candidate, so the costs compare)."""
+    cost = 0.0
+    for step_deg, sigma_deg in opts.polish:
+        offsets = [so3_exp(np.radians(step_deg) * s) for s in _STENCIL]
+        for _ in range(opts.polish_rounds):
+            costs = _costs(feats, np.stack([rotation @ o for o in offsets]), translation_m, sigma_deg, opts.batch)
+            best = int(np.argmin(costs))
+            rotation, cost = rotation @ offsets[best], float(costs[best])
+            if np.all(_STENCIL[best] == 0.0):
+                break
+    return rotation, cost
+
+
+def _grid_minima(rotations: F64, costs: F64, opts: SearchOptions) -> list[int]:
+    """The ``keep`` lowest grid mounts that are each the lowest within 1.5 grid steps (one per basin)."""
+    radius = 1.5 * max(opts.yaw_step_deg, opts.tilt_step_deg)
+    kept: list[int] = []
+    for k in np.argsort(costs):
+        if all(rotation_angle_deg(rotations[k], rotations[j]) > radius for j in kept):
+            kept.append(int(k))
+            if len(kept) == opts.keep:
+                break
+    return kept
+
+
+def _distinct(cands: list[Candidate], distinct_deg: float) -> list[Candidate]:
+    kept: list[Candidate] = []
+    for c in sorted(cands, key=lambda c: c.cost):
+        if all(rotation_angle_deg(so3_exp(c.tau[:3]), so3_exp(k.tau[:3])) > distinct_deg for k in kept):
+            kept.append(c)
+    return kept
+
+
+def search_initial(
+    feats: list[PairFeatures],
+    translation_m: F64,
+    opts: SearchOptions | None = None,
+    on_progress: Callable[[int, int], None] | None = None,
+) -> SearchResult:
+    """Distinct starts for the coarse-to-fine solve, best first; ``translation_m`` (3,) the lever arm
+    (the translation of T_camera_lidar) held during the search. ``on_progress(done, total)`` per pair."""
+    opts = opts or default_search(feats[0].camera)
+    base = base_rotation(feats[0].camera)
+    mounts = grid_mounts(opts)
+    rotations = _rotations(base, mounts)
+    costs = np.zeros(len(mounts))
+    for i, feat in enumerate(feats):
+        costs += _costs([feat], rotations, translation_m, opts.sigma_deg, opts.batch)
+        if on_progress is not None:
+            on_progress(i + 1, len(feats))
+    if not np.any(costs < 0):
+        raise InitialGuessError("global search: no grid mount brings any LiDAR edge near an image edge")
+    cands = []
+    for rank, k in enumerate(_grid_minima(rotations, costs, opts)):
+        rotation, cost = _polish(feats, rotations[k], translation_m, opts)
+        cands.append(Candidate(np.concatenate([so3_log(rotation), translation_m]), mounts[k].copy(), cost, rank))
+    return SearchResult(tuple(_distinct(cands, opts.distinct_deg)), len(mounts))
