@@ -1,9 +1,9 @@
-"""The evaluation protocols on a dataset (docs/evaluation.md): many calibrations in parallel processes, their
-statistics (calib.evaluate), a YAML report and a plot.
+"""The evaluation protocols on a dataset (docs/evaluation.md): many calibrations in parallel processes (or on
+a Dask cluster, rigd.evaluate_cluster), their statistics (calib.evaluate), a YAML report and a plot.
 
-Each worker process extracts the dataset's edge features once, in its initializer (with the field evaluator's
-filtered maps about 170 MB per 1024x512 pair: sending them with every task would cost more than a
-calibration), then runs calibrations on them. Memory therefore grows with --workers times the pairs.
+Each worker process extracts the dataset's edge features once (with the field evaluator's filtered maps about
+170 MB per 1024x512 pair: sending them with every task would cost more than a calibration), then runs
+calibrations on them. Memory therefore grows with the worker processes times the pairs.
 """
 
 from __future__ import annotations

@@ -6,9 +6,9 @@ worker each start in about a second, which keeps the cluster test short; and a t
 two commands (``dask scheduler``, ``dask worker tcp://host:8786``) and no cluster manager. docs/evaluation.md.
 
 Features are computed once per worker process, not per trial: each worker keeps the features of the last
-(dataset, settings) it was asked for in a module-level cache, filled by its first trial under a lock (a worker
-with several threads extracts once and its threads share the features). A new dataset replaces them, so a
-long-lived worker holds one dataset's features at a time. Every task carries this client's
+(dataset path and files' stamp, settings) it was asked for in a module-level cache, filled by its first trial
+under a lock (a worker with several threads extracts once and its threads share the features). A new dataset
+replaces them, so a long-lived worker holds one dataset's features at a time. Every task carries this client's
 :func:`code_version`; a worker with other sources or numerical libraries refuses it, since the results would
 not be those of a local run.
 """
@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 import scipy
 from distributed import Client, KilledWorker, as_completed, get_worker
-from distributed.comm import parse_address, parse_host_port
+from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.comm.registry import get_backend
 
 from calib.assess import TrustOptions
@@ -44,11 +44,22 @@ R = TypeVar("R")
 
 @dataclass(frozen=True)
 class FeatureKey:
-    """What a worker's features depend on: ``root`` must be the dataset's path on every worker."""
+    """What a worker's features depend on: ``root`` must be the dataset's path on every worker; ``stamp``
+    (:func:`dataset_stamp`) changes when the dataset is rewritten at the same path."""
 
     root: Path
+    stamp: str
     params: CalibParams
     trust: TrustOptions | None
+
+
+def dataset_stamp(root: Path) -> str:
+    """A hash of the names, sizes and modification times of rig.yaml and every file under pairs/."""
+    digest = hashlib.sha256()
+    for path in sorted([root / "rig.yaml", *(p for p in (root / "pairs").rglob("*") if p.is_file())]):
+        stat = path.stat()
+        digest.update(f"{path.relative_to(root).as_posix()}\0{stat.st_size}\0{stat.st_mtime_ns}\n".encode())
+    return digest.hexdigest()[:16]
 
 
 @cache
@@ -128,7 +139,7 @@ class DaskCluster:
             raise RigdError(f"--cluster {address}: the scheduler has no workers after {timeout_s:g} s; start "
                             f"them with `dask worker {address}`") from exc
         self.workers = len(self._client.nthreads())
-        self._key = FeatureKey(root, params, trust)
+        self._key = FeatureKey(root, dataset_stamp(root), params, trust)
 
     def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
         futures = [self._client.submit(_on_worker, self._key, code_version(), fn, t, pure=False) for t in tasks]

@@ -3,6 +3,7 @@ the trials' results equal the local pool's, and each worker extracts the feature
 
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -19,7 +20,7 @@ import rigd
 from rigd.cli import main
 from rigd.dataset import write_pair
 from rigd.dataset.pcd import Cloud
-from rigd.evaluate_cluster import worker_counts
+from rigd.evaluate_cluster import dataset_stamp, worker_counts
 from rigd.simulate import write_simulated_dataset
 
 REPO = Path(rigd.__file__).resolve().parents[1]
@@ -136,3 +137,17 @@ def test_unreachable_or_malformed_address_is_a_clear_error(small_dataset, capsys
     assert address in err and "no Dask scheduler" in err
     assert main(["evaluate", "precision", str(small_dataset), "--size", "1", "--cluster", "tcp://127.0.0.1"]) == 2
     assert "not a scheduler address" in capsys.readouterr().err
+
+
+def test_a_rewritten_dataset_has_a_new_stamp(small_dataset, tmp_path):
+    """Workers keep features per (path, stamp, settings): a dataset rewritten at the same path is re-extracted."""
+    root = tmp_path / "copy"
+    shutil.copytree(small_dataset, root)  # copy2: same sizes and times
+    stamp = dataset_stamp(root)
+    assert stamp == dataset_stamp(small_dataset)
+    (root / "evaluation").mkdir()  # the default output directory is not part of the dataset
+    (root / "evaluation" / "convergence.yaml").write_text("x")
+    assert dataset_stamp(root) == stamp
+    cloud = next((root / "pairs").rglob("*.pcd"))
+    os.utime(cloud, ns=(cloud.stat().st_atime_ns, cloud.stat().st_mtime_ns + 1))
+    assert dataset_stamp(root) != stamp
