@@ -1,9 +1,9 @@
-"""The evaluation protocols on a dataset (docs/evaluation.md): many calibrations in parallel processes, their
-statistics (calib.evaluate), a YAML report and a plot.
+"""The evaluation protocols on a dataset (docs/evaluation.md): many calibrations in parallel processes (or on
+a Dask cluster, rigd.evaluate_cluster), their statistics (calib.evaluate), a YAML report and a plot.
 
-Each worker process extracts the dataset's edge features once, in its initializer (with the field evaluator's
-filtered maps about 170 MB per 1024x512 pair: sending them with every task would cost more than a
-calibration), then runs calibrations on them. Memory therefore grows with --workers times the pairs.
+Each worker process extracts the dataset's edge features once (with the field evaluator's filtered maps about
+170 MB per 1024x512 pair: sending them with every task would cost more than a calibration), then runs
+calibrations on them. Memory therefore grows with the worker processes times the pairs.
 """
 
 from __future__ import annotations
@@ -12,9 +12,11 @@ import dataclasses
 import multiprocessing
 import sys
 import time
-from collections.abc import Callable, Sequence
+import typing
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
@@ -82,6 +84,8 @@ class EvaluationSettings:
     initial: Transform | None = None
     outlier_rule: OutlierRule = OutlierRule.PER_PARAMETER
     progress: bool = True  # a tqdm bar on stderr
+    cluster: str | None = None  # a Dask scheduler's address (tcp://host:8786): run there instead of `workers`
+    cluster_timeout_s: float = 10.0  # for connecting to it and for its first worker
     trust: TrustOptions | None = TrustOptions()  # None: no uncertainty/verdict per run (faster, no coverage check)
 
 
@@ -136,37 +140,46 @@ class _Task:
 
 
 @dataclass(frozen=True)
-class _WorkerState:
+class WorkerState:
+    """What a worker keeps for all its trials: one dataset's features and the settings they were made with."""
+
     feats: tuple[PairFeatures, ...]
     params: CalibParams
     trust: TrustOptions | None
     error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
 
+    def checked(self) -> WorkerState:
+        """``self``, or the feature extraction's error raised."""
+        if self.error is not None:
+            raise RigdError(self.error)
+        return self
 
-_STATE: _WorkerState | None = None  # one per worker process, set by _init_worker
+
+def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None) -> WorkerState:
+    """``root``'s features, or the reason there are none (raised later by the trial that needs them)."""
+    cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
+    try:
+        feats = tuple(dataset_features(open_dataset(root), params, None))
+    except (RigdError, CalibError) as exc:
+        return WorkerState((), params, trust, f"{root}: {exc}")
+    return WorkerState(feats, params, trust, None)
+
+
+_STATE: WorkerState | None = None  # one per local pool process, set by _init_worker
 
 
 def _init_worker(root: Path, params: CalibParams, trust: TrustOptions | None) -> None:
     global _STATE
-    cv2.setNumThreads(1)  # the pool already runs one process per core
-    try:
-        feats = tuple(dataset_features(open_dataset(root), params, None))
-    except (RigdError, CalibError) as exc:
-        _STATE = _WorkerState((), params, trust, f"{root}: {exc}")
-        return
-    _STATE = _WorkerState(feats, params, trust, None)
+    _STATE = extract_state(root, params, trust)
 
 
-def worker_state() -> _WorkerState:
-    """This worker process's features and settings (raises the feature extraction's error, if any)."""
-    state = _STATE
-    if state is None or state.error is not None:
-        raise RigdError(state.error if state else "evaluation worker was not initialised")
-    return state
+def _in_pool(fn: Callable[[WorkerState, T], R], task: T) -> R:
+    if _STATE is None:
+        raise RigdError("evaluation worker was not initialised")
+    return fn(_STATE.checked(), task)
 
 
-def _run_task(task: _Task) -> Run:
-    state = worker_state()
+def _run_task(state: WorkerState, task: _Task) -> Run:
     started = time.monotonic()
     try:
         result = calibrate([state.feats[i] for i in task.pairs], task.start, state.params, trust=state.trust)
@@ -202,34 +215,78 @@ def _initial(settings: EvaluationSettings, dataset: Dataset) -> Transform | None
     return settings.initial if settings.initial is not None else dataset.rig.initial_guess
 
 
-def pool(dataset: Dataset, params: CalibParams, workers: int, trust: TrustOptions | None) -> ProcessPoolExecutor:
-    """Worker processes that each extract ``dataset``'s features once."""
-    # spawn, not fork: a child forked from a process whose OpenCV/BLAS threads hold locks can deadlock on
-    # its first cv2 call (seen: the test suite's process hung in cv2.setNumThreads in every forked worker).
-    return ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                               initargs=(dataset.root, params, trust),
-                               mp_context=multiprocessing.get_context("spawn"))
+class TrialRunner(typing.Protocol):
+    """Where the trials run. Every worker holds one dataset's features (a :class:`WorkerState`, extracted once)
+    and runs ``fn(state, task)``; only tasks and results travel."""
+
+    workers: int  # how many workers, for the report
+
+    def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
+        """``fn`` over ``tasks``, results in completion order."""
+        ...
+
+    def close(self) -> None: ...
 
 
-def run_all(workers: ProcessPoolExecutor, fn: Callable[[T], R], tasks: Sequence[T], desc: str,
-            progress: bool) -> list[R]:
-    """``fn`` over ``tasks`` on ``workers`` with a progress bar; results in completion order."""
-    futures = [workers.submit(fn, t) for t in tasks]
-    runs = []
+def collect(done: Iterable[Any], total: int, desc: str, progress: bool) -> list[Any]:
+    """The results of futures as ``done`` yields them, with a progress bar on stderr."""
+    return [f.result() for f in tqdm(done, total=total, desc=desc, unit="run", file=sys.stderr,
+                                     disable=not progress)]
+
+
+class LocalPool:
+    """``workers`` processes on this machine, each extracting the features once in its initializer."""
+
+    def __init__(self, root: Path, params: CalibParams, workers: int, trust: TrustOptions | None) -> None:
+        # spawn, not fork: a child forked from a process whose OpenCV/BLAS threads hold locks can deadlock on
+        # its first cv2 call (seen: the test suite's process hung in cv2.setNumThreads in every forked worker).
+        self._executor = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+                                             initargs=(root, params, trust),
+                                             mp_context=multiprocessing.get_context("spawn"))
+        self.workers = workers
+
+    def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
+        futures = [self._executor.submit(_in_pool, fn, t) for t in tasks]
+        try:
+            return collect(as_completed(futures), len(futures), desc, progress)
+        except BrokenProcessPool as exc:
+            raise RigdError(f"{desc}: a worker process died ({exc}); fewer --workers need less memory") from exc
+        finally:
+            for fut in futures:
+                fut.cancel()
+
+    def close(self) -> None:
+        self._executor.shutdown(cancel_futures=True)
+
+
+@contextmanager
+def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams,
+                 trust: TrustOptions | None) -> Iterator[TrialRunner]:
+    """The local process pool, or with ``s.cluster`` the Dask cluster at that address."""
+    runner: TrialRunner
+    if s.cluster is None:
+        runner = LocalPool(root, params, s.workers, trust)
+    else:
+        try:
+            from rigd.evaluate_cluster import DaskCluster  # distributed is the [cluster] extra: imported only here
+        except ModuleNotFoundError as exc:
+            if exc.name not in ("distributed", "dask"):
+                raise
+            raise RigdError(f"--cluster needs Dask distributed ({exc}): pip install 'rigd[cluster]'") from exc
+        runner = DaskCluster(s.cluster, s.cluster_timeout_s, root.resolve(), params, trust)
     try:
-        for fut in tqdm(as_completed(futures), total=len(futures), desc=desc, unit="run", file=sys.stderr,
-                        disable=not progress):
-            runs.append(fut.result())
-    except BrokenProcessPool as exc:
-        raise RigdError(f"{desc}: a worker process died ({exc}); fewer --workers need less memory") from exc
+        yield runner
     finally:
-        for fut in futures:
-            fut.cancel()
-    return runs
+        runner.close()
 
 
-def _run_all(workers: ProcessPoolExecutor, tasks: Sequence[_Task], desc: str, progress: bool) -> tuple[Run, ...]:
-    return tuple(sorted(run_all(workers, _run_task, tasks, desc, progress), key=lambda r: r.index))
+def _run_all(runner: TrialRunner, tasks: Sequence[_Task], desc: str, progress: bool) -> tuple[Run, ...]:
+    return tuple(sorted(runner.run(_run_task, tasks, desc, progress), key=lambda r: r.index))
+
+
+def where_run(s: EvaluationSettings, runner: TrialRunner) -> dict[str, Any]:
+    """The report's record of the workers: their number and the cluster's address (None: local processes)."""
+    return {"workers": runner.workers, "cluster": s.cluster}
 
 
 def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
@@ -240,7 +297,8 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     dataset = open_for(s)
     params = calib_params(s.sigmas_deg)
     pairs = tuple(range(len(dataset)))
-    with pool(dataset, params, s.workers, s.trust) as workers:
+    with trial_runner(s, dataset.root, params, s.trust) as workers:
+        where = where_run(s, workers)
         if dataset.ground_truth is not None:
             reference, source = dataset.ground_truth, Source.GROUND_TRUTH
         else:
@@ -255,7 +313,7 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
         starts = random_starts(reference, request.trials, request.rot_deg, request.trans_m, s.seed)
         runs = _run_all(workers, [_Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
-    setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m}
+    setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m, **where}
     return _finish(Protocol.CONVERGENCE, s, dataset, params, setup, runs, stats, reference, source, started)
 
 
@@ -273,13 +331,14 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     if start is None:
         raise RigdError(f"{dataset.root}: no initial_guess in rig.yaml and no ground_truth.yaml; give the start "
                         "with --init 'r,p,y,x,y,z'")
-    with pool(dataset, params, s.workers, s.trust) as workers:
+    with trial_runner(s, dataset.root, params, s.trust) as workers:
+        where = where_run(s, workers)
         runs = _run_all(workers, [_Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
     truth = dataset.ground_truth
     reference, source = (truth, Source.GROUND_TRUTH) if truth is not None else (start, start_source)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
     setup = {"subsets": request.subsets, "size": request.size, "start": start_source.value,
-             "start_T_camera_lidar": transform_to_yaml(start)}
+             "start_T_camera_lidar": transform_to_yaml(start), **where}
     return _finish(Protocol.PRECISION, s, dataset, params, setup, runs, stats, reference, source, started)
 
 
@@ -362,7 +421,7 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
         "protocol": protocol.value,
         "dataset": str(dataset.root),
         "pairs_in_dataset": len(dataset),
-        "settings": {**setup, "seed": s.seed, "workers": s.workers, "sigmas_deg": list(params.optim.sigmas_deg)},
+        "settings": {**setup, "seed": s.seed, "sigmas_deg": list(params.optim.sigmas_deg)},
         "reference": {"source": source.value, "T_camera_lidar": transform_to_yaml(reference)},
         "summary": _summary_yaml(stats, runs, with_error=dataset.ground_truth is not None),
         "wall_time_s": round(time.monotonic() - started, 2),

@@ -21,7 +21,7 @@ from calib.geometry import Transform
 from calib.uncertainty import tau_at
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
-from rigd.evaluate import EvaluationSettings, calib_params, open_for, pool, run_all, worker_state
+from rigd.evaluate import EvaluationSettings, WorkerState, calib_params, open_for, trial_runner, where_run
 
 
 @dataclass(frozen=True)
@@ -75,9 +75,8 @@ def _tasks(truth: Transform, request: DriftRequest) -> list[_DriftTask]:
     return tasks
 
 
-def _run_drift_task(task: tuple[_DriftTask, DriftOptions]) -> DriftTrial:
+def _run_drift_task(state: WorkerState, task: tuple[_DriftTask, DriftOptions]) -> DriftTrial:
     t, opts = task
-    state = worker_state()
     started = time.monotonic()
     try:
         status = check_drift(list(state.feats), t.checked, state.params, opts).status.value
@@ -95,8 +94,9 @@ def run_drift(request: DriftRequest) -> DriftOutcome:
         raise RigdError(f"{dataset.root}: drift evaluation needs ground_truth.yaml (a simulated dataset)")
     params = calib_params(s.sigmas_deg)
     tasks = [(t, request.options) for t in _tasks(dataset.ground_truth, request)]
-    with pool(dataset, params, s.workers, None) as workers:
-        trials = tuple(sorted(run_all(workers, _run_drift_task, tasks, "drift", s.progress), key=lambda r: r.index))
+    with trial_runner(s, dataset.root, params, None) as workers:
+        where = where_run(s, workers)
+        trials = tuple(sorted(workers.run(_run_drift_task, tasks, "drift", s.progress), key=lambda r: r.index))
     summary = {}
     for label, _, _ in _classes(request):
         mine = [t for t in trials if t.injected == label]
@@ -107,7 +107,7 @@ def run_drift(request: DriftRequest) -> DriftOutcome:
     o = request.options
     report = {
         "protocol": "drift", "dataset": str(dataset.root), "pairs": len(dataset),
-        "settings": {"trials": request.trials, "seed": s.seed, "workers": s.workers,
+        "settings": {"trials": request.trials, "seed": s.seed, **where,
                      "threshold_rot_deg": o.threshold_rot_deg, "threshold_trans_cm": o.threshold_trans_cm},
         "summary": summary,
         "false_alarm_rate": summary["none"]["drifted_share"],

@@ -30,7 +30,7 @@ from calib.initial import SearchOptions, base_rotation
 from calib.pipeline import calibrate
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
-from rigd.evaluate import EvaluationSettings, calib_params, open_for, pool, run_all, worker_state
+from rigd.evaluate import EvaluationSettings, WorkerState, calib_params, open_for, trial_runner, where_run
 
 
 @dataclass(frozen=True)
@@ -79,8 +79,7 @@ def _mounts(request: InitialRequest, base: np.ndarray) -> list[Transform]:
     return out
 
 
-def _run_trial(task: _Task) -> InitialTrial:
-    state = worker_state()
+def _run_trial(state: WorkerState, task: _Task) -> InitialTrial:
     started = time.monotonic()
     target = task.mount or task.truth
     feats = list(state.feats) if task.mount is None else remount(list(state.feats), task.truth, task.mount)
@@ -122,14 +121,15 @@ def run_initial(request: InitialRequest) -> dict[str, Any]:
     ref_start = random_starts(truth, 1, 5.0, 0.1, s.seed + 1)[0]
     mounts = _mounts(request, base)
     tasks = [_Task(-1, None, ref_start, truth)] + [_Task(i, m, None, truth) for i, m in enumerate(mounts)]
-    with pool(dataset, params, s.workers, None) as workers:
-        done = sorted(run_all(workers, _run_trial, tasks, "initial guess", s.progress), key=lambda r: r.index)
+    with trial_runner(s, dataset.root, params, None) as workers:
+        where = where_run(s, workers)
+        done = sorted(workers.run(_run_trial, tasks, "initial guess", s.progress), key=lambda r: r.index)
     ref, trials = done[0], done[1:]
     ok = [_success(t, ref, request) for t in trials]
     search_s = [t.search_s for t in trials if t.error is None]
     report = {
         "protocol": "initial", "dataset": str(dataset.root), "pairs": len(dataset),
-        "settings": {"trials": request.trials, "seed": s.seed, "yaw_deg": request.yaw_deg,
+        "settings": {"trials": request.trials, "seed": s.seed, **where, "yaw_deg": request.yaw_deg,
                      "tilt_deg": request.tilt_deg, "lever_m": request.lever_m,
                      "tolerance_rot_deg": request.tolerance_rot_deg,
                      "tolerance_trans_cm": request.tolerance_trans_cm, "grid": SearchOptions().__dict__},

@@ -45,11 +45,44 @@ def _non_negative_float(text: str) -> float:
     return value
 
 
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value
+
+
+def _settings(args: argparse.Namespace, trust: TrustOptions | None) -> EvaluationSettings:
+    return EvaluationSettings(
+        dataset=args.dataset,
+        seed=args.seed,
+        workers=args.workers,
+        out_dir=args.out,
+        sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
+        initial=parse_init(args.init) if getattr(args, "init", None) else None,
+        outlier_rule=OutlierRule(args.outlier_rule),
+        trust=trust,
+        cluster=args.cluster,
+        cluster_timeout_s=args.cluster_timeout,
+    )
+
+
+def _where(settings: dict[str, Any]) -> str:
+    cluster = settings.get("cluster")
+    return f"workers: {settings['workers']}" + (f" of the cluster at {cluster}" if cluster else "")
+
+
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("dataset", type=Path, metavar="DATASET")
     parser.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
     parser.add_argument("--workers", type=_positive_int, default=2,
                         help="parallel processes, each extracts the features once (default 2)")
+    parser.add_argument("--cluster", type=str, default=None, metavar="ADDRESS",
+                        help="run the trials on the Dask scheduler at ADDRESS (tcp://host:8786) instead of local "
+                        "processes; its workers need the same rigd and the dataset at the same path "
+                        "(pip install 'rigd[cluster]', docs/evaluation.md)")
+    parser.add_argument("--cluster-timeout", type=_positive_float, default=10.0, metavar="S",
+                        help="seconds to wait for the cluster's scheduler and its first worker (default 10)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/evaluation)")
     parser.add_argument("--sigmas", type=str, default=None,
                         help="sigma_in per coarse-to-fine level, degrees at 1 m (default: the calibration's)")
@@ -101,7 +134,7 @@ def register(subparsers: Any) -> None:
     drift.add_argument("--rot-deg", type=str, default="0.3,0.5,1", help="injected rotations, deg (default 0.3,0.5,1)")
     drift.add_argument("--trans-cm", type=str, default="2,5", help="injected translations, cm (default 2,5)")
     drift.set_defaults(func=run_drift_command)
-    register_initial(protocols, _common, _positive_int, _non_negative_float)
+    register_initial(protocols, _common, _positive_int, _non_negative_float, _settings)
 
 
 def _fmt_params(p: Params6 | None, digits: int) -> str:
@@ -128,7 +161,7 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
     times = report["summary"]["calibration_time_s"]
     lines = [
         f"{report['protocol']} on {report['dataset']} ({report['pairs_in_dataset']} pairs): {what}, "
-        f"workers: {s['workers']}, seed {s['seed']}",
+        f"{_where(s)}, seed {s['seed']}",
         f"converged: {stats.converged_count}/{stats.runs} ({stats.converged_percent:.1f} %), "
         f"{stats.runs - stats.finished} failed to run; rule {stats.rule.value} "
         f"({stats.rot_tol_deg} deg / {stats.trans_tol_m * 100:g} cm from the median)",
@@ -153,8 +186,7 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
 
 
 def run_drift_command(args: argparse.Namespace) -> int:
-    settings = EvaluationSettings(dataset=args.dataset, seed=args.seed, workers=args.workers, out_dir=args.out,
-                                  sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None, trust=None)
+    settings = _settings(args, None)
     tol = parse_tolerance(args.tolerance) if args.tolerance else TrustOptions()
     opts = DriftOptions(threshold_rot_deg=tol.tolerance_rot_deg, threshold_trans_cm=tol.tolerance_trans_cm)
     rot = numbers(args.rot_deg, "--rot-deg", len(args.rot_deg.split(",")))
@@ -163,10 +195,11 @@ def run_drift_command(args: argparse.Namespace) -> int:
     outcome = run_drift(request)
     rep = outcome.report
     print(f"drift on {rep['dataset']} ({rep['pairs']} pairs): {rep['settings']['trials']} trials, thresholds "
-          f"{opts.threshold_rot_deg} deg / {opts.threshold_trans_cm} cm")
+          f"{opts.threshold_rot_deg} deg / {opts.threshold_trans_cm} cm; {_where(rep['settings'])}")
     for label, row in rep["summary"].items():
         print(f"  {label:>14}: drifted {row['drifted']}/{row['trials']} ({row['drifted_share'] * 100:.0f} %), ok "
-              f"{row['ok']}, unknown {row['unknown']}, error {row['error']}; median {row['median_time_s']:.1f} s")
+              f"{row['ok']}, unknown {row['unknown']}, error {row['error']}; median "
+              + ("n/a" if row["median_time_s"] is None else f"{row['median_time_s']:.1f} s"))
     print(f"false alarms (drifted at zero error): {rep['false_alarm_rate'] * 100:.1f} %; "
           f"{rep['wall_time_s']:.0f} s wall")
     print(f"written: {outcome.yaml_path}")
@@ -174,16 +207,8 @@ def run_drift_command(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    settings = EvaluationSettings(
-        dataset=args.dataset,
-        seed=args.seed,
-        workers=args.workers,
-        out_dir=args.out,
-        sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
-        initial=parse_init(args.init) if args.init else None,
-        outlier_rule=OutlierRule(args.outlier_rule),
-        trust=None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions()),
-    )
+    trust = None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions())
+    settings = _settings(args, trust)
     if args.protocol == "convergence":
         outcome = run_convergence(ConvergenceRequest(settings, args.trials, args.rot_deg, args.trans_m))
     else:

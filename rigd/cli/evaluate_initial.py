@@ -5,12 +5,11 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from rigd.cli.calibrate import parse_sigmas
-from rigd.evaluate import EvaluationSettings
 from rigd.evaluate_initial import InitialRequest, run_initial
 
 
-def register_initial(protocols: Any, common: Any, positive_int: Any, non_negative_float: Any) -> None:
+def register_initial(protocols: Any, common: Any, positive_int: Any, non_negative_float: Any, settings: Any) -> None:
+    """``rigd evaluate initial``; ``common`` adds the shared options, ``settings(args, trust)`` reads them."""
     parser = protocols.add_parser(
         "initial", help="calibrate with no initial guess from random mounts (the global search)",
         description="Mounts the camera at random (yaw within +-YAW_DEG, roll and pitch within +-TILT_DEG, lever arm "
@@ -24,12 +23,11 @@ def register_initial(protocols: Any, common: Any, positive_int: Any, non_negativ
                         help="roll and pitch range, +- deg (default 30)")
     parser.add_argument("--lever-m", type=non_negative_float, default=0.3,
                         help="lever-arm range per axis, +- m (default 0.3)")
-    parser.set_defaults(func=run_initial_command)
+    parser.set_defaults(func=run_initial_command, make_settings=settings)
 
 
 def run_initial_command(args: argparse.Namespace) -> int:
-    settings = EvaluationSettings(dataset=args.dataset, seed=args.seed, workers=args.workers, out_dir=args.out,
-                                  sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None, trust=None)
+    settings = args.make_settings(args, None)
     rep = run_initial(InitialRequest(settings, args.trials, args.yaw_deg, args.tilt_deg, args.lever_m))
     ref = rep["reference"]
     print(f"initial guess on {rep['dataset']} ({rep['pairs']} pairs): {rep['settings']['trials']} random mounts "
