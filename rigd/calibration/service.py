@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+import multiprocessing
+import multiprocessing.context
+import sys
+import threading
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
@@ -47,6 +52,7 @@ class CalibrationRequest:
     prior: Prior | None = None  # None: the dataset's rig.yaml prior (if any)
     fix_translation: bool = False  # hold the translation at the prior's (or the initial guess's) lever arm
     tolerance: TrustOptions | None = None  # None: rig.yaml's tolerance, else 0.2 deg / 2 cm
+    workers: int = 2  # processes extracting the pairs' edges side by side (the rig computer's 2+ cores)
 
 
 @dataclass(frozen=True)
@@ -77,19 +83,39 @@ def _prior(request: CalibrationRequest, dataset: Dataset) -> Prior | None:
     return dataclasses.replace(prior, fix_translation=True)
 
 
-def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None) -> list[PairFeatures]:
-    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges)."""
+def _pair_features(dataset: Dataset, params: CalibParams, i: int) -> PairFeatures:
+    pair = dataset.load_pair(i)
+    return extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring),
+                            dataset.rig.camera.model(), params, index=i)
+
+
+def _pool_context() -> multiprocessing.context.BaseContext:
+    # fork starts a worker in milliseconds and shares the loaded libraries; a process with threads (the
+    # HTTP service) spawns instead, since forking it could copy a lock held by another thread.
+    return multiprocessing.get_context("fork" if threading.active_count() == 1 and sys.platform == "linux"
+                                       else "spawn")
+
+
+def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None,
+                     workers: int = 1) -> list[PairFeatures]:
+    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges), with
+    up to ``workers`` processes extracting pairs side by side (one inside a daemonic pool worker)."""
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
-    camera = dataset.rig.camera.model()
-    feats = []
-    for i in range(len(dataset)):
-        pair = dataset.load_pair(i)
-        if progress:
-            progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
-        feats.append(extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring), camera,
-                                      params, index=i))
-    return feats
+    workers = 1 if multiprocessing.current_process().daemon else max(1, min(workers, len(dataset)))
+    if workers == 1:
+        feats = []
+        for i in range(len(dataset)):
+            if progress:
+                progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
+            feats.append(_pair_features(dataset, params, i))
+        return feats
+    with ProcessPoolExecutor(workers, mp_context=_pool_context()) as pool:
+        futures = [pool.submit(_pair_features, dataset, params, i) for i in range(len(dataset))]
+        for done, _ in enumerate(as_completed(futures)):
+            if progress:
+                progress(f"edges of {done + 1}/{len(dataset)} pairs", done / len(dataset))
+        return [f.result() for f in futures]
 
 
 def _finite(values: Any) -> Any:
@@ -178,7 +204,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
                                                                        sigmas_deg=tuple(request.sigmas_deg)))
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
-    feats = dataset_features(dataset, params, progress)
+    feats = dataset_features(dataset, params, progress, request.workers)
     if progress:
         progress("optimising", 0.5)
     try:
