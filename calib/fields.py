@@ -34,7 +34,7 @@ I64 = NDArray[np.int64]
 Mask = NDArray[np.bool_]
 
 RUNGS_PER_OCTAVE = 3
-BAND_BLOCK = 32  # bands grow by whole blocks of this many image rows, so they are extended rarely
+BAND_BLOCK = 16  # bands grow by whole blocks of this many image rows, so they are extended rarely
 
 
 TRUNCATION = float(np.exp(-4.5))  # G at 3 sigma: subtracted so the truncated kernel is continuous

@@ -208,10 +208,15 @@ def freeze(feat: PairFeatures, tau: F64, sigma_in_px: float, opts: GmmOptions) -
     return freeze_all([feat], tau, [sigma_in_px], opts)[0]
 
 
-def _sums_exact(feat: PairFeatures, uv: F64, sigma: F64) -> F64:
-    """(N, 9) like :meth:`EdgeFields.sample`, by enumerating the pixels near each centre."""
-    i_idx, j_idx = _pairs_within(feat, uv, SOFT_REACH * sigma)
-    delta = feat.camera.displacement(feat.pixels.uv[j_idx], uv[i_idx])  # d delta / d centre = -I
+def _sums_exact(feats: list[PairFeatures], parts: list[slice], uv: F64, sigma: F64) -> F64:
+    """(N, 9) like :func:`calib.fields.sample_fields`, by enumerating the pixels near each centre: centres
+    ``uv[parts[k]]`` (px) with widths ``sigma[parts[k]]`` on the pixels of ``feats[k]``, all one camera."""
+    found = [(_pairs_within(f, uv[part], SOFT_REACH * sigma[part]), f, part.start)
+             for f, part in zip(feats, parts, strict=True) if part.stop > part.start]
+    i_idx = np.concatenate([np.zeros(0, np.int64), *(i + start for (i, _), _, start in found)])
+    q = np.concatenate([np.zeros((0, 2)), *(f.pixels.uv[j] for (_, j), f, _ in found)])
+    e = np.concatenate([np.zeros(0), *(f.pixels.score[j] for (_, j), f, _ in found)])
+    delta = feats[0].camera.displacement(q, uv[i_idx])  # d delta / d centre = -I
     s_i = sigma[i_idx]
     d2 = np.sum(delta**2, axis=1)
     g = gaussian_kernel(d2, s_i)
@@ -220,7 +225,6 @@ def _sums_exact(feat: PairFeatures, uv: F64, sigma: F64) -> F64:
     d = np.sqrt(d2)
     soft, dsoft = soft_disk(d, s_i)
     dsoft_c = -(dsoft / np.maximum(d, 1e-12))[:, None] * delta  # d soft / d centre
-    e = feat.pixels.score[j_idx]
     cols = [e * g, e * dg[:, 0], e * dg[:, 1], g, dg[:, 0], dg[:, 1], soft, dsoft_c[:, 0], dsoft_c[:, 1]]
     return np.stack([np.bincount(i_idx, weights=c, minlength=len(uv)) for c in cols], axis=1)
 
@@ -287,9 +291,7 @@ def pair_terms(
         if opts.evaluator is Evaluator.FIELD and all(f is not None for f in fields):
             sums = sample_fields([f for f in fields if f is not None], [len(x) for x in sel], uv_g, sigma)
         else:
-            sums = np.concatenate([np.zeros((0, 9)), *(
-                _sums_exact(feats[i], uv_g[part], sigma[part]) for i, part in zip(group, parts, strict=True)
-                if part.stop > part.start)])
+            sums = _sums_exact([feats[i] for i in group], parts, uv_g, sigma)
         s_in = np.repeat(np.array([sigma_in_px[i] for i in group], dtype=np.float64), [len(x) for x in sel])
         p_score = np.concatenate([feats[i].points.score for i in group])[glob]
         value, d_centre = _point_terms(sums, sigma, s_in, opts, p_score)
