@@ -11,9 +11,9 @@ kernel's support is the 6-sigma square rather than the 3-sigma disk (the corners
 kernel's value at the disk's edge), pooled pixels sit at their cell's centre (at most f/2 <= sigma/4 away),
 and the bilinear/log-sigma interpolation. ``tests/calib/test_fields.py`` and ``docs/method.md`` measure it.
 
-The maps are built lazily (docs/performance.md): a rung only when a sample needs it, and only for the rows
-that samples reach (projected LiDAR points cover a band of the panorama a few tens of degrees high), grown in
-blocks as the samples move. A band is filtered with the same zero rows outside the image as the whole map,
+The maps are built lazily (docs/performance.md): a rung only when a sample needs it, and in each block of
+``COLUMN_BLOCK`` image columns only for the rows that samples reach (projected LiDAR points cover a band of
+the panorama a few tens of degrees high, tilted with the rig), grown as the samples move. A band is filtered with the same zero rows outside the image as the whole map,
 so a sample's value does not depend on how the band grew (up to the rounding of the DFT that ``cv2.filter2D``
 uses for large kernels: ``tests/calib/test_fields.py`` pins it against whole-image maps).
 """
@@ -35,6 +35,7 @@ Mask = NDArray[np.bool_]
 
 RUNGS_PER_OCTAVE = 3
 BAND_BLOCK = 16  # bands grow by whole blocks of this many image rows, so they are extended rarely
+COLUMN_BLOCK = 128  # image columns that share one row band (a tilted LiDAR band moves ~60 rows across one)
 
 
 TRUNCATION = float(np.exp(-4.5))  # G at 3 sigma: subtracted so the truncated kernel is continuous
@@ -106,11 +107,13 @@ def _kernels(sigma: float, f: int) -> F64:
 class EdgeFields:
     """The rungs of one image's edge pixels, for sigmas ``sigmas_px`` (3 per octave), built on demand.
 
-    Holds the edge pixels (``uv`` (M,2) px, ``score`` (M,)) and the built bands of the rungs, all in one
-    buffer ``flat`` (cells, 9) float32 with channels A, dA/dc (u, v), B, dB/dc (u, v), soft |Omega|,
-    d|Omega|/dc (u, v): rung k's pooled rows ``row0[k] : row0[k] + rows[k]`` (of ``hf[k]``), ``wf[k]`` cells
-    wide, start at ``offset[k]``. One buffer lets a sample gather every point's rungs and corners at once.
-    The cache only grows; sampling the same place always returns the same values."""
+    Holds the edge pixels (``uv`` (M,2) px, ``score`` (M,)) and the built bands, all in one buffer ``flat``
+    (cells, 9) float32 with channels A, dA/dc (u, v), B, dB/dc (u, v), soft |Omega|, d|Omega|/dc (u, v).
+    Rung k is pooled by ``factor[k]`` to (``hf[k]``, ``wf[k]``) and cut into column blocks of ``cb[k]``
+    pooled columns (``COLUMN_BLOCK`` image columns); block (k, b) holds pooled rows
+    ``row0[k, b] : row0[k, b] + rows[k, b]`` at ``offset[k, b]``, ``bw[k, b]`` cells wide. One buffer lets a
+    sample gather every point's rungs and corners at once. The cache only grows; sampling the same place
+    always returns the same values."""
 
     uv: F64
     score: F64
@@ -121,20 +124,26 @@ class EdgeFields:
     factor: I64 = field(init=False)
     hf: I64 = field(init=False)
     wf: I64 = field(init=False)
+    cb: I64 = field(init=False)
+    bw: I64 = field(init=False)
     row0: I64 = field(init=False)
     rows: I64 = field(init=False)
     offset: I64 = field(init=False)
     flat: F32 = field(init=False)
-    band_lo: int = field(init=False)  # image rows asked for so far, rounded out to BAND_BLOCK
-    band_hi: int = field(init=False)
+    band_lo: I64 = field(init=False)  # per column block: image rows asked for so far, rounded to BAND_BLOCK
+    band_hi: I64 = field(init=False)
 
     def __post_init__(self) -> None:
-        self.band_lo, self.band_hi = self.height, 0
         self.factor = np.array([_factor(float(s), self.width, self.wrap_u) for s in self.sigmas_px], np.int64)
         self.hf, self.wf = -(-self.height // self.factor), -(-self.width // self.factor)
-        n = len(self.sigmas_px)
-        self.row0, self.rows, self.offset = np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64)
+        self.cb = np.maximum(COLUMN_BLOCK // self.factor, 1)
+        n_blocks = int((-(-self.wf // self.cb)).max())
+        starts = np.arange(n_blocks)[None, :] * self.cb[:, None]
+        self.bw = np.clip(self.wf[:, None] - starts, 0, self.cb[:, None])
+        shape = (len(self.sigmas_px), n_blocks)
+        self.row0, self.rows, self.offset = (np.zeros(shape, np.int64) for _ in range(3))
         self.flat = np.zeros((0, 9), np.float32)
+        self.band_lo, self.band_hi = np.full(n_blocks, self.height), np.zeros(n_blocks, np.int64)
 
     @classmethod
     def build(
@@ -167,13 +176,13 @@ class EdgeFields:
             np.add.at(mask_map, (rows[ok], cols[ok]), wgt[ok])
         return score_map, mask_map
 
-    def _band(self, k: int) -> F32:
-        """The built rows of rung k, (rows, Wf, 9)."""
-        a = int(self.offset[k])
-        return self.flat[a: a + int(self.rows[k] * self.wf[k])].reshape(int(self.rows[k]), int(self.wf[k]), 9)
+    def _block(self, k: int, b: int) -> F32:
+        """The built rows of block (k, b), (rows, bw, 9)."""
+        a, r, w = int(self.offset[k, b]), int(self.rows[k, b]), int(self.bw[k, b])
+        return self.flat[a: a + r * w].reshape(r, w, 9)
 
     def _maps(self, k: int, lo: int, hi: int, splat: tuple[F64, F64]) -> F32:
-        """Pooled rows ``lo:hi`` of rung k, (hi - lo, Wf, 9) float32."""
+        """Pooled rows ``lo:hi`` of rung k over the whole width, (hi - lo, Wf, 9) float32."""
         f = int(self.factor[k])
         score_map, mask_map = (_pool(m, f) for m in splat)
         kernels = _kernels(float(self.sigmas_px[k]), f)
@@ -181,35 +190,45 @@ class EdgeFields:
         return np.stack(maps, axis=-1).astype(np.float32)
 
     def grow(self, need_lo: I64, need_hi: I64) -> None:
-        """Extend the bands so rung k covers pooled rows ``need_lo[k] : need_hi[k]`` (empty where lo >= hi).
+        """Extend the blocks so block (k, b) covers pooled rows ``need_lo[k, b] : need_hi[k, b]`` (nothing
+        where lo >= hi).
 
-        A rung built or extended covers at least the image rows any rung was asked for so far (rounded out to
-        ``BAND_BLOCK``): the samples of all rungs come from the same projected points, so the next rung
-        asked for finds its band ready instead of growing it row block by row block."""
+        A block built or extended covers at least the image rows any rung was asked for in its column block
+        so far (rounded out to ``BAND_BLOCK``): the samples of all rungs come from the same projected points,
+        so the next rung asked for finds its band ready instead of growing it again."""
         end = self.row0 + self.rows
         short = (need_hi > need_lo) & ((self.rows == 0) | (need_lo < self.row0) | (need_hi > end))
         if not short.any():
             return
-        self.band_lo = min(self.band_lo, int((need_lo * self.factor)[short].min())) // BAND_BLOCK * BAND_BLOCK
-        hi_px = max(self.band_hi, int((need_hi * self.factor)[short].max()))
-        self.band_hi = min(-(-hi_px // BAND_BLOCK) * BAND_BLOCK, self.height)
+        f = self.factor[:, None]
+        lo_px = np.where(short, need_lo * f, self.height).min(axis=0)
+        hi_px = np.where(short, need_hi * f, 0).max(axis=0)
+        self.band_lo = np.minimum(self.band_lo, lo_px) // BAND_BLOCK * BAND_BLOCK
+        self.band_hi = np.minimum(-(-np.maximum(self.band_hi, hi_px) // BAND_BLOCK) * BAND_BLOCK, self.height)
+        # New extent of each short block: what it has, what is asked, and its column block's band.
+        new_lo = np.minimum(need_lo, self.band_lo[None, :] // f)
+        new_hi = np.maximum(need_hi, np.minimum(-(-self.band_hi[None, :] // f), self.hf[:, None]))
+        new_lo = np.where(self.rows > 0, np.minimum(new_lo, self.row0), new_lo)
+        new_hi = np.where(self.rows > 0, np.maximum(new_hi, end), new_hi)
         splat = self._splat()
-        bands = []
+        blocks = []
         for k in range(len(self.sigmas_px)):
-            band = self._band(k)
-            if short[k]:
-                f = int(self.factor[k])
-                lo = min(int(need_lo[k]), self.band_lo // f)
-                hi = max(int(need_hi[k]), min(-(-self.band_hi // f), int(self.hf[k])))
-                have_lo, have_hi = (int(self.row0[k]), int(end[k])) if self.rows[k] else (lo, lo)
-                lo, hi = min(lo, have_lo), max(hi, have_hi)
-                parts = [self._maps(k, a, b, splat) for a, b in ((lo, have_lo), (have_hi, hi)) if b > a]
-                band = np.concatenate([parts[0], band, *parts[1:]] if lo < have_lo else [band, *parts])
-                self.row0[k], self.rows[k] = lo, hi - lo
-            bands.append(band.reshape(-1, 9))
-        sizes = np.array([len(b) for b in bands], np.int64)
-        self.offset = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-        self.flat = np.concatenate(bands)
+            strip = None
+            if short[k].any():  # one strip of full-width rows serves every short block of the rung
+                lo, hi = int(new_lo[k][short[k]].min()), int(new_hi[k][short[k]].max())
+                strip = self._maps(k, lo, hi, splat)
+            for b in range(self.rows.shape[1]):
+                if strip is not None and short[k, b]:
+                    c0 = b * int(self.cb[k])
+                    rows = slice(int(new_lo[k, b]) - lo, int(new_hi[k, b]) - lo)
+                    block = strip[rows, c0:c0 + int(self.bw[k, b])]
+                    self.row0[k, b], self.rows[k, b] = new_lo[k, b], new_hi[k, b] - new_lo[k, b]
+                else:
+                    block = self._block(k, b)
+                blocks.append(block.reshape(-1, 9))
+        sizes = np.array([len(b) for b in blocks], np.int64)
+        self.offset = (np.cumsum(sizes) - sizes).reshape(self.rows.shape)
+        self.flat = np.concatenate(blocks)
 
     def sample(self, uv: F64, sigma: F64) -> F64:
         """(N, 9): A, dA/dc, B, dB/dc, |Omega|, d|Omega|/dc at centres ``uv`` (N,2) px with widths ``sigma``
@@ -247,27 +266,31 @@ def sample_fields(fields: list[EdgeFields], sizes: list[int], uv: F64, sigma: F6
     if any(f.width != ladder.width or f.height != ladder.height or f.wrap_u != ladder.wrap_u
            or not np.array_equal(f.sigmas_px, ladder.sigmas_px) for f in fields):
         raise CalibError("sample_fields needs images with one ladder of rungs (same camera and options)")
-    n_rungs = len(ladder.sigmas_px)
+    n_rungs, n_blocks = ladder.rows.shape
     pos = np.clip(np.log2(sigma / ladder.sigmas_px[0]) * RUNGS_PER_OCTAVE, 0.0, n_rungs - 1.000001)
     k0 = np.floor(pos).astype(np.int64)
     t = pos - k0
     kk = np.stack([k0, np.minimum(k0 + 1, n_rungs - 1)], axis=1)  # (N, 2): the rungs below and above
     weights, xs, ys, oks = _corners(ladder, kk, uv)
     owner = np.repeat(np.arange(len(fields)), sizes)
-    ok_all, y_all = np.stack(oks), np.stack(ys)  # (4, N, 2)
-    key = np.broadcast_to(owner[:, None] * n_rungs + kk, y_all.shape)
-    need_lo = np.full(len(fields) * n_rungs, np.iinfo(np.int64).max)
-    need_hi = np.full(len(fields) * n_rungs, -1)
+    ok_all, y_all, x_all = np.stack(oks), np.stack(ys), np.stack(xs)  # (4, N, 2)
+    block = x_all // ladder.cb[kk]
+    key = (owner[:, None] * n_rungs + kk) * n_blocks + block
+    cells_per_image = n_rungs * n_blocks
+    need_lo = np.full(len(fields) * cells_per_image, np.iinfo(np.int64).max)
+    need_hi = np.full(len(fields) * cells_per_image, -1)
     np.minimum.at(need_lo, key[ok_all], y_all[ok_all])
     np.maximum.at(need_hi, key[ok_all], y_all[ok_all] + 1)
-    lo_pr, hi_pr = need_lo.reshape(len(fields), n_rungs), need_hi.reshape(len(fields), n_rungs)
+    shape = (len(fields), n_rungs, n_blocks)
+    lo_p, hi_p = need_lo.reshape(shape), need_hi.reshape(shape)
     built0, built = np.stack([f.row0 for f in fields]), np.stack([f.rows for f in fields])
-    short = (hi_pr > lo_pr) & ((built == 0) | (lo_pr < built0) | (hi_pr > built0 + built))
-    for p in np.flatnonzero(short.any(axis=1)):
-        fields[p].grow(lo_pr[p], hi_pr[p])
-    row0, rows, offset = (np.stack([getattr(f, a) for f in fields])[owner[:, None], kk]
-                          for a in ("row0", "rows", "offset"))
-    cells = offset + np.clip(y_all - row0, 0, np.maximum(rows - 1, 0)) * ladder.wf[kk] + np.stack(xs)
+    short = (hi_p > lo_p) & ((built == 0) | (lo_p < built0) | (hi_p > built0 + built))
+    for p in np.flatnonzero(short.any(axis=(1, 2))):
+        fields[p].grow(lo_p[p], hi_p[p])
+    at = (owner[:, None], kk, block)
+    row0, rows, offset = (np.stack([getattr(f, a) for f in fields])[at] for a in ("row0", "rows", "offset"))
+    bw = ladder.bw[kk, block]
+    cells = offset + np.clip(y_all - row0, 0, np.maximum(rows - 1, 0)) * bw + x_all - block * ladder.cb[kk]
     vals = np.zeros((4, len(uv), 2, 9), np.float32)
     ends = np.cumsum(sizes)
     for f, end, n in zip(fields, ends, sizes, strict=True):

@@ -26,9 +26,9 @@ def _fresh(pair) -> EdgeFields:
 def _whole(pair) -> EdgeFields:
     """Every rung built over every row at once, as before the bands existed."""
     fields = _fresh(pair)
-    n = len(fields.sigmas_px)
-    fields.grow(np.zeros(n, np.int64), fields.hf.copy())
-    assert np.array_equal(fields.rows, fields.hf)
+    every_row = np.broadcast_to(fields.hf[:, None], fields.rows.shape)
+    fields.grow(np.zeros_like(fields.rows), every_row.copy())
+    assert np.array_equal(fields.rows, every_row)
     return fields
 
 
