@@ -13,9 +13,10 @@ and the bilinear/log-sigma interpolation. ``tests/calib/test_fields.py`` and ``d
 
 The maps are built lazily (docs/performance.md): a rung only when a sample needs it, and in each block of
 ``COLUMN_BLOCK`` image columns only for the rows that samples reach (projected LiDAR points cover a band of
-the panorama a few tens of degrees high, tilted with the rig), grown as the samples move. A band is filtered with the same zero rows outside the image as the whole map,
-so a sample's value does not depend on how the band grew (up to the rounding of the DFT that ``cv2.filter2D``
-uses for large kernels: ``tests/calib/test_fields.py`` pins it against whole-image maps).
+the panorama a few tens of degrees high, tilted with the rig), grown as the samples move. A band is filtered
+with the same zero rows outside the image as the whole map, so a sample's value does not depend on how the
+band grew (up to the rounding of the DFT that ``cv2.filter2D`` uses for large kernels:
+``tests/calib/test_fields.py`` pins it against whole-image maps).
 """
 
 from __future__ import annotations
