@@ -209,8 +209,13 @@ def run(dataset: Path, init: str, serial: bool, profile: str | None) -> dict[str
 
 def print_table(result: dict[str, Any]) -> None:
     print(f"{'stage':58s} {'wall s':>8s} {'cpu s':>8s} {'calls':>6s}")
+    rungs = sorted((label for label in ORDER if label.startswith("  field rung")),
+                   key=lambda label: float(label.split()[3]))
     for label in ORDER:
-        print(f"{label:58s} {WALL[label]:8.2f} {CPU[label]:8.2f} {CALLS[label] or 1:6d}")
+        if label in rungs:
+            continue
+        for row in [label, *(rungs if label.startswith("field maps") else [])]:
+            print(f"{row:58s} {WALL[row]:8.2f} {CPU[row]:8.2f} {CALLS[row] or 1:6d}")
     hwm = result["hwm"]
     print(f"peak RSS after features: {hwm['features'] / 1024:.0f} MB "
           f"(field maps held: {hwm['features_bytes'] / 2**20:.0f} MB)")

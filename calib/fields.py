@@ -67,17 +67,16 @@ def _pool(image: F64, f: int) -> F64:
     return np.asarray(padded.reshape(hp // f, f, wp // f, f).sum(axis=(1, 3)), dtype=np.float64)
 
 
-def _filter_rows(image: F64, kernel: F64, wrap_u: bool, lo: int, hi: int) -> F64:
-    """Rows ``lo:hi`` of the 2-D correlation of ``image`` with ``kernel``: zero outside the image, except
-    across the u seam of a panorama. Reads only the rows the kernel reaches from the band."""
-    r = kernel.shape[0] // 2
-    h = image.shape[0]
-    band = np.zeros((hi - lo + 2 * r, image.shape[1]))
-    a, b = max(lo - r, 0), min(hi + r, h)
-    band[a - (lo - r): b - (lo - r)] = image[a:b]
-    pad = np.pad(band, ((0, 0), (r, r)), mode="wrap" if wrap_u else "constant")
-    out = cv2.filter2D(pad, cv2.CV_64F, kernel, borderType=cv2.BORDER_CONSTANT)
-    return np.asarray(out[r:-r, r:-r], dtype=np.float64)
+def _window(image: F64, r0: int, r1: int, c0: int, c1: int, wrap_u: bool) -> F64:
+    """``image[r0:r1, c0:c1]`` with zeros outside the image, except across the u seam of a panorama."""
+    h, w = image.shape
+    out = np.zeros((r1 - r0, c1 - c0))
+    a, b = max(r0, 0), min(r1, h)
+    if b > a:
+        cols = np.arange(c0, c1)
+        inside = np.ones(len(cols), bool) if wrap_u else (cols >= 0) & (cols < w)
+        out[a - r0:b - r0, inside] = image[a:b][:, np.mod(cols[inside], w)]
+    return out
 
 
 def _factor(sigma: float, width: int, wrap_u: bool) -> int:
@@ -182,12 +181,17 @@ class EdgeFields:
         a, r, w = int(self.offset[k, b]), int(self.rows[k, b]), int(self.bw[k, b])
         return self.flat[a: a + r * w].reshape(r, w, 9)
 
-    def _maps(self, k: int, lo: int, hi: int, splat: tuple[F64, F64]) -> F32:
-        """Pooled rows ``lo:hi`` of rung k over the whole width, (hi - lo, Wf, 9) float32."""
+    def _maps(self, k: int, lo: int, hi: int, c0: int, c1: int, splat: tuple[F64, F64]) -> F32:
+        """Pooled rows ``lo:hi`` and columns ``c0:c1`` of rung k, (hi - lo, c1 - c0, 9) float32: the 2-D
+        correlation of the pooled maps with the rung's kernels, zero outside the image except across the u
+        seam of a panorama, from only the window of the maps the kernels reach."""
         f = int(self.factor[k])
-        score_map, mask_map = (_pool(m, f) for m in splat)
         kernels = _kernels(float(self.sigmas_px[k]), f)
-        maps = [_filter_rows(score_map if i < 3 else mask_map, kernels[i], self.wrap_u, lo, hi) for i in range(9)]
+        r = kernels.shape[1] // 2
+        score_map, mask_map = (_pool(_window(m, (lo - r) * f, (hi + r) * f, (c0 - r) * f, (c1 + r) * f,
+                                             self.wrap_u), f) for m in splat)
+        maps = [cv2.filter2D(score_map if i < 3 else mask_map, cv2.CV_64F, kernels[i],
+                             borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r] for i in range(9)]
         return np.stack(maps, axis=-1).astype(np.float32)
 
     def grow(self, need_lo: I64, need_hi: I64) -> None:
@@ -198,7 +202,7 @@ class EdgeFields:
         so far (rounded out to ``BAND_BLOCK``): the samples of all rungs come from the same projected points,
         so the next rung asked for finds its band ready instead of growing it again."""
         end = self.row0 + self.rows
-        short = (need_hi > need_lo) & ((self.rows == 0) | (need_lo < self.row0) | (need_hi > end))
+        short = (need_hi > need_lo) & (self.bw > 0) & ((self.rows == 0) | (need_lo < self.row0) | (need_hi > end))
         if not short.any():
             return
         f = self.factor[:, None]
@@ -213,20 +217,17 @@ class EdgeFields:
         new_hi = np.where(self.rows > 0, np.maximum(new_hi, end), new_hi)
         splat = self._splat()
         blocks = []
-        for k in range(len(self.sigmas_px)):
-            strip = None
-            if short[k].any():  # one strip of full-width rows serves every short block of the rung
-                lo, hi = int(new_lo[k][short[k]].min()), int(new_hi[k][short[k]].max())
-                strip = self._maps(k, lo, hi, splat)
-            for b in range(self.rows.shape[1]):
-                if strip is not None and short[k, b]:
-                    c0 = b * int(self.cb[k])
-                    rows = slice(int(new_lo[k, b]) - lo, int(new_hi[k, b]) - lo)
-                    block = strip[rows, c0:c0 + int(self.bw[k, b])]
-                    self.row0[k, b], self.rows[k, b] = new_lo[k, b], new_hi[k, b] - new_lo[k, b]
-                else:
-                    block = self._block(k, b)
-                blocks.append(block.reshape(-1, 9))
+        for k, b in np.ndindex(*self.rows.shape):
+            block = self._block(k, b)
+            if short[k, b]:  # only the missing rows: a built cell keeps its value
+                c0, c1 = b * int(self.cb[k]), b * int(self.cb[k]) + int(self.bw[k, b])
+                lo, hi = int(new_lo[k, b]), int(new_hi[k, b])
+                have_lo, have_hi = (int(self.row0[k, b]), int(end[k, b])) if self.rows[k, b] else (lo, lo)
+                above = self._maps(k, lo, have_lo, c0, c1, splat) if have_lo > lo else block[:0]
+                below = self._maps(k, have_hi, hi, c0, c1, splat) if hi > have_hi else block[:0]
+                block = np.concatenate([above, block, below]) if len(block) else np.concatenate([above, below])
+                self.row0[k, b], self.rows[k, b] = lo, hi - lo
+            blocks.append(block.reshape(-1, 9))
         sizes = np.array([len(b) for b in blocks], np.int64)
         self.offset = (np.cumsum(sizes) - sizes).reshape(self.rows.shape)
         self.flat = np.concatenate(blocks)

@@ -3,12 +3,13 @@ batched per-pair cost equals the pair-by-pair one, the one-FFT L0 iteration equa
 
 import dataclasses
 
+import cv2
 import numpy as np
 import pytest
 import scipy.fft
 
 from calib.edges_image import l0_smooth
-from calib.fields import EdgeFields, sample_fields
+from calib.fields import EdgeFields, _kernels, _pool, sample_fields
 from calib.gmm import Evaluator, GmmOptions, freeze, pair_terms, point_terms
 from tests.calib.synthetic import TRUTH, make_pair
 
@@ -28,8 +29,38 @@ def _whole(pair) -> EdgeFields:
     fields = _fresh(pair)
     every_row = np.broadcast_to(fields.hf[:, None], fields.rows.shape)
     fields.grow(np.zeros_like(fields.rows), every_row.copy())
-    assert np.array_equal(fields.rows, every_row)
+    assert np.array_equal(fields.rows[fields.bw > 0], every_row[fields.bw > 0])
     return fields
+
+
+def _whole_map(fields: EdgeFields, k: int) -> np.ndarray:
+    """Rung k over the whole image as before issue 12: the pooled maps padded with zero rows and wrapped
+    columns, filtered at once. (Hf, Wf, 9)."""
+    f = int(fields.factor[k])
+    kernels = _kernels(float(fields.sigmas_px[k]), f)
+    r = kernels.shape[1] // 2
+    out = []
+    for i, m in enumerate(fields._splat()[0:1] * 3 + fields._splat()[1:2] * 6):
+        pooled = _pool(m, f)
+        pad = np.pad(np.pad(pooled, ((r, r), (0, 0))), ((0, 0), (r, r)), mode="wrap")
+        out.append(cv2.filter2D(pad, cv2.CV_64F, kernels[i], borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r])
+    return np.stack(out, axis=-1)
+
+
+def test_blocks_hold_the_whole_image_maps(pair):
+    fields = _fresh(pair)
+    fields.sample(*_centres(pair, (100.0, 140.0), 400, 9))
+    fields.sample(*_centres(pair, (30.0, 60.0), 100, 10))  # grows some blocks upwards
+    checked = 0
+    for k in np.flatnonzero(fields.rows.sum(axis=1)):
+        whole = _whole_map(fields, int(k))
+        for b in np.flatnonzero(fields.rows[k]):
+            r0, c0 = int(fields.row0[k, b]), b * int(fields.cb[k])
+            expected = whole[r0:r0 + int(fields.rows[k, b]), c0:c0 + int(fields.bw[k, b])]
+            got = fields._block(int(k), int(b))
+            assert np.abs(got - expected).max() <= 1e-6 * np.abs(whole).max() + 1e-12, (k, b)
+            checked += 1
+    assert checked > 20
 
 
 def _centres(pair, rows: tuple[float, float], n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
