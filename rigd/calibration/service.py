@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import multiprocessing
-import multiprocessing.context
-import sys
-import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -89,13 +86,6 @@ def _pair_features(dataset: Dataset, params: CalibParams, i: int) -> PairFeature
                             dataset.rig.camera.model(), params, index=i)
 
 
-def _pool_context() -> multiprocessing.context.BaseContext:
-    # fork starts a worker in milliseconds and shares the loaded libraries; a process with threads (the
-    # HTTP service) spawns instead, since forking it could copy a lock held by another thread.
-    return multiprocessing.get_context("fork" if threading.active_count() == 1 and sys.platform == "linux"
-                                       else "spawn")
-
-
 def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None,
                      workers: int = 1) -> list[PairFeatures]:
     """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges), with
@@ -110,7 +100,9 @@ def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress |
                 progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
             feats.append(_pair_features(dataset, params, i))
         return feats
-    with ProcessPoolExecutor(workers, mp_context=_pool_context()) as pool:
+    # spawn, not fork (as rigd.evaluate): a child forked while OpenCV's or BLAS's own threads hold a lock can
+    # deadlock, and those threads are invisible to the threading module. Costs ~1 s of imports per worker.
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         futures = [pool.submit(_pair_features, dataset, params, i) for i in range(len(dataset))]
         for done, _ in enumerate(as_completed(futures)):
             if progress:
