@@ -65,22 +65,43 @@ def l0_smooth(grey: F64, lam: float, kappa: float = 2.0, beta_max: float = 1e5) 
     fx[0, 0], fx[0, -1] = -1.0, 1.0
     fy = np.zeros((h, w))
     fy[0, 0], fy[-1, 0] = -1.0, 1.0
-    otf_x, otf_y = scipy.fft.rfft2(fx), scipy.fft.rfft2(fy)
-    denom_grad = np.abs(otf_x) ** 2 + np.abs(otf_y) ** 2
+    denom_grad = np.abs(scipy.fft.rfft2(fx)) ** 2 + np.abs(scipy.fft.rfft2(fy)) ** 2
     f_image = scipy.fft.rfft2(grey)
     smooth = grey.copy()
+    gx, gy, adjoint, energy = (np.empty((h, w)) for _ in range(4))
     beta = 2.0 * lam
     while beta < beta_max:
-        gx = np.roll(smooth, -1, axis=1) - smooth
-        gy = np.roll(smooth, -1, axis=0) - smooth
-        flat = gx * gx + gy * gy < lam / beta
-        gx[flat] = 0.0
-        gy[flat] = 0.0
-        # Adjoint of the forward difference: conj(OTF) in the Fourier domain.
-        numer = f_image + beta * (np.conj(otf_x) * scipy.fft.rfft2(gx) + np.conj(otf_y) * scipy.fft.rfft2(gy))
+        _forward_difference(smooth, gx, gy)
+        np.multiply(gx, gx, out=energy)
+        energy += gy * gy
+        flat = energy < lam / beta
+        np.copyto(gx, 0.0, where=flat)
+        np.copyto(gy, 0.0, where=flat)
+        # Adjoint of the forward difference (conj(OTF) in the Fourier domain) applied in space, the
+        # backward difference, so one forward FFT per iteration instead of two.
+        _backward_difference_sum(gx, gy, adjoint)
+        numer = f_image + beta * scipy.fft.rfft2(adjoint)
         smooth = scipy.fft.irfft2(numer / (1.0 + beta * denom_grad), s=(h, w))
         beta *= kappa
     return np.asarray(smooth, dtype=np.float64)
+
+
+def _forward_difference(s: F64, gx: F64, gy: F64) -> None:
+    """gx, gy = periodic forward differences of ``s`` along columns and rows (written in place)."""
+    np.subtract(s[:, 1:], s[:, :-1], out=gx[:, :-1])
+    np.subtract(s[:, :1], s[:, -1:], out=gx[:, -1:])
+    np.subtract(s[1:], s[:-1], out=gy[:-1])
+    np.subtract(s[:1], s[-1:], out=gy[-1:])
+
+
+def _backward_difference_sum(gx: F64, gy: F64, out: F64) -> None:
+    """out = (gx shifted right by one column - gx) + gy shifted down by one row - gy, periodic: the adjoint
+    of :func:`_forward_difference` applied to (gx, gy)."""
+    np.subtract(gx[:, :-1], gx[:, 1:], out=out[:, 1:])
+    np.subtract(gx[:, -1:], gx[:, :1], out=out[:, :1])
+    out[1:] += gy[:-1]
+    out[:1] += gy[-1:]
+    out -= gy
 
 
 def _sobel(grey: F64, wrap_u: bool) -> tuple[F64, F64]:

@@ -10,40 +10,33 @@ bounded whatever its width (the image pyramid the issue asks for). Differences f
 kernel's support is the 6-sigma square rather than the 3-sigma disk (the corners hold < 1.2 % of the
 kernel's value at the disk's edge), pooled pixels sit at their cell's centre (at most f/2 <= sigma/4 away),
 and the bilinear/log-sigma interpolation. ``tests/calib/test_fields.py`` and ``docs/method.md`` measure it.
+
+The maps are built lazily (docs/performance.md): a rung only when a sample needs it, and in each block of
+``COLUMN_BLOCK`` image columns only for the rows that samples reach (projected LiDAR points cover a band of
+the panorama a few tens of degrees high, tilted with the rig), grown as the samples move. A band is filtered
+with the same zero rows outside the image as the whole map, so a sample's value does not depend on how the
+band grew (up to the rounding of the DFT that ``cv2.filter2D`` uses for large kernels:
+``tests/calib/test_fields.py`` pins it against whole-image maps).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.errors import CalibError
+
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
+I64 = NDArray[np.int64]
+Mask = NDArray[np.bool_]
 
 RUNGS_PER_OCTAVE = 3
-
-
-@dataclass(frozen=True)
-class Rung:
-    """Maps for one sigma, pooled by ``f``: (9, Hf, Wf) float32 = A, dA/dc (u, v), B, dB/dc (u, v),
-    soft |Omega|, d|Omega|/dc (u, v)."""
-
-    sigma_px: float
-    factor: int
-    maps: F32
-
-
-def _pool(image: F64, f: int) -> F64:
-    if f == 1:
-        return image
-    h, w = image.shape
-    hp, wp = -(-h // f) * f, -(-w // f) * f
-    padded = np.zeros((hp, wp))
-    padded[:h, :w] = image
-    return np.asarray(padded.reshape(hp // f, f, wp // f, f).sum(axis=(1, 3)), dtype=np.float64)
+BAND_BLOCK = 16  # bands grow by whole blocks of this many image rows, so they are extended rarely
+COLUMN_BLOCK = 128  # image columns that share one row band (a tilted LiDAR band moves ~60 rows across one)
 
 
 TRUNCATION = float(np.exp(-4.5))  # G at 3 sigma: subtracted so the truncated kernel is continuous
@@ -64,19 +57,36 @@ def soft_disk(d: F64, sigma: F64 | float) -> tuple[F64, F64]:
     return value, -value * (1.0 - value) / (SOFT_WIDTH * sigma)
 
 
-def _filter(image: F64, kernel: F64, wrap_u: bool) -> F64:
-    """2-D correlation, zero outside the image except across the u seam of a panorama."""
-    r = kernel.shape[0] // 2
-    pad = np.pad(image, ((r, r), (0, 0)))
-    pad = np.pad(pad, ((0, 0), (r, r)), mode="wrap" if wrap_u else "constant")
-    out = cv2.filter2D(pad, cv2.CV_64F, kernel, borderType=cv2.BORDER_CONSTANT)
-    return np.asarray(out[r:-r, r:-r], dtype=np.float64)
+def _pool(image: F64, f: int) -> F64:
+    if f == 1:
+        return image
+    h, w = image.shape
+    hp, wp = -(-h // f) * f, -(-w // f) * f
+    padded = np.zeros((hp, wp))
+    padded[:h, :w] = image
+    return np.asarray(padded.reshape(hp // f, f, wp // f, f).sum(axis=(1, 3)), dtype=np.float64)
 
 
-def _rung(score_map: F64, mask_map: F64, sigma: float, wrap_u: bool) -> Rung:
+def _window(image: F64, r0: int, r1: int, c0: int, c1: int, wrap_u: bool) -> F64:
+    """``image[r0:r1, c0:c1]`` with zeros outside the image, except across the u seam of a panorama."""
+    h, w = image.shape
+    out = np.zeros((r1 - r0, c1 - c0))
+    a, b = max(r0, 0), min(r1, h)
+    if b > a:
+        cols = np.arange(c0, c1)
+        inside = np.ones(len(cols), bool) if wrap_u else (cols >= 0) & (cols < w)
+        out[a - r0:b - r0, inside] = image[a:b][:, np.mod(cols[inside], w)]
+    return out
+
+
+def _factor(sigma: float, width: int, wrap_u: bool) -> int:
     f = int(2 ** max(0, int(np.floor(np.log2(sigma / 2.0))))) if sigma >= 4.0 else 1
-    if wrap_u and score_map.shape[1] % f:
-        f = 1
+    return 1 if wrap_u and width % f else f
+
+
+def _kernels(sigma: float, f: int) -> F64:
+    """(9, K, K) correlation kernels of one rung on maps pooled by ``f``: G, dG/dc (u, v) for the score and
+    the mask, then the soft disk and its derivatives for the mask."""
     s = sigma / f
     radius = int(np.ceil(SOFT_REACH * s))
     y = np.arange(-radius, radius + 1, dtype=np.float64)
@@ -90,83 +100,206 @@ def _rung(score_map: F64, mask_map: F64, sigma: float, wrap_u: bool) -> Rung:
     g_full = np.where(d2 <= 9.0 * sigma * sigma, np.exp(-0.5 * d2 / sigma**2), 0.0)
     gu, gv = g_full * xx * f / sigma**2, g_full * yy * f / sigma**2
     cu, cv = -dc_dd * xx * f / d, -dc_dd * yy * f / d
-    e, m = _pool(score_map, f), _pool(mask_map, f)
-    maps = [_filter(e, k, wrap_u) for k in (g, gu, gv)]
-    maps += [_filter(m, k, wrap_u) for k in (g, gu, gv, c, cu, cv)]
-    return Rung(sigma, f, np.stack(maps).astype(np.float32))
+    return np.stack([g, gu, gv, g, gu, gv, c, cu, cv])
 
 
-@dataclass(frozen=True)
+@dataclass
 class EdgeFields:
-    """The rungs of one image's edge pixels, for sigmas from ``sigmas_px[0]`` to ``sigmas_px[-1]``."""
+    """The rungs of one image's edge pixels, for sigmas ``sigmas_px`` (3 per octave), built on demand.
 
-    rungs: tuple[Rung, ...]
+    Holds the edge pixels (``uv`` (M,2) px, ``score`` (M,)) and the built bands, all in one buffer ``flat``
+    (cells, 9) float32 with channels A, dA/dc (u, v), B, dB/dc (u, v), soft |Omega|, d|Omega|/dc (u, v).
+    Rung k is pooled by ``factor[k]`` to (``hf[k]``, ``wf[k]``) and cut into column blocks of ``cb[k]``
+    pooled columns (``COLUMN_BLOCK`` image columns); block (k, b) holds pooled rows
+    ``row0[k, b] : row0[k, b] + rows[k, b]`` at ``offset[k, b]``, ``bw[k, b]`` cells wide. One buffer lets a
+    sample gather every point's rungs and corners at once. The cache only grows; sampling the same place
+    always returns the same values."""
+
+    uv: F64
+    score: F64
     width: int
     height: int
     wrap_u: bool
+    sigmas_px: F64
+    factor: I64 = field(init=False)
+    hf: I64 = field(init=False)
+    wf: I64 = field(init=False)
+    cb: I64 = field(init=False)
+    bw: I64 = field(init=False)
+    row0: I64 = field(init=False)
+    rows: I64 = field(init=False)
+    offset: I64 = field(init=False)
+    flat: F32 = field(init=False)
+    band_lo: I64 = field(init=False)  # per column block: image rows asked for so far, rounded to BAND_BLOCK
+    band_hi: I64 = field(init=False)
 
-    @property
-    def sigmas_px(self) -> F64:
-        return np.array([r.sigma_px for r in self.rungs])
+    def __post_init__(self) -> None:
+        self.factor = np.array([_factor(float(s), self.width, self.wrap_u) for s in self.sigmas_px], np.int64)
+        self.hf, self.wf = -(-self.height // self.factor), -(-self.width // self.factor)
+        self.cb = np.maximum(COLUMN_BLOCK // self.factor, 1)
+        n_blocks = int((-(-self.wf // self.cb)).max())
+        starts = np.arange(n_blocks)[None, :] * self.cb[:, None]
+        self.bw = np.clip(self.wf[:, None] - starts, 0, self.cb[:, None])
+        shape = (len(self.sigmas_px), n_blocks)
+        self.row0, self.rows, self.offset = (np.zeros(shape, np.int64) for _ in range(3))
+        self.flat = np.zeros((0, 9), np.float32)
+        self.band_lo, self.band_hi = np.full(n_blocks, self.height), np.zeros(n_blocks, np.int64)
 
     @classmethod
     def build(
         cls, uv: F64, score: F64, width: int, height: int, wrap_u: bool, sigma_min: float, sigma_max: float
     ) -> EdgeFields:
         """``uv`` (M,2) px edge positions (sub-pixel), ``score`` (M,) normalised edge scores."""
-        score_map = np.zeros((height, width))
-        mask_map = np.zeros((height, width))
-        # Sub-pixel edge positions are splatted bilinearly, which keeps each pixel's mass and centroid.
+        n = int(np.ceil(np.log2(sigma_max / sigma_min) * RUNGS_PER_OCTAVE)) + 1
+        sigmas = sigma_min * 2.0 ** (np.arange(n) / RUNGS_PER_OCTAVE)
+        return cls(np.asarray(uv, np.float64), np.asarray(score, np.float64), width, height, wrap_u, sigmas)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the built maps."""
+        return int(self.flat.nbytes)
+
+    def _splat(self) -> tuple[F64, F64]:
+        """Score and mask maps (H,W): sub-pixel edge positions splatted bilinearly, which keeps each pixel's
+        mass and centroid."""
+        score_map = np.zeros((self.height, self.width))
+        mask_map = np.zeros((self.height, self.width))
+        uv, width, height = self.uv, self.width, self.height
         u0, v0 = np.floor(uv[:, 0]).astype(np.int64), np.floor(uv[:, 1]).astype(np.int64)
         au, av = uv[:, 0] - u0, uv[:, 1] - v0
         for du, dv, wgt in ((0, 0, (1 - au) * (1 - av)), (1, 0, au * (1 - av)), (0, 1, (1 - au) * av), (1, 1, au * av)):
             cols, rows = u0 + du, v0 + dv
-            if wrap_u:
+            if self.wrap_u:
                 cols = np.mod(cols, width)
             ok = (cols >= 0) & (cols < width) & (rows >= 0) & (rows < height)
-            np.add.at(score_map, (rows[ok], cols[ok]), (score * wgt)[ok])
+            np.add.at(score_map, (rows[ok], cols[ok]), (self.score * wgt)[ok])
             np.add.at(mask_map, (rows[ok], cols[ok]), wgt[ok])
-        n = int(np.ceil(np.log2(sigma_max / sigma_min) * RUNGS_PER_OCTAVE)) + 1
-        sigmas = sigma_min * 2.0 ** (np.arange(n) / RUNGS_PER_OCTAVE)
-        return cls(tuple(_rung(score_map, mask_map, float(s), wrap_u) for s in sigmas), width, height, wrap_u)
+        return score_map, mask_map
 
-    def _bilinear(self, rung: Rung, uv: F64, channels: list[int]) -> F64:
-        """Sample channels (C,) of a rung at uv (N,2) px -> (N,C); zero outside (wrapping u if panorama)."""
-        f = rung.factor
-        maps = rung.maps
-        hf, wf = maps.shape[1:]
-        x = (uv[:, 0] - (f - 1) / 2.0) / f
-        y = (uv[:, 1] - (f - 1) / 2.0) / f
-        x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
-        ax, ay = x - x0, y - y0
-        out = np.zeros((len(uv), len(channels)))
-        for dx, dy, wgt in ((0, 0, (1 - ax) * (1 - ay)), (1, 0, ax * (1 - ay)), (0, 1, (1 - ax) * ay), (1, 1, ax * ay)):
-            xi, yi = x0 + dx, y0 + dy
-            if self.wrap_u:
-                xi = np.mod(xi, wf)
-            ok = (xi >= 0) & (xi < wf) & (yi >= 0) & (yi < hf)
-            vals = maps[:, np.clip(yi, 0, hf - 1), np.clip(xi, 0, wf - 1)][channels].T
-            out += np.where(ok, wgt, 0.0)[:, None] * vals
-        return out
+    def _block(self, k: int, b: int) -> F32:
+        """The built rows of block (k, b), (rows, bw, 9)."""
+        a, r, w = int(self.offset[k, b]), int(self.rows[k, b]), int(self.bw[k, b])
+        return self.flat[a: a + r * w].reshape(r, w, 9)
 
-    def _interp(self, uv: F64, sigma: F64, channels: list[int]) -> F64:
-        """Bilinear in space, linear in log sigma between the two nearest rungs; (N, C)."""
-        sig = self.sigmas_px
-        pos = np.clip(np.log2(sigma / sig[0]) * RUNGS_PER_OCTAVE, 0.0, len(sig) - 1.000001)
-        k0 = np.floor(pos).astype(np.int64)
-        t = pos - k0
-        out = np.zeros((len(uv), len(channels)))
-        for k in np.unique(k0):
-            sel = np.flatnonzero(k0 == k)
-            lo = self._bilinear(self.rungs[k], uv[sel], channels)
-            hi = self._bilinear(self.rungs[min(k + 1, len(sig) - 1)], uv[sel], channels)
-            out[sel] = (1.0 - t[sel, None]) * lo + t[sel, None] * hi
-        return out
+    def _maps(self, k: int, lo: int, hi: int, c0: int, c1: int, splat: tuple[F64, F64]) -> F32:
+        """Pooled rows ``lo:hi`` and columns ``c0:c1`` of rung k, (hi - lo, c1 - c0, 9) float32: the 2-D
+        correlation of the pooled maps with the rung's kernels, zero outside the image except across the u
+        seam of a panorama, from only the window of the maps the kernels reach."""
+        f = int(self.factor[k])
+        kernels = _kernels(float(self.sigmas_px[k]), f)
+        r = kernels.shape[1] // 2
+        score_map, mask_map = (_pool(_window(m, (lo - r) * f, (hi + r) * f, (c0 - r) * f, (c1 + r) * f,
+                                             self.wrap_u), f) for m in splat)
+        maps = [cv2.filter2D(score_map if i < 3 else mask_map, cv2.CV_64F, kernels[i],
+                             borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r] for i in range(9)]
+        return np.stack(maps, axis=-1).astype(np.float32)
 
-    def count(self, uv: F64, sigma: F64) -> F64:
-        """Soft |Omega| (N,): edge pixels within 3 sigma of each centre."""
-        return self._interp(uv, sigma, [6])[:, 0]
+    def grow(self, need_lo: I64, need_hi: I64) -> None:
+        """Extend the blocks so block (k, b) covers pooled rows ``need_lo[k, b] : need_hi[k, b]`` (nothing
+        where lo >= hi).
+
+        A block built or extended covers at least the image rows any rung was asked for in its column block
+        so far (rounded out to ``BAND_BLOCK``): the samples of all rungs come from the same projected points,
+        so the next rung asked for finds its band ready instead of growing it again."""
+        end = self.row0 + self.rows
+        short = (need_hi > need_lo) & (self.bw > 0) & ((self.rows == 0) | (need_lo < self.row0) | (need_hi > end))
+        if not short.any():
+            return
+        f = self.factor[:, None]
+        lo_px = np.where(short, need_lo * f, self.height).min(axis=0)
+        hi_px = np.where(short, need_hi * f, 0).max(axis=0)
+        self.band_lo = np.minimum(self.band_lo, lo_px) // BAND_BLOCK * BAND_BLOCK
+        self.band_hi = np.minimum(-(-np.maximum(self.band_hi, hi_px) // BAND_BLOCK) * BAND_BLOCK, self.height)
+        # New extent of each short block: what it has, what is asked, and its column block's band.
+        new_lo = np.minimum(need_lo, self.band_lo[None, :] // f)
+        new_hi = np.maximum(need_hi, np.minimum(-(-self.band_hi[None, :] // f), self.hf[:, None]))
+        new_lo = np.where(self.rows > 0, np.minimum(new_lo, self.row0), new_lo)
+        new_hi = np.where(self.rows > 0, np.maximum(new_hi, end), new_hi)
+        splat = self._splat()
+        blocks = []
+        for k, b in np.ndindex(*self.rows.shape):
+            block = self._block(k, b)
+            if short[k, b]:  # only the missing rows: a built cell keeps its value
+                c0, c1 = b * int(self.cb[k]), b * int(self.cb[k]) + int(self.bw[k, b])
+                lo, hi = int(new_lo[k, b]), int(new_hi[k, b])
+                have_lo, have_hi = (int(self.row0[k, b]), int(end[k, b])) if self.rows[k, b] else (lo, lo)
+                above = self._maps(k, lo, have_lo, c0, c1, splat) if have_lo > lo else block[:0]
+                below = self._maps(k, have_hi, hi, c0, c1, splat) if hi > have_hi else block[:0]
+                block = np.concatenate([above, block, below]) if len(block) else np.concatenate([above, below])
+                self.row0[k, b], self.rows[k, b] = lo, hi - lo
+            blocks.append(block.reshape(-1, 9))
+        sizes = np.array([len(b) for b in blocks], np.int64)
+        self.offset = (np.cumsum(sizes) - sizes).reshape(self.rows.shape)
+        self.flat = np.concatenate(blocks)
 
     def sample(self, uv: F64, sigma: F64) -> F64:
-        """(N, 9): A, dA/dc, B, dB/dc, |Omega|, d|Omega|/dc at centres ``uv`` with widths ``sigma`` (px)."""
-        return self._interp(uv, sigma, list(range(9)))
+        """(N, 9): A, dA/dc, B, dB/dc, |Omega|, d|Omega|/dc at centres ``uv`` (N,2) px with widths ``sigma``
+        (N,) px (:func:`sample_fields` of this image alone)."""
+        return sample_fields([self], [len(uv)], uv, sigma)
+
+
+def _corners(ladder: EdgeFields, kk: I64, uv: F64) -> tuple[list[F64], list[I64], list[I64], list[Mask]]:
+    """The 4 bilinear corners of each centre on each of its rungs ``kk`` (N,2): weights (zero outside the
+    image), pooled columns (clipped, wrapped if panorama) and rows, and whether the corner is inside."""
+    f, hf, wf = ladder.factor[kk], ladder.hf[kk], ladder.wf[kk]
+    x = (uv[:, 0, None] - (f - 1) / 2.0) / f
+    y = (uv[:, 1, None] - (f - 1) / 2.0) / f
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    ax, ay = x - x0, y - y0
+    weights, xs, ys, oks = [], [], [], []
+    for dx, dy, wgt in ((0, 0, (1 - ax) * (1 - ay)), (1, 0, ax * (1 - ay)), (0, 1, (1 - ax) * ay), (1, 1, ax * ay)):
+        xi, yi = x0 + dx, y0 + dy
+        if ladder.wrap_u:
+            xi = np.mod(xi, wf)
+        ok = (xi >= 0) & (xi < wf) & (yi >= 0) & (yi < hf)
+        weights.append(np.where(ok, wgt, 0.0))
+        xs.append(np.clip(xi, 0, wf - 1))
+        ys.append(yi)
+        oks.append(ok)
+    return weights, xs, ys, oks
+
+
+def sample_fields(fields: list[EdgeFields], sizes: list[int], uv: F64, sigma: F64) -> F64:
+    """(N, 9) samples of several images' fields at once: the first ``sizes[0]`` centres ``uv`` (N,2) px with
+    widths ``sigma`` (N,) px on ``fields[0]``, the next ``sizes[1]`` on ``fields[1]``, ... Bilinear in space
+    (zero outside the image, wrapping u if panorama), linear in log sigma between the two nearest rungs.
+    The images must share one ladder (size, sigmas, wrap): one camera and one set of options."""
+    ladder = fields[0]
+    if any(f.width != ladder.width or f.height != ladder.height or f.wrap_u != ladder.wrap_u
+           or not np.array_equal(f.sigmas_px, ladder.sigmas_px) for f in fields):
+        raise CalibError("sample_fields needs images with one ladder of rungs (same camera and options)")
+    n_rungs, n_blocks = ladder.rows.shape
+    pos = np.clip(np.log2(sigma / ladder.sigmas_px[0]) * RUNGS_PER_OCTAVE, 0.0, n_rungs - 1.000001)
+    k0 = np.floor(pos).astype(np.int64)
+    t = pos - k0
+    kk = np.stack([k0, np.minimum(k0 + 1, n_rungs - 1)], axis=1)  # (N, 2): the rungs below and above
+    weights, xs, ys, oks = _corners(ladder, kk, uv)
+    owner = np.repeat(np.arange(len(fields)), sizes)
+    ok_all, y_all, x_all = np.stack(oks), np.stack(ys), np.stack(xs)  # (4, N, 2)
+    block = x_all // ladder.cb[kk]
+    key = (owner[:, None] * n_rungs + kk) * n_blocks + block
+    cells_per_image = n_rungs * n_blocks
+    need_lo = np.full(len(fields) * cells_per_image, np.iinfo(np.int64).max)
+    need_hi = np.full(len(fields) * cells_per_image, -1)
+    np.minimum.at(need_lo, key[ok_all], y_all[ok_all])
+    np.maximum.at(need_hi, key[ok_all], y_all[ok_all] + 1)
+    shape = (len(fields), n_rungs, n_blocks)
+    lo_p, hi_p = need_lo.reshape(shape), need_hi.reshape(shape)
+    built0, built = np.stack([f.row0 for f in fields]), np.stack([f.rows for f in fields])
+    short = (hi_p > lo_p) & ((built == 0) | (lo_p < built0) | (hi_p > built0 + built))
+    for p in np.flatnonzero(short.any(axis=(1, 2))):
+        fields[p].grow(lo_p[p], hi_p[p])
+    at = (owner[:, None], kk, block)
+    row0, rows, offset = (np.stack([getattr(f, a) for f in fields])[at] for a in ("row0", "rows", "offset"))
+    bw = ladder.bw[kk, block]
+    cells = offset + np.clip(y_all - row0, 0, np.maximum(rows - 1, 0)) * bw + x_all - block * ladder.cb[kk]
+    vals = np.zeros((4, len(uv), 2, 9), np.float32)
+    ends = np.cumsum(sizes)
+    for f, end, n in zip(fields, ends, sizes, strict=True):
+        if n and len(f.flat):
+            vals[:, end - n:end] = f.flat[np.clip(cells[:, end - n:end], 0, len(f.flat) - 1)]
+    lo, hi = np.zeros((len(uv), 9)), np.zeros((len(uv), 9))
+    for c in range(4):
+        lo += weights[c][:, 0, None] * vals[c, :, 0]
+        hi += weights[c][:, 1, None] * vals[c, :, 1]
+    return np.asarray((1.0 - t[:, None]) * lo + t[:, None] * hi, dtype=np.float64)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
+from itertools import chain
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,7 +34,7 @@ from scipy.spatial import cKDTree
 from calib.camera import CameraModel, Equirectangular
 from calib.edges_image import EdgePixels
 from calib.edges_points import FOLD, EdgePoints
-from calib.fields import SOFT_REACH, EdgeFields, gaussian_kernel, soft_disk
+from calib.fields import SOFT_REACH, EdgeFields, gaussian_kernel, sample_fields, soft_disk
 from calib.geometry import left_jacobian, so3_exp
 
 F64 = NDArray[np.float64]
@@ -123,7 +124,7 @@ def in_image(camera: CameraModel, uv: F64, valid: Mask) -> Mask:
 
 
 def point_sigmas(
-    camera: CameraModel, points_lidar: F64, uv: F64, sigma_in_px: float, opts: GmmOptions
+    camera: CameraModel, points_lidar: F64, uv: F64, sigma_in_px: float | F64, opts: GmmOptions
 ) -> F64:
     """sigma_i (N,) px of eq. 23 (or uniform), with the LiDAR floor added in quadrature.
 
@@ -134,7 +135,7 @@ def point_sigmas(
     pinhole sample: cost -0.89 at a pose 2.5 m off against -0.34 at the reference).
     """
     if opts.sigma_model is SigmaModel.UNIFORM:
-        sigma = np.full(len(points_lidar), sigma_in_px)
+        sigma = np.broadcast_to(sigma_in_px, len(points_lidar)).astype(np.float64)
     else:
         r = np.linalg.norm(points_lidar, axis=1)
         sigma = sigma_in_px * camera.pixel_area_ratio(uv) / np.clip(r, 1e-6, opts.sigma_range_cap_m)
@@ -142,43 +143,80 @@ def point_sigmas(
     return np.asarray(np.minimum(np.sqrt(sigma**2 + floor**2), opts.sigma_ceiling_px), dtype=np.float64)
 
 
-def _kernel_height(sigma: F64, sigma_in_px: float, opts: GmmOptions) -> F64:
+def _kernel_height(sigma: F64, sigma_in_px: F64, opts: GmmOptions) -> F64:
+    """Per point (N,); ``sigma_in_px`` (N,) the level's sigma_in of each point's pair."""
     if opts.kernel_norm is KernelNorm.PAPER:
         return 1.0 / (_SQRT_2PI * sigma)
-    return np.full_like(sigma, 1.0 / (_SQRT_2PI * sigma_in_px))
+    return np.asarray(1.0 / (_SQRT_2PI * sigma_in_px), dtype=np.float64)
 
 
 def _pairs_within(feat: PairFeatures, uv: F64, radius: F64) -> tuple[I64, I64]:
     """(point index, pixel index) of every edge pixel within ``radius`` of each centre (k-d tree)."""
     tree = feat.pixel_tree if feat.pixel_tree is not None else cKDTree(feat.pixels.uv)
     n_pix = len(feat.pixels.uv)
+    queries = [np.arange(len(uv))]
     centres = [uv]
     if isinstance(feat.camera, Equirectangular):  # the seam: look for pixels across u = 0 / w too
         w = float(feat.camera.width)
-        centres += [uv + [w, 0.0], uv - [w, 0.0]]
+        for shift, near in ((w, uv[:, 0] < radius), (-w, uv[:, 0] > w - radius)):
+            queries.append(np.flatnonzero(near))  # only centres within reach of the seam can find any
+            centres.append(uv[near] + [shift, 0.0])
     rows: list[I64] = []
     cols: list[I64] = []
-    for c in centres:
-        lists = tree.query_ball_point(c, radius, return_sorted=False)
-        counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(lists))
-        rows.append(np.repeat(np.arange(len(c)), counts))
-        cols.append(np.fromiter((j for x in lists for j in x), dtype=np.int64, count=int(counts.sum())))
+    for q, c in zip(queries, centres, strict=True):
+        if not len(q):
+            continue
+        lists = tree.query_ball_point(c, radius[q], return_sorted=False)
+        counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+        rows.append(np.repeat(q, counts))
+        cols.append(np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum())))
+    if not rows:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     i_idx, j_idx = np.concatenate(rows), np.concatenate(cols)
     key = np.unique(i_idx * n_pix + j_idx)  # a pixel found twice through the seam counts once
     return key // n_pix, key % n_pix
 
 
+def _camera_groups(feats: list[PairFeatures]) -> list[list[int]]:
+    """Indices of the pairs, in runs that share one camera model object (a dataset's pairs all do), so
+    projections and the per-point algebra run once per run instead of once per pair."""
+    groups: list[list[int]] = []
+    for i, f in enumerate(feats):
+        if groups and feats[groups[-1][0]].camera is f.camera:
+            groups[-1].append(i)
+        else:
+            groups.append([i])
+    return groups
+
+
+def freeze_all(feats: list[PairFeatures], tau: F64, sigma_in_px: list[float], opts: GmmOptions) -> list[Frozen]:
+    """sigma_i at ``tau`` (eq. 23) of every pair, held fixed by the optimiser for one iteration."""
+    out: list[Frozen] = []
+    for group in _camera_groups(feats):
+        camera = feats[group[0]].camera
+        points = np.concatenate([feats[i].points.points_lidar for i in group])
+        sizes = [len(feats[i].points) for i in group]
+        uv, _ = camera.project(transform_points(tau, points)[0])
+        s_in = np.repeat(np.array([sigma_in_px[i] for i in group], dtype=np.float64), sizes)
+        sigma = point_sigmas(camera, points, uv, s_in, opts)
+        out += [Frozen(part) for part in np.split(sigma, np.cumsum(sizes)[:-1])]
+    return out
+
+
 def freeze(feat: PairFeatures, tau: F64, sigma_in_px: float, opts: GmmOptions) -> Frozen:
     """sigma_i at ``tau`` (eq. 23), held fixed by the optimiser for one iteration."""
-    p_cam, _ = transform_points(tau, feat.points.points_lidar)
-    uv, _ = feat.camera.project(p_cam)
-    return Frozen(point_sigmas(feat.camera, feat.points.points_lidar, uv, sigma_in_px, opts))
+    return freeze_all([feat], tau, [sigma_in_px], opts)[0]
 
 
-def _sums_exact(feat: PairFeatures, uv: F64, sigma: F64) -> F64:
-    """(N, 9) like :meth:`EdgeFields.sample`, by enumerating the pixels near each centre."""
-    i_idx, j_idx = _pairs_within(feat, uv, SOFT_REACH * sigma)
-    delta = feat.camera.displacement(feat.pixels.uv[j_idx], uv[i_idx])  # d delta / d centre = -I
+def _sums_exact(feats: list[PairFeatures], parts: list[slice], uv: F64, sigma: F64) -> F64:
+    """(N, 9) like :func:`calib.fields.sample_fields`, by enumerating the pixels near each centre: centres
+    ``uv[parts[k]]`` (px) with widths ``sigma[parts[k]]`` on the pixels of ``feats[k]``, all one camera."""
+    found = [(_pairs_within(f, uv[part], SOFT_REACH * sigma[part]), f, part.start)
+             for f, part in zip(feats, parts, strict=True) if part.stop > part.start]
+    i_idx = np.concatenate([np.zeros(0, np.int64), *(i + start for (i, _), _, start in found)])
+    q = np.concatenate([np.zeros((0, 2)), *(f.pixels.uv[j] for (_, j), f, _ in found)])
+    e = np.concatenate([np.zeros(0), *(f.pixels.score[j] for (_, j), f, _ in found)])
+    delta = feats[0].camera.displacement(q, uv[i_idx])  # d delta / d centre = -I
     s_i = sigma[i_idx]
     d2 = np.sum(delta**2, axis=1)
     g = gaussian_kernel(d2, s_i)
@@ -187,23 +225,17 @@ def _sums_exact(feat: PairFeatures, uv: F64, sigma: F64) -> F64:
     d = np.sqrt(d2)
     soft, dsoft = soft_disk(d, s_i)
     dsoft_c = -(dsoft / np.maximum(d, 1e-12))[:, None] * delta  # d soft / d centre
-    e = feat.pixels.score[j_idx]
     cols = [e * g, e * dg[:, 0], e * dg[:, 1], g, dg[:, 0], dg[:, 1], soft, dsoft_c[:, 0], dsoft_c[:, 1]]
     return np.stack([np.bincount(i_idx, weights=c, minlength=len(uv)) for c in cols], axis=1)
 
 
-def _point_terms(
-    feat: PairFeatures, uv: F64, sigma: F64, sigma_in_px: float, opts: GmmOptions, p_score: F64
-) -> tuple[F64, F64]:
-    """Per point: V_i = sum_j w_ij G_ij (eqs. 8-10) and dV_i / d centre (N,2).
+def _point_terms(sums: F64, sigma: F64, sigma_in_px: F64, opts: GmmOptions, p_score: F64) -> tuple[F64, F64]:
+    """Per point: V_i = sum_j w_ij G_ij (eqs. 8-10) and dV_i / d centre (N,2), from the (N, 9) sums over the
+    pixels near each centre (:meth:`EdgeFields.sample` or :func:`_sums_exact`).
 
     Weighted: V = k (A + s_p B) / (2 |Omega|) with A = sum_j e_j G_ij, B = sum_j G_ij and the soft count
     |Omega|; its gradient includes the count's, so it is the exact gradient of a differentiable cost.
     """
-    if opts.evaluator is Evaluator.FIELD and feat.fields is not None:
-        sums = feat.fields.sample(uv, sigma)
-    else:
-        sums = _sums_exact(feat, uv, sigma)
     a, da, b, db = sums[:, 0], sums[:, 1:3], sums[:, 3], sums[:, 4:6]
     height = _kernel_height(sigma, sigma_in_px, opts)
     if not opts.weighted:  # the paper's non-weighted ablation: w = 1
@@ -235,19 +267,50 @@ class PointTerms:
     uv: F64
 
 
+def pair_terms(
+    feats: list[PairFeatures], frozen: list[Frozen], tau: F64, sigma_in_px: list[float], opts: GmmOptions
+) -> list[PointTerms]:
+    """Eqs. 8-10 and 28-29 point by point for every pair (the frozen model at ``tau``); the projections and
+    the per-point algebra run once for all pairs that share a camera, the sums over pixels pair by pair."""
+    out: list[PointTerms] = []
+    for group in _camera_groups(feats):
+        camera = feats[group[0]].camera
+        sizes = [len(feats[i].points) for i in group]
+        starts = np.concatenate([[0], np.cumsum(sizes)])
+        p_cam, rotated = transform_points(tau, np.concatenate([feats[i].points.points_lidar for i in group]))
+        uv, valid = camera.project(p_cam)
+        kind = np.concatenate([feats[i].points.kind for i in group])
+        # Points just outside the image still see edge pixels inside it; taking every valid projection
+        # (not only those inside) keeps the cost continuous when a point crosses the image border.
+        active = valid & (opts.use_folds | (kind != FOLD))
+        sel = [np.flatnonzero(active[starts[k]:starts[k + 1]]) for k in range(len(group))]
+        parts = _slices([len(x) for x in sel])
+        glob = np.concatenate([starts[k] + sel[k] for k in range(len(group))])
+        uv_g, sigma = uv[glob], np.concatenate([frozen[i].sigma_px for i in group])[glob]
+        fields = [feats[i].fields for i in group]
+        if opts.evaluator is Evaluator.FIELD and all(f is not None for f in fields):
+            sums = sample_fields([f for f in fields if f is not None], [len(x) for x in sel], uv_g, sigma)
+        else:
+            sums = _sums_exact([feats[i] for i in group], parts, uv_g, sigma)
+        s_in = np.repeat(np.array([sigma_in_px[i] for i in group], dtype=np.float64), [len(x) for x in sel])
+        p_score = np.concatenate([feats[i].points.score for i in group])[glob]
+        value, d_centre = _point_terms(sums, sigma, s_in, opts, p_score)
+        # eqs. 28-29: d cost / d p_cam = - dV/d(u,v) . d(u,v)/d p_cam
+        d_pcam = -np.einsum("ni,nij->nj", d_centre, camera.project_jacobian(p_cam[glob]))
+        rotated_g = rotated[glob]
+        out += [PointTerms(idx, value[part], d_pcam[part], rotated_g[part], uv_g[part])
+                for idx, part in zip(sel, parts, strict=True)]
+    return out
+
+
+def _slices(sizes: list[int]) -> list[slice]:
+    ends = np.cumsum(sizes)
+    return [slice(int(e - n), int(e)) for e, n in zip(ends, sizes, strict=True)]
+
+
 def point_terms(feat: PairFeatures, frz: Frozen, tau: F64, sigma_in_px: float, opts: GmmOptions) -> PointTerms:
-    """Eqs. 8-10 and 28-29 point by point for one pair (the frozen model at ``tau``)."""
-    p_cam, rotated = transform_points(tau, feat.points.points_lidar)
-    uv, valid = feat.camera.project(p_cam)
-    # Points just outside the image still see edge pixels inside it; taking every valid projection
-    # (not only those inside) keeps the cost continuous when a point crosses the image border.
-    sel = np.flatnonzero(valid & (opts.use_folds | (feat.points.kind != FOLD)))
-    if sel.size == 0:
-        return PointTerms(sel, np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2)))
-    value, d_centre = _point_terms(feat, uv[sel], frz.sigma_px[sel], sigma_in_px, opts, feat.points.score[sel])
-    # eqs. 28-29: d cost / d p_cam = - dV/d(u,v) . d(u,v)/d p_cam
-    d_pcam = -np.einsum("ni,nij->nj", d_centre, feat.camera.project_jacobian(p_cam[sel]))
-    return PointTerms(sel, value, d_pcam, rotated[sel], uv[sel])
+    """:func:`pair_terms` of one pair."""
+    return pair_terms([feat], [frz], tau, [sigma_in_px], opts)[0]
 
 
 def cost_and_gradient(
@@ -258,8 +321,7 @@ def cost_and_gradient(
     grad = np.zeros(6)
     n_active = 0
     jac_l = left_jacobian(tau[:3])
-    for feat, frz, s_in in zip(feats, frozen, sigma_in_px, strict=True):
-        terms = point_terms(feat, frz, tau, s_in, opts)
+    for terms in pair_terms(feats, frozen, tau, sigma_in_px, opts):
         if terms.index.size == 0:
             continue
         total -= float(terms.value.sum())

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.errors import CalibError
-from calib.gmm import CostGrad, Evaluator, Frozen, GmmOptions, PairFeatures, cost_and_gradient, freeze
+from calib.gmm import CostGrad, Evaluator, Frozen, GmmOptions, PairFeatures, cost_and_gradient, freeze_all
 from calib.prior import Prior
 from calib.uncertainty import LevelModel, clusters_at, hessian, local_gradient, nll_scale, scatter, symmetric
 
@@ -77,7 +77,7 @@ class _Problem:
     frozen: list[Frozen] = field(default_factory=list)
 
     def refreeze(self, tau: F64) -> None:
-        self.frozen = [freeze(f, tau, s, self.gmm) for f, s in zip(self.feats, self.sigma_in_px, strict=True)]
+        self.frozen = freeze_all(self.feats, tau, self.sigma_in_px, self.gmm)
 
     def evaluate(self, tau: F64) -> CostGrad:
         cg = self._evaluate_gmm(tau)

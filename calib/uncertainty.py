@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.geometry import so3_exp, so3_log
-from calib.gmm import Frozen, GmmOptions, PairFeatures, freeze, point_terms, transform_points
+from calib.gmm import Frozen, GmmOptions, PairFeatures, freeze_all, pair_terms, transform_points
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -55,7 +55,7 @@ class LevelModel:
     gmm: GmmOptions
 
     def freeze(self, tau: F64) -> list[Frozen]:
-        return [freeze(f, tau, s, self.gmm) for f, s in zip(self.feats, self.sigma_in_px, strict=True)]
+        return freeze_all(list(self.feats), tau, list(self.sigma_in_px), self.gmm)
 
 
 @dataclass(frozen=True)
@@ -95,8 +95,8 @@ def local_gradient(model: LevelModel, frozen: list[Frozen], tau_hat: F64, xi: F6
     tau = tau_at(tau_hat, xi)
     r_at = so3_exp(tau[:3])
     out = np.zeros((clusters.count, 6))
-    for feat, frz, s_in, labels in zip(model.feats, frozen, model.sigma_in_px, clusters.labels, strict=True):
-        terms = point_terms(feat, frz, tau, s_in, model.gmm)
+    all_terms = pair_terms(list(model.feats), frozen, tau, list(model.sigma_in_px), model.gmm)
+    for terms, labels in zip(all_terms, clusters.labels, strict=True):
         if terms.index.size == 0:
             continue
         # d p_cam / d delta = -R_at (p^) for R = R_at exp(delta^): a^T(-R_at p^) = (p x R_at^T a)^T.
@@ -109,8 +109,8 @@ def local_gradient(model: LevelModel, frozen: list[Frozen], tau_hat: F64, xi: F6
 
 def matched_points(model: LevelModel, frozen: list[Frozen], tau: F64) -> int:
     """Edge points of the level whose Gaussian holds at least one edge pixel at ``tau``."""
-    return sum(int(np.count_nonzero(point_terms(f, z, tau, s, model.gmm).value))
-               for f, z, s in zip(model.feats, frozen, model.sigma_in_px, strict=True))
+    return sum(int(np.count_nonzero(t.value))
+               for t in pair_terms(list(model.feats), frozen, tau, list(model.sigma_in_px), model.gmm))
 
 
 def hessian(model: LevelModel, frozen: list[Frozen], tau_hat: F64, steps: F64, clusters: Clusters) -> F64:

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
+import multiprocessing
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
@@ -49,6 +51,7 @@ class CalibrationRequest:
     fix_translation: bool = False  # hold the translation at the prior's (or the initial guess's) lever arm
     tolerance: TrustOptions | None = None  # None: rig.yaml's tolerance, else 0.2 deg / 2 cm
     search: bool = False  # True: the global search even if a guess exists (it runs anyway without one)
+    workers: int = 2  # processes extracting the pairs' edges side by side (the rig computer's 2+ cores)
 
 
 @dataclass(frozen=True)
@@ -94,19 +97,34 @@ def _prior(request: CalibrationRequest, dataset: Dataset) -> Prior | None:
     return dataclasses.replace(prior, fix_translation=True)
 
 
-def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None) -> list[PairFeatures]:
-    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges)."""
+def _pair_features(dataset: Dataset, params: CalibParams, i: int) -> PairFeatures:
+    pair = dataset.load_pair(i)
+    return extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring),
+                            dataset.rig.camera.model(), params, index=i)
+
+
+def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None,
+                     workers: int = 1) -> list[PairFeatures]:
+    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges), with
+    up to ``workers`` processes extracting pairs side by side (one inside a daemonic pool worker)."""
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
-    camera = dataset.rig.camera.model()
-    feats = []
-    for i in range(len(dataset)):
-        pair = dataset.load_pair(i)
-        if progress:
-            progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
-        feats.append(extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring), camera,
-                                      params, index=i))
-    return feats
+    workers = 1 if multiprocessing.current_process().daemon else max(1, min(workers, len(dataset)))
+    if workers == 1:
+        feats = []
+        for i in range(len(dataset)):
+            if progress:
+                progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
+            feats.append(_pair_features(dataset, params, i))
+        return feats
+    # spawn, not fork (as rigd.evaluate): a child forked while OpenCV's or BLAS's own threads hold a lock can
+    # deadlock, and those threads are invisible to the threading module. Costs ~1 s of imports per worker.
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(_pair_features, dataset, params, i) for i in range(len(dataset))]
+        for done, _ in enumerate(as_completed(futures)):
+            if progress:
+                progress(f"edges of {done + 1}/{len(dataset)} pairs", done / len(dataset))
+        return [f.result() for f in futures]
 
 
 def _finite(values: Any) -> Any:
@@ -198,12 +216,12 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
                                                                        sigmas_deg=tuple(request.sigmas_deg)))
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
-    feats = dataset_features(dataset, params, progress)
+    feats = dataset_features(dataset, params, progress, request.workers)
     search = dataset.rig.search or default_search(dataset.rig.camera.model())
 
     def on_search(done: int, total: int) -> None:
-        if progress and (done == total or done % 50 == 0):
-            progress(f"no initial guess: global search, mount {done}/{total}", 0.5 + 0.2 * done / total)
+        if progress:
+            progress(f"no initial guess: global search over the mounts, pair {done}/{total}", 0.5 + 0.2 * done / total)
 
     if progress:
         progress("optimising" if initial is not None else "no initial guess: global search", 0.5)

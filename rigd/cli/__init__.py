@@ -17,21 +17,24 @@ COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "check", 
                    "doctor")
 
 
-def build_parser() -> RigdArgumentParser:
+def build_parser(command: str | None = None) -> RigdArgumentParser:
+    """The parser with every subcommand, or only ``command``'s when it names one: importing the others
+    (plots, simulator, web service) would cost a calibration ~55 MB of memory and most of a second."""
     parser = RigdArgumentParser(
         prog="rigd",
         description="Targetless camera-LiDAR calibration for a Ladybug5 + VLP-16 rig (Kang & Doh 2020).",
     )
     parser.add_argument("--version", action="version", version=f"rigd {software_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in COMMAND_MODULES:
+    for name in (command,) if command in COMMAND_MODULES else COMMAND_MODULES:
         importlib.import_module(f"rigd.cli.{name}").register(sub)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(words[0] if words else None)
+    args = parser.parse_args(words)
     try:
         return int(args.func(args) or 0)
     except (RigdError, DriverError, CalibError) as exc:
