@@ -6,18 +6,19 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from enum import Enum
 from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
-from calib.assess import Assessment, TrustOptions
+from calib.assess import Assessment, Status, TrustOptions
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
-from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features, paper_params
+from calib.methods import Method, calibrate_method, gmm_params, photo_params
+from calib.photometric import PhotoPair, PhotoParams, photo_pair
+from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, paper_params
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.visuals import overlay, write_coloured_ply
@@ -31,9 +32,7 @@ PAPER_SIGMAS_DEG = paper_params().optim.sigmas_deg
 DEFAULT_SIGMAS_DEG = CalibParams().optim.sigmas_deg
 
 
-class Method(Enum):
-    RIGD = "rigd"  # the paper's method with the changes of docs/method.md (default)
-    PAPER = "paper"  # the paper's settings as printed (section 8.2), for comparison
+__all__ = ["Method"]  # the method names live in calib.methods; re-exported for the CLI and the service
 
 
 @dataclass(frozen=True)
@@ -90,6 +89,33 @@ def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress |
         feats.append(extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring), camera,
                                       params, index=i))
     return feats
+
+
+def dataset_photo_pairs(dataset: Dataset, params: PhotoParams, progress: Progress | None) -> list[PhotoPair]:
+    """The photometric costs' arrays of every pair (FeaturelessError names a pair whose cloud has no intensity)."""
+    if len(dataset) == 0:
+        raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
+    camera = dataset.rig.camera.model()
+    pairs = []
+    for i in range(len(dataset)):
+        pair = dataset.load_pair(i)
+        if progress:
+            progress(f"reflectivity and image of pair {i + 1}/{len(dataset)}", i / len(dataset))
+        pairs.append(photo_pair(pair.image, pair.cloud.points_lidar, pair.cloud.intensity, pair.cloud.ring, camera,
+                                params, index=i))
+    return pairs
+
+
+def not_assessed_yaml(method: Method) -> dict[str, Any]:
+    """The ``uncertainty`` and ``verdict`` of a method without an assessment: nothing is claimed."""
+    unknown = [None, None, None]
+    return {
+        "uncertainty": {"rpy_deg": unknown, "xyz_cm": unknown, "covariance": None,
+                        "weakest": "not assessed: the uncertainty of docs/trust.md is defined for the GMM cost"},
+        "verdict": {"status": Status.NOT_ASSESSED.value, "weak_axes": [],
+                    "reasons": [f"method {method.value} has no trust assessment (restarts, uncertainty, verdict are "
+                                "defined for the GMM cost only): check the overlays or run rigd check before use"]},
+    }
 
 
 def _finite(values: Any) -> Any:
@@ -170,7 +196,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     started = time.monotonic()
     dataset = open_dataset(request.dataset)
     initial = _initial(request, dataset)
-    params = paper_params() if request.method is Method.PAPER else CalibParams()
+    params = gmm_params(request.method) or CalibParams()
     if request.sigmas_deg is not None:
         if not request.sigmas_deg or any(not np.isfinite(s) or s <= 0 for s in request.sigmas_deg):
             raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
@@ -178,15 +204,25 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
                                                                        sigmas_deg=tuple(request.sigmas_deg)))
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
-    feats = dataset_features(dataset, params, progress)
-    if progress:
-        progress("optimising", 0.5)
+    method = request.method
+    photo = photo_params(method)
     try:
-        result = calibrate(feats, initial, params, on_iter, prior, trust)
+        feats = dataset_features(dataset, params, progress) if method.uses_gmm else None
+        pairs = dataset_photo_pairs(dataset, photo, progress) if photo is not None else None
+        if progress:
+            progress("optimising", 0.5)
+        result = calibrate_method(method, feats, pairs, initial, params, on_iter, prior, trust)
     except CalibError as exc:
         raise RigdError(f"{dataset.root}: {exc}") from exc
     report = _report(result, initial, dataset, time.monotonic() - started)
-    report["method"] = {"name": request.method.value, "sigmas_deg": list(params.optim.sigmas_deg)}
+    if result.assessment is None:
+        report.update(not_assessed_yaml(method))
+    report["method"] = {"name": method.value}
+    if method.uses_gmm:
+        report["method"]["sigmas_deg"] = list(params.optim.sigmas_deg)
+    if photo is not None:
+        report["method"]["photometric"] = {"cost": photo.cost.value, "blur_deg": list(photo.blur_deg),
+                                           "bins": photo.n_bins}
     if prior is not None:
         report["prior"] = prior_to_yaml(prior)
     report["tolerance"] = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm}
