@@ -111,8 +111,8 @@ def calibrate_method(
     trust: TrustOptions | None = None,
 ) -> CalibResult:
     """Calibrate with ``method`` from ``initial``. ``feats``: the GMM features (GMM methods), ``photo``: the
-    photometric pairs (MI, NID, GOM, rigd+nid). ``params`` overrides :func:`gmm_params` (GMM methods only). The result has an
-    assessment only for GMM-only methods with ``trust``."""
+    photometric pairs (MI, NID, GOM, rigd+nid). ``params`` overrides :func:`gmm_params` (GMM methods only).
+    The result has an assessment only for GMM-only methods with ``trust``."""
     gmm = (params if params is not None else gmm_params(method)) if method.uses_gmm else None
     photo_opts = photo_params(method)
     result: CalibResult | None = None

@@ -66,20 +66,23 @@ class PhotoParams:
     """``blur_deg``: the image's Gaussian blur per level as an angle (paper 8.2.1 used 12, 6, 3, 0 px of a
     1024-wide panorama for GOM = 4.22, 2.11, 1.05, 0 deg). ``step_rot_deg``/``step_trans_m``: the initial
     simplex's size per level. ``bins``: histogram bins (0: 64 for MI, koide3's 16 for NID).
-    ``max_points``: points per pair kept (a random subset, fixed by ``seed``) of those in view at the start."""
+    ``max_points``: points kept over all pairs (each pair an equal share, at least ``min_points_per_pair``; a
+    random subset, fixed by ``seed``, of those in view at the start): the cost of an evaluation stays about the
+    same for one dense pinhole frame and twelve panoramas."""
 
     cost: PhotoCost = PhotoCost.NID
     blur_deg: tuple[float, ...] = (4.22, 2.11, 1.05, 0.0)
     step_rot_deg: tuple[float, ...] = (3.0, 1.5, 0.75, 0.3)
     step_trans_m: tuple[float, ...] = (0.10, 0.05, 0.025, 0.01)
     bins: int = 0
-    max_points: int = 10000
+    max_points: int = 24000
+    min_points_per_pair: int = 1500
     max_evals: int = 600
-    restarts: int = 3
+    restarts: int = 2
     restart_tol_deg: float = 0.005
     restart_tol_m: float = 0.0005
     per_ring: bool = True
-    gom_neighbours: int = 10
+    gom_neighbours: int = 24  # enough to span neighbouring rings: along one ring the plane fit has no across term
     rotation_only_levels: int = 1  # the first level(s) move rotation only, as rigd's GMM does
     seed: int = 0
 
@@ -192,7 +195,7 @@ def kde_smooth(joint: F64, n_samples: float) -> F64:
         mean = float(marginal @ centres)
         sd = float(np.sqrt(max(marginal @ (centres - mean) ** 2, 1e-12)))
         h.append(max(1.06 * sd * max(n_samples, 1.0) ** -0.2, 0.5))
-    return np.asarray(scipy.ndimage.gaussian_filter(joint, sigma=h, mode="constant"), dtype=np.float64)
+    return np.asarray(scipy.ndimage.gaussian_filter(joint, sigma=h, mode="reflect"), dtype=np.float64)
 
 
 def mutual_information(joint: F64) -> float:
@@ -223,19 +226,29 @@ class _LevelPair:
     lidar_grad: F64 | None
 
 
+def _filtered(image: F32, camera: CameraModel, pad: int, fn: Callable[[F32], F32]) -> F32:
+    """``fn`` (a filter with reflected borders) over ``image``; a panorama is first padded by ``pad`` columns
+    from its other side, so its filters wrap around u = 0 / w (OpenCV's filters have no wrapping border)."""
+    if not isinstance(camera, Equirectangular):
+        return fn(image)
+    padded = np.pad(image, ((0, 0), (pad, pad)), mode="wrap")
+    return np.ascontiguousarray(fn(padded)[:, pad:pad + image.shape[1]])
+
+
 def _blur(grey: F32, camera: CameraModel, blur_deg: float) -> F32:
     sigma_px = float(np.radians(blur_deg)) * camera.pixels_per_radian
     if sigma_px < 0.3:
         return grey
-    border = cv2.BORDER_WRAP if isinstance(camera, Equirectangular) else cv2.BORDER_REFLECT
-    return np.asarray(cv2.GaussianBlur(grey, (0, 0), sigma_px, borderType=border), dtype=np.float32)
+    return _filtered(grey, camera, int(np.ceil(4 * sigma_px)) + 1, lambda im: np.asarray(
+        cv2.GaussianBlur(im, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT), dtype=np.float32))
 
 
 def _image_gradient(grey: F32, camera: CameraModel) -> tuple[F32, F32]:
-    border = cv2.BORDER_WRAP if isinstance(camera, Equirectangular) else cv2.BORDER_REFLECT
-    gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=border)
-    gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=border)
-    return np.asarray(gx, dtype=np.float32), np.asarray(gy, dtype=np.float32)
+    """Sobel gradient (d/du, d/dv) per px of ``grey``."""
+    def sobel(dx: int, dy: int) -> F32:
+        return _filtered(grey, camera, 2, lambda im: np.asarray(
+            cv2.Sobel(im, cv2.CV_32F, dx, dy, ksize=3, scale=0.125, borderType=cv2.BORDER_REFLECT), dtype=np.float32))
+    return sobel(1, 0), sobel(0, 1)
 
 
 def sample(image: F32, camera: CameraModel, uv: F64) -> F64:
@@ -301,15 +314,15 @@ def level_cost(pairs: list[_LevelPair], tau: F64, params: PhotoParams) -> float:
     return -mutual_information(kde_smooth(joint, float(joint.sum())))
 
 
-def _in_view(pair: PhotoPair, tau0: F64, params: PhotoParams) -> tuple[F64, F64]:
-    """The points that project into the image (with a 10 % margin) at ``tau0``, at most ``max_points``."""
+def _in_view(pair: PhotoPair, tau0: F64, params: PhotoParams, cap: int) -> tuple[F64, F64]:
+    """The points that project into the image (with a 10 % margin) at ``tau0``, at most ``cap``."""
     cam = pair.camera
     uv, valid = cam.project(transform_points(tau0, pair.points_lidar)[0])
     mw, mh = 0.1 * cam.width, 0.1 * cam.height
     keep = valid & (uv[:, 0] > -mw) & (uv[:, 0] < cam.width + mw) & (uv[:, 1] > -mh) & (uv[:, 1] < cam.height + mh)
     idx = np.flatnonzero(keep)
-    if idx.size > params.max_points:
-        idx = np.sort(np.random.default_rng(params.seed).choice(idx, params.max_points, replace=False))
+    if idx.size > cap:
+        idx = np.sort(np.random.default_rng(params.seed).choice(idx, cap, replace=False))
     return pair.points_lidar[idx], pair.reflectivity[idx]
 
 
@@ -347,7 +360,8 @@ def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
     if not pairs:
         raise CalibError("no pairs to calibrate")
     tau = np.asarray(tau0, dtype=np.float64).copy()
-    subsets = [_in_view(p, tau, params) for p in pairs]
+    cap = max(params.max_points // len(pairs), params.min_points_per_pair)
+    subsets = [_in_view(p, tau, params, cap) for p in pairs]
     if sum(len(s[0]) for s in subsets) == 0:
         raise CalibError("no LiDAR point projects into any image under the initial guess")
     todo = tuple(range(len(params.blur_deg))) if levels is None else levels
