@@ -109,6 +109,11 @@ def _init_worker(root: Path, method: Method) -> None:
     _STATE = _State(method, feats, pairs, None)
 
 
+def _release() -> None:
+    global _STATE
+    _STATE = None
+
+
 def _run_task(task: _Task) -> Run:
     state = _STATE
     if state is None or state.error is not None:
@@ -129,6 +134,12 @@ def _run(root: Path, method: Method, tasks: Sequence[_Task], workers: int, desc:
          progress: bool) -> tuple[Run, ...]:
     if not tasks:
         return ()
+    if workers == 1:  # no pool: one process would only add its start-up and the features' transfer
+        _init_worker(root, method)
+        try:
+            return tuple(_run_task(t) for t in tasks)
+        finally:
+            _release()
     ctx = multiprocessing.get_context("spawn")  # as rigd.evaluate.pool: no fork after OpenCV threads started
     with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(root, method),
                              mp_context=ctx) as pool:
