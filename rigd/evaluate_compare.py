@@ -130,8 +130,9 @@ def _run_task(task: _Task) -> Run:
                time.monotonic() - started)
 
 
-def _run(root: Path, method: Method, tasks: Sequence[_Task], workers: int, desc: str,
-         progress: bool) -> tuple[Run, ...]:
+def _run(root: Path, method: Method, tasks: Sequence[_Task], workers: int, progress: bool) -> tuple[Run, ...]:
+    """``tasks`` with ``method`` (results by task index), in one pool: the features are extracted once per worker
+    for both protocols."""
     if not tasks:
         return ()
     if workers == 1:  # no pool: one process would only add its start-up and the features' transfer
@@ -143,7 +144,7 @@ def _run(root: Path, method: Method, tasks: Sequence[_Task], workers: int, desc:
     ctx = multiprocessing.get_context("spawn")  # as rigd.evaluate.pool: no fork after OpenCV threads started
     with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(root, method),
                              mp_context=ctx) as pool:
-        return tuple(sorted(run_all(pool, _run_task, tasks, desc, progress), key=lambda r: r.index))
+        return tuple(sorted(run_all(pool, _run_task, tasks, method.value, progress), key=lambda r: r.index))
 
 
 def parse_methods(text: str) -> tuple[Method, ...]:
@@ -265,10 +266,10 @@ def run_compare(req: CompareRequest) -> CompareOutcome:
     starts = random_starts(reference, req.trials, req.rot_deg, req.trans_m, req.seed)
     rows = []
     for method in req.methods:
-        prec = _run(dataset.root, method, [_Task(i, reference, s) for i, s in enumerate(subsets)], req.workers,
-                    f"{method.value} precision", req.progress)
-        conv = _run(dataset.root, method, [_Task(i, t, all_pairs) for i, t in enumerate(starts)], req.workers,
-                    f"{method.value} convergence", req.progress)
+        tasks = [_Task(i, reference, s) for i, s in enumerate(subsets)]
+        tasks += [_Task(len(subsets) + i, t, all_pairs) for i, t in enumerate(starts)]
+        runs = _run(dataset.root, method, tasks, req.workers, req.progress)
+        prec, conv = runs[:len(subsets)], runs[len(subsets):]
         errors = [r.error for r in prec + conv if r.error is not None]
         if errors and all(r.result is None for r in prec + conv):
             raise RigdError(f"method {method.value}: every run failed: {errors[0]}")
