@@ -84,6 +84,7 @@ class PhotoParams:
     per_ring: bool = True
     gom_neighbours: int = 24  # enough to span neighbouring rings: along one ring the plane fit has no across term
     rotation_only_levels: int = 1  # the first level(s) move rotation only, as rigd's GMM does
+    max_move_steps: float = 4.0  # a level moves at most this many simplex steps per axis from its start
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -342,11 +343,15 @@ def level_pairs(pairs: list[PhotoPair], tau: F64, params: PhotoParams, level: in
     return out
 
 
-def _nelder_mead(f: Callable[[F64], float], tau0: F64, step: F64, max_evals: int) -> tuple[F64, int, float]:
+def _nelder_mead(f: Callable[[F64], float], tau0: F64, step: F64, max_evals: int,
+                 max_move: float) -> tuple[F64, int, float]:
     """Nelder-Mead (scipy) over local coordinates xi = x * step around ``tau0``; the initial simplex spans one
-    ``step`` per axis. Returns the pose, the evaluations and the final cost."""
+    ``step`` per axis and x is bounded to +-``max_move`` (where a cost is flat, as on a hazy frame, the simplex
+    would otherwise wander off: measured 12 deg from a 2 deg start). Returns the pose, the evaluations and the
+    final cost."""
     simplex = np.vstack([np.zeros(6), np.eye(6)])
     res = scipy.optimize.minimize(lambda x: f(tau_at(tau0, x * step)), np.zeros(6), method="Nelder-Mead",
+                                  bounds=[(-max_move, max_move)] * 6,
                                   options={"initial_simplex": simplex, "xatol": 0.01, "fatol": 1e-9,
                                            "maxfev": max_evals})
     return tau_at(tau0, res.x * step), int(res.nfev), float(res.fun)
@@ -377,10 +382,10 @@ def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
             return level_cost(lps, t, params)
 
         start_cost = f(tau)
-        tau, evals, cost = _nelder_mead(f, tau, step, params.max_evals)
+        tau, evals, cost = _nelder_mead(f, tau, step, params.max_evals, params.max_move_steps)
         if k == len(todo) - 1:
             for _ in range(params.restarts):
-                new, n, cost = _nelder_mead(f, tau, 0.5 * step, params.max_evals)
+                new, n, cost = _nelder_mead(f, tau, 0.5 * step, params.max_evals, params.max_move_steps)
                 evals += n
                 xi = xi_of(tau, new)
                 tau = new
