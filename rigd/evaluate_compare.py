@@ -249,6 +249,32 @@ def _stats_yaml(stats: RunStats | None) -> dict[str, Any] | None:
                                                                                 strict=True))}
 
 
+def _write(out: Path, header: dict[str, Any], rows: Sequence[MethodRows], req: CompareRequest,
+           wall_s: float) -> dict[str, Any]:
+    """compare.yaml, compare.md and compare.png of the methods run so far."""
+    text = table(rows, req)
+    plot(out / "compare.png", rows, req)
+    report: dict[str, Any] = {
+        **header,
+        "methods": {r.method.value: {
+            "precision": _stats_yaml(r.precision),
+            "convergence": _stats_yaml(r.convergence),
+            "near_reference": _near(r.errors, req),
+            "median_error_vs_reference": _median_error(r.errors),
+            "errors_vs_reference": [None if e is None else list(e) for e in r.errors],
+            "time_per_run_s": {"precision": _median_time(r.precision_runs),
+                               "convergence": _median_time(r.convergence_runs)},
+            "convergence_runs": _runs_yaml(r.convergence_runs),
+        } for r in rows},
+        "table": text,
+        "wall_time_s": round(wall_s, 1),
+        "plot": "compare.png",
+    }
+    write_yaml(out / "compare.yaml", report)
+    (out / "compare.md").write_text(text + "\n")
+    return report
+
+
 def run_compare(req: CompareRequest) -> CompareOutcome:
     """Both protocols for every method of ``req``; writes OUT/compare.yaml, compare.md and compare.png."""
     started = time.monotonic()
@@ -264,46 +290,28 @@ def run_compare(req: CompareRequest) -> CompareOutcome:
     all_pairs = tuple(range(len(dataset)))
     subsets = random_subsets(len(dataset), req.size, req.subsets, req.seed) if len(dataset) > req.size else ()
     starts = random_starts(reference, req.trials, req.rot_deg, req.trans_m, req.seed)
-    rows = []
+    out = Path(req.out_dir) if req.out_dir is not None else dataset.root / "evaluation"
+    out.mkdir(parents=True, exist_ok=True)
+    header = {"protocol": "compare", "dataset": str(dataset.root), "pairs_in_dataset": len(dataset),
+              "reference": {"source": source, "T_camera_lidar": transform_to_yaml(reference)},
+              "settings": {"methods": [m.value for m in req.methods], "subsets": len(subsets), "size": req.size,
+                           "trials": req.trials, "rot_deg": req.rot_deg, "trans_m": req.trans_m, "seed": req.seed,
+                           "workers": req.workers}}
+    rows: list[MethodRows] = []
+    report: dict[str, Any] = {}
     for method in req.methods:
         tasks = [_Task(i, reference, s) for i, s in enumerate(subsets)]
         tasks += [_Task(len(subsets) + i, t, all_pairs) for i, t in enumerate(starts)]
         runs = _run(dataset.root, method, tasks, req.workers, req.progress)
         prec, conv = runs[:len(subsets)], runs[len(subsets):]
-        errors = [r.error for r in prec + conv if r.error is not None]
-        if errors and all(r.result is None for r in prec + conv):
+        errors = [r.error for r in runs if r.error is not None]
+        if errors and all(r.result is None for r in runs):
             raise RigdError(f"method {method.value}: every run failed: {errors[0]}")
         p_stats = run_stats(reference, [r.result for r in prec], OutlierRule.PER_PARAMETER) if prec else None
         c_stats = run_stats(reference, [r.result for r in conv], OutlierRule.PER_PARAMETER)
         rows.append(MethodRows(method, p_stats, c_stats, prec, conv, _errors(reference, conv)))
-    out = Path(req.out_dir) if req.out_dir is not None else dataset.root / "evaluation"
-    out.mkdir(parents=True, exist_ok=True)
+        # written after each method, so a long run that is stopped keeps what it measured
+        report = _write(out, header, rows, req, time.monotonic() - started)
     text = table(rows, req)
-    plot_path = out / "compare.png"
-    plot(plot_path, rows, req)
-    report: dict[str, Any] = {
-        "protocol": "compare",
-        "dataset": str(dataset.root),
-        "pairs_in_dataset": len(dataset),
-        "reference": {"source": source, "T_camera_lidar": transform_to_yaml(reference)},
-        "settings": {"methods": [m.value for m in req.methods], "subsets": len(subsets), "size": req.size,
-                     "trials": req.trials, "rot_deg": req.rot_deg, "trans_m": req.trans_m, "seed": req.seed,
-                     "workers": req.workers},
-        "methods": {r.method.value: {
-            "precision": _stats_yaml(r.precision),
-            "convergence": _stats_yaml(r.convergence),
-            "near_reference": _near(r.errors, req),
-            "median_error_vs_reference": _median_error(r.errors),
-            "errors_vs_reference": [None if e is None else list(e) for e in r.errors],
-            "time_per_run_s": {"precision": _median_time(r.precision_runs),
-                               "convergence": _median_time(r.convergence_runs)},
-            "convergence_runs": _runs_yaml(r.convergence_runs),
-        } for r in rows},
-        "table": text,
-        "wall_time_s": round(time.monotonic() - started, 1),
-        "plot": plot_path.name,
-    }
-    yaml_path = out / "compare.yaml"
-    write_yaml(yaml_path, report)
-    (out / "compare.md").write_text(text + "\n")
+    yaml_path, plot_path = out / "compare.yaml", out / "compare.png"
     return CompareOutcome(tuple(rows), report, text, yaml_path, plot_path)
