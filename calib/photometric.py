@@ -358,8 +358,8 @@ def _nelder_mead(f: Callable[[F64], float], tau0: F64, step: F64, max_evals: int
 
 
 def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
-                         levels: tuple[int, ...] | None = None, fixed_translation: bool = False) -> PhotoResult:
-    """Coarse to fine over ``params.blur_deg`` (or the given ``levels``) from ``tau0``; each level one
+                         fixed_translation: bool = False) -> PhotoResult:
+    """Coarse to fine over ``params.blur_deg`` from ``tau0``; each level one
     Nelder-Mead, the last rerun from its result up to ``params.restarts`` times until it moves less than the
     restart tolerance. ``fixed_translation`` holds t (a zero simplex step)."""
     if not pairs:
@@ -369,11 +369,11 @@ def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
     subsets = [_in_view(p, tau, params, cap) for p in pairs]
     if sum(len(s[0]) for s in subsets) == 0:
         raise CalibError("no LiDAR point projects into any image under the initial guess")
-    todo = tuple(range(len(params.blur_deg))) if levels is None else levels
     traces = []
-    for k, level in enumerate(todo):
+    last = len(params.blur_deg) - 1
+    for level in range(last + 1):
         lps = level_pairs(pairs, tau, params, level, subsets)
-        hold_t = fixed_translation or k < params.rotation_only_levels
+        hold_t = fixed_translation or level < params.rotation_only_levels
         step = np.array([np.radians(params.step_rot_deg[level])] * 3
                         + [0.0 if hold_t else params.step_trans_m[level]] * 3)
         step = np.where(step > 0, step, 1e-12)
@@ -383,7 +383,7 @@ def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
 
         start_cost = f(tau)
         tau, evals, cost = _nelder_mead(f, tau, step, params.max_evals, params.max_move_steps)
-        if k == len(todo) - 1:
+        if level == last:
             for _ in range(params.restarts):
                 new, n, cost = _nelder_mead(f, tau, 0.5 * step, params.max_evals, params.max_move_steps)
                 evals += n

@@ -36,7 +36,11 @@ from rigd.dataset import open_dataset
 from rigd.dataset.records import transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
-from rigd.evaluate import Run, run_all
+from rigd.evaluate import (
+    Run,
+    _Task,  # one calibration's start and pairs, shared with the other protocols
+    run_all,
+)
 
 AXES6 = ("roll_deg", "pitch_deg", "yaw_deg", "x_m", "y_m", "z_m")
 
@@ -75,13 +79,6 @@ class CompareOutcome:
     table: str
     yaml_path: Path
     plot_path: Path
-
-
-@dataclass(frozen=True)
-class _Task:
-    index: int
-    start: Transform
-    pairs: tuple[int, ...]
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import cv2
 import numpy as np
@@ -22,7 +22,7 @@ from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.visuals import overlay, write_coloured_ply
-from rigd.dataset import Dataset, open_dataset
+from rigd.dataset import Dataset, Pair, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
@@ -76,34 +76,34 @@ def _prior(request: CalibrationRequest, dataset: Dataset) -> Prior | None:
     return dataclasses.replace(prior, fix_translation=True)
 
 
-def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None) -> list[PairFeatures]:
-    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges)."""
+T = TypeVar("T")
+
+
+def _per_pair(dataset: Dataset, what: str, progress: Progress | None, make: Callable[[Pair, int], T]) -> list[T]:
+    """``make(pair, index)`` for every pair of ``dataset``, reporting ``what`` of pair i/n to ``progress``."""
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
-    camera = dataset.rig.camera.model()
-    feats = []
+    out = []
     for i in range(len(dataset)):
         pair = dataset.load_pair(i)
         if progress:
-            progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
-        feats.append(extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring), camera,
-                                      params, index=i))
-    return feats
+            progress(f"{what} of pair {i + 1}/{len(dataset)}", i / len(dataset))
+        out.append(make(pair, i))
+    return out
+
+
+def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None) -> list[PairFeatures]:
+    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges)."""
+    camera = dataset.rig.camera.model()
+    return _per_pair(dataset, "edges", progress, lambda pair, i: extract_features(
+        PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring), camera, params, index=i))
 
 
 def dataset_photo_pairs(dataset: Dataset, params: PhotoParams, progress: Progress | None) -> list[PhotoPair]:
     """The photometric costs' arrays of every pair (FeaturelessError names a pair whose cloud has no intensity)."""
-    if len(dataset) == 0:
-        raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
     camera = dataset.rig.camera.model()
-    pairs = []
-    for i in range(len(dataset)):
-        pair = dataset.load_pair(i)
-        if progress:
-            progress(f"reflectivity and image of pair {i + 1}/{len(dataset)}", i / len(dataset))
-        pairs.append(photo_pair(pair.image, pair.cloud.points_lidar, pair.cloud.intensity, pair.cloud.ring, camera,
-                                params, index=i))
-    return pairs
+    return _per_pair(dataset, "reflectivity and image", progress, lambda pair, i: photo_pair(
+        pair.image, pair.cloud.points_lidar, pair.cloud.intensity, pair.cloud.ring, camera, params, index=i))
 
 
 def not_assessed_yaml(method: Method) -> dict[str, Any]:
