@@ -16,7 +16,7 @@ from calib.assess import Assessment, Status, TrustOptions
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
-from calib.methods import Method, calibrate_method, gmm_params, photo_params
+from calib.methods import Method, calibrate_method, gmm_params, photo_params  # Method: also the CLI's
 from calib.photometric import PhotoPair, PhotoParams, photo_pair
 from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, paper_params
 from calib.prior import Prior
@@ -30,9 +30,6 @@ from rigd.errors import RigdError
 # Paper defaults: sigma_in = 15, 10, 5 px of a 1024-wide panorama, as angles at 1 m.
 PAPER_SIGMAS_DEG = paper_params().optim.sigmas_deg
 DEFAULT_SIGMAS_DEG = CalibParams().optim.sigmas_deg
-
-
-__all__ = ["Method"]  # the method names live in calib.methods; re-exported for the CLI and the service
 
 
 @dataclass(frozen=True)
