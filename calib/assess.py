@@ -53,6 +53,7 @@ class Status(Enum):
     TRUSTED = "trusted"
     WEAK = "weak"
     FAILED = "failed"
+    NOT_ASSESSED = "not_assessed"  # a method without an assessment (calib.methods): nothing is claimed
 
 
 @dataclass(frozen=True)

@@ -8,23 +8,24 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
-from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import cv2
 import numpy as np
 
-from calib.assess import Assessment, TrustOptions
+from calib.assess import Assessment, Status, TrustOptions
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
 from calib.initial import SearchOptions, SearchResult, default_search
-from calib.pipeline import CalibParams, CalibResult, PairInput, calibrate, extract_features, paper_params
+from calib.methods import Method, calibrate_method, gmm_params, photo_params  # Method: also the CLI's
+from calib.photometric import PhotoPair, PhotoParams, photo_pair
+from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, paper_params
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.visuals import OVERLAY_STAGES, edge_views, write_coloured_ply
-from rigd.dataset import Dataset, open_dataset
+from rigd.dataset import Dataset, Pair, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
@@ -32,11 +33,6 @@ from rigd.errors import RigdError
 # Paper defaults: sigma_in = 15, 10, 5 px of a 1024-wide panorama, as angles at 1 m.
 PAPER_SIGMAS_DEG = paper_params().optim.sigmas_deg
 DEFAULT_SIGMAS_DEG = CalibParams().optim.sigmas_deg
-
-
-class Method(Enum):
-    RIGD = "rigd"  # the paper's method with the changes of docs/method.md (default)
-    PAPER = "paper"  # the paper's settings as printed (section 8.2), for comparison
 
 
 @dataclass(frozen=True)
@@ -127,6 +123,41 @@ def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress |
         return [f.result() for f in futures]
 
 
+T = TypeVar("T")
+
+
+def _per_pair(dataset: Dataset, what: str, progress: Progress | None, make: Callable[[Pair, int], T]) -> list[T]:
+    """``make(pair, index)`` for every pair of ``dataset``, reporting ``what`` of pair i/n to ``progress``."""
+    if len(dataset) == 0:
+        raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
+    out = []
+    for i in range(len(dataset)):
+        pair = dataset.load_pair(i)
+        if progress:
+            progress(f"{what} of pair {i + 1}/{len(dataset)}", i / len(dataset))
+        out.append(make(pair, i))
+    return out
+
+
+def dataset_photo_pairs(dataset: Dataset, params: PhotoParams, progress: Progress | None) -> list[PhotoPair]:
+    """The photometric costs' arrays of every pair (FeaturelessError names a pair whose cloud has no intensity)."""
+    camera = dataset.rig.camera.model()
+    return _per_pair(dataset, "reflectivity and image", progress, lambda pair, i: photo_pair(
+        pair.image, pair.cloud.points_lidar, pair.cloud.intensity, pair.cloud.ring, camera, params, index=i))
+
+
+def not_assessed_yaml(method: Method) -> dict[str, Any]:
+    """The ``uncertainty`` and ``verdict`` of a method without an assessment: nothing is claimed."""
+    unknown = [None, None, None]
+    return {
+        "uncertainty": {"rpy_deg": unknown, "xyz_cm": unknown, "covariance": None,
+                        "weakest": "not assessed: the uncertainty of docs/trust.md is defined for the GMM cost"},
+        "verdict": {"status": Status.NOT_ASSESSED.value, "weak_axes": [],
+                    "reasons": [f"method {method.value} has no trust assessment (restarts, uncertainty, verdict are "
+                                "defined for the GMM cost only): check the overlays or run rigd check before use"]},
+    }
+
+
 def _finite(values: Any) -> Any:
     """Nested lists of numbers with non-finite entries as None (JSON has no infinity)."""
     arr = np.asarray(values, dtype=np.float64)
@@ -208,7 +239,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     started = time.monotonic()
     dataset = open_dataset(request.dataset)
     initial = _initial(request, dataset)
-    params = paper_params() if request.method is Method.PAPER else CalibParams()
+    params = gmm_params(request.method) or CalibParams()
     if request.sigmas_deg is not None:
         if not request.sigmas_deg or any(not np.isfinite(s) or s <= 0 for s in request.sigmas_deg):
             raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
@@ -216,18 +247,21 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
                                                                        sigmas_deg=tuple(request.sigmas_deg)))
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
-    feats = dataset_features(dataset, params, progress, request.workers)
+    method = request.method
+    photo = photo_params(method)
     search = dataset.rig.search or default_search(dataset.rig.camera.model())
 
     def on_search(done: int, total: int) -> None:
         if progress:
             progress(f"no initial guess: global search over the mounts, pair {done}/{total}", 0.5 + 0.2 * done / total)
 
-    if progress:
-        progress("optimising" if initial is not None else "no initial guess: global search", 0.5)
     searched = time.monotonic()
     try:
-        result = calibrate(feats, initial, params, on_iter, prior, trust, search, on_search)
+        feats = dataset_features(dataset, params, progress, request.workers) if method.uses_gmm else None
+        pairs = dataset_photo_pairs(dataset, photo, progress) if photo is not None else None
+        if progress:
+            progress("optimising" if initial is not None else "no initial guess: global search", 0.5)
+        result = calibrate_method(method, feats, pairs, initial, params, on_iter, prior, trust, search, on_search)
     except CalibError as exc:
         raise RigdError(f"{dataset.root}: {exc}") from exc
     if result.search is not None:
@@ -236,7 +270,14 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     report = _report(result, initial, dataset, time.monotonic() - started)
     if result.search is not None:
         report["initial_search"] = search_yaml(result.search, search, time.monotonic() - searched)
-    report["method"] = {"name": request.method.value, "sigmas_deg": list(params.optim.sigmas_deg)}
+    if result.assessment is None:
+        report.update(not_assessed_yaml(method))
+    report["method"] = {"name": method.value}
+    if method.uses_gmm:
+        report["method"]["sigmas_deg"] = list(params.optim.sigmas_deg)
+    if photo is not None:
+        report["method"]["photometric"] = {"cost": photo.cost.value, "blur_deg": list(photo.blur_deg),
+                                           "bins": photo.n_bins}
     if prior is not None:
         report["prior"] = prior_to_yaml(prior)
     report["tolerance"] = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm}

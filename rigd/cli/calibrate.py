@@ -38,7 +38,7 @@ def parse_sigmas(text: str) -> tuple[float, ...]:
 
 
 # Exit codes of rigd calibrate by verdict (docs/trust.md); 2 is an error (bad input, featureless scene).
-EXIT_CODES = {Status.TRUSTED: 0, Status.WEAK: 3, Status.FAILED: 4}
+EXIT_CODES = {Status.TRUSTED: 0, Status.WEAK: 3, Status.FAILED: 4, Status.NOT_ASSESSED: 5}
 
 
 def numbers(text: str, option: str, count: int) -> list[float]:
@@ -99,8 +99,10 @@ def register(subparsers: Any) -> None:
                         f"{','.join(map(str, DEFAULT_SIGMAS_DEG))}; with --method paper the paper's 15,10,5 px of a "
                         f"1024-wide panorama = {','.join(map(str, PAPER_SIGMAS_DEG))})")
     parser.add_argument("--method", choices=[m.value for m in Method], default=Method.RIGD.value,
-                        help="rigd (default): the paper with the changes in docs/method.md; paper: the paper's "
-                        "settings as printed, for comparison")
+                        help="rigd (default): the paper's GMM with the changes in docs/method.md; paper: the paper's "
+                        "settings as printed; mi, nid, gom: the photometric baselines (LiDAR reflectivity against the "
+                        "image; no trust assessment, exit code 5); rigd+nid: rigd, then NID from its solution; "
+                        "gmm-*: the ablations (docs/results.md)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
     parser.add_argument("--no-visuals", action="store_true", help="skip overlays and PLY clouds")

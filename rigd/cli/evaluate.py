@@ -11,6 +11,7 @@ from calib.assess import TrustOptions
 from calib.check import DriftOptions
 from calib.evaluate import OutlierRule, Params6, PoseError
 from rigd.cli.calibrate import numbers, parse_init, parse_sigmas, parse_tolerance
+from rigd.cli.evaluate_compare import add_parser as add_compare_parser
 from rigd.cli.evaluate_initial import register_initial
 from rigd.evaluate import (
     ConvergenceRequest,
@@ -135,6 +136,7 @@ def register(subparsers: Any) -> None:
     drift.add_argument("--trans-cm", type=str, default="2,5", help="injected translations, cm (default 2,5)")
     drift.set_defaults(func=run_drift_command)
     register_initial(protocols, _common, _positive_int, _non_negative_float, _settings)
+    add_compare_parser(protocols, _positive_int, _non_negative_float)
 
 
 def _fmt_params(p: Params6 | None, digits: int) -> str:

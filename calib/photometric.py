@@ -1,0 +1,396 @@
+"""Photometric baselines of the paper's comparison (section 8.2): MI, NID and GOM between LiDAR reflectivity
+and the image, each optimised coarse to fine over image blur levels by Nelder-Mead.
+
+Each LiDAR point p_k with reflectivity r_k projects (the same camera models and eq. 3 as the GMM) to
+q_k = q(R p_k + t); the image is sampled there with bilinear interpolation.
+
+- MI (Pandey, McBride, Savarese & Eustice 2015, eqs. 1-4 of their section 3): X = reflectivity, Y = grey
+  level, ``MI(X, Y) = H(X) + H(Y) - H(X, Y)`` with ``H(X) = -sum_x p(x) log p(x)`` and the joint distribution a
+  kernel density estimate: the joint histogram of all pairs' samples smoothed by a Gaussian whose bandwidth
+  follows Silverman's rule ``h = 1.06 sigma n^(-1/5)`` (their eq. 5). Cost: ``-MI``.
+- NID (as koide3/direct_visual_lidar_calibration, CostCalculatorNID): per pair, a 16x16 joint histogram,
+  ``NID = (H(X, Y) - MI(X, Y)) / H(X, Y)``; the cost is the mean over pairs (koide3 sums them).
+- GOM (Taylor, Nieto & Johnson 2015, the gradient orientation measure): with g_I the image gradient at q_k
+  and g_L the reflectivity gradient of the projected cloud at q_k,
+  ``GOM = sum_k |g_I||g_L| (1 + cos 2 dtheta_k) / 2 / sum_k |g_I||g_L|`` (the authors' GOMKernel;
+  (1 + cos 2 dtheta) / 2 = cos^2 dtheta ignores the sign, since a bright-to-dark edge in one modality can be
+  dark-to-bright in the other). Cost: ``-GOM``. g_L is a least-squares plane fit to the reflectivity of the
+  ``gom_neighbours`` nearest projected points, frozen per level (like the GMM's sigma_i).
+
+Smoothness: histograms and nearest-pixel look-ups make these costs piecewise constant. Here each sample is
+bilinear in the image and split linearly between its two nearest bins in each variable (Parzen windowing
+with a triangular kernel), so the costs are continuous in the pose; they are still not smooth enough for
+the GMM's Wolfe line search, so, as koide3 and Taylor et al. do, each level is minimised by Nelder-Mead
+(scipy), in local coordinates around the level's start, and the finest level is rerun from its own result
+until it stops moving (koide3's outer loop). Pandey et al. use a Barzilai-Borwein gradient ascent with
+numerical gradients; we do not, as it needs the same smoothness.
+
+Reflectivity and grey level are rank-normalised (histogram equalisation; koide3 equalises both too), and
+reflectivity per ring when rings are known: an uncalibrated multi-beam LiDAR's intensity differs by laser
+and falls with range, and each ring on flat ground sits at one range, so ranks within a ring keep the
+surface's reflectance and drop the beam's gain.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from enum import Enum
+
+import cv2
+import numpy as np
+import scipy.ndimage
+import scipy.optimize
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+from scipy.stats import rankdata
+
+from calib.camera import CameraModel, Equirectangular
+from calib.edges_image import to_grey
+from calib.errors import CalibError, FeaturelessError
+from calib.gmm import in_image, transform_points
+from calib.uncertainty import tau_at, xi_of
+
+F64 = NDArray[np.float64]
+F32 = NDArray[np.float32]
+
+
+class PhotoCost(Enum):
+    MI = "mi"
+    NID = "nid"
+    GOM = "gom"
+
+
+@dataclass(frozen=True)
+class PhotoParams:
+    """``blur_deg``: the image's Gaussian blur per level as an angle (paper 8.2.1 used 12, 6, 3, 0 px of a
+    1024-wide panorama for GOM = 4.22, 2.11, 1.05, 0 deg). ``step_rot_deg``/``step_trans_m``: the initial
+    simplex's size per level. ``bins``: histogram bins (0: 64 for MI, koide3's 16 for NID).
+    ``max_points``: points kept over all pairs (each pair an equal share, at least ``min_points_per_pair``; a
+    random subset, fixed by ``seed``, of those in view at the start): the cost of an evaluation stays about the
+    same for one dense pinhole frame and twelve panoramas."""
+
+    cost: PhotoCost = PhotoCost.NID
+    blur_deg: tuple[float, ...] = (4.22, 2.11, 1.05, 0.0)
+    step_rot_deg: tuple[float, ...] = (3.0, 1.5, 0.75, 0.3)
+    step_trans_m: tuple[float, ...] = (0.10, 0.05, 0.025, 0.01)
+    bins: int = 0
+    max_points: int = 24000
+    min_points_per_pair: int = 1500
+    max_evals: int = 600
+    restarts: int = 2
+    restart_tol_deg: float = 0.005
+    restart_tol_m: float = 0.0005
+    per_ring: bool = True
+    gom_neighbours: int = 24  # enough to span neighbouring rings: along one ring the plane fit has no across term
+    rotation_only_levels: int = 1  # the first level(s) move rotation only, as rigd's GMM does
+    max_move_steps: float = 4.0  # a level moves at most this many simplex steps per axis from its start
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        n = len(self.blur_deg)
+        if n == 0 or len(self.step_rot_deg) != n or len(self.step_trans_m) != n:
+            raise CalibError("photometric levels: blur_deg, step_rot_deg and step_trans_m need one entry per level")
+
+    @property
+    def n_bins(self) -> int:
+        if self.bins > 0:
+            return self.bins
+        return 64 if self.cost is PhotoCost.MI else 16
+
+
+@dataclass(frozen=True)
+class PhotoPair:
+    """One pair for the photometric costs: ``grey`` (H,W) float32 in [0, 1] (equalised), ``points_lidar``
+    (N,3) float64 m, ``reflectivity`` (N,) float64 in [0, 1] (rank-normalised)."""
+
+    camera: CameraModel
+    grey: F32
+    points_lidar: F64
+    reflectivity: F64
+
+
+@dataclass(frozen=True)
+class PhotoLevel:
+    """One level's outcome: blur (deg), cost evaluations, cost at its start and end, and the pose."""
+
+    blur_deg: float
+    evaluations: int
+    costs: tuple[float, ...]
+    tau: F64
+
+
+@dataclass(frozen=True)
+class PhotoResult:
+    tau: F64
+    levels: tuple[PhotoLevel, ...]
+    final_cost: float
+
+
+def rank_normalise(values: F64, groups: NDArray[np.int16] | None = None) -> F64:
+    """Ranks of ``values`` (N,) mapped to [0, 1], within each group (e.g. LiDAR ring) when given; ties share
+    their mean rank."""
+    out = np.zeros(len(values))
+    keys = np.zeros(len(values), dtype=np.int64) if groups is None else groups.astype(np.int64)
+    for g in np.unique(keys):
+        sel = np.flatnonzero(keys == g)
+        if sel.size < 2:
+            out[sel] = 0.5
+            continue
+        ranks = rankdata(values[sel])
+        out[sel] = (ranks - 1.0) / (sel.size - 1.0)
+    return out
+
+
+def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[np.float32] | None,
+               ring: NDArray[np.int16] | None, camera: CameraModel, params: PhotoParams, index: int = 0) -> PhotoPair:
+    """The arrays the photometric costs need of one pair; raises FeaturelessError when the cloud has no
+    intensity (reflectivity) field."""
+    if intensity is None:
+        raise FeaturelessError(f"pair {index}: the cloud has no intensity field; MI, NID and GOM compare LiDAR "
+                               "reflectivity with the image")
+    if len(intensity) != len(points_lidar):
+        raise CalibError(f"pair {index}: {len(intensity)} intensities for {len(points_lidar)} points")
+    grey_u8 = np.rint(to_grey(image) * 255.0).astype(np.uint8)
+    grey = (cv2.equalizeHist(grey_u8).astype(np.float32) / np.float32(255.0))
+    groups = ring if params.per_ring else None
+    refl = rank_normalise(np.asarray(intensity, dtype=np.float64), groups)
+    return PhotoPair(camera, grey, np.asarray(points_lidar, dtype=np.float64), refl)
+
+
+def soft_joint_histogram(a: F64, b: F64, bins: int) -> F64:
+    """Joint histogram (bins, bins) of ``a``, ``b`` (N,) in [0, 1], each sample split linearly between its
+    two nearest bin centres in each variable (triangular Parzen window), so the counts move continuously."""
+    pa = np.clip(a, 0.0, 1.0) * (bins - 1)
+    pb = np.clip(b, 0.0, 1.0) * (bins - 1)
+    ia = np.minimum(np.floor(pa).astype(np.int64), bins - 2)
+    ib = np.minimum(np.floor(pb).astype(np.int64), bins - 2)
+    fa, fb = pa - ia, pb - ib
+    idx = np.concatenate([ia * bins + ib, (ia + 1) * bins + ib, ia * bins + ib + 1, (ia + 1) * bins + ib + 1])
+    w = np.concatenate([(1 - fa) * (1 - fb), fa * (1 - fb), (1 - fa) * fb, fa * fb])
+    return np.asarray(np.bincount(idx, weights=w, minlength=bins * bins), dtype=np.float64).reshape(bins, bins)
+
+
+def _entropy(p: F64) -> float:
+    nz = p[p > 0]
+    return float(-np.sum(nz * np.log(nz)))
+
+
+def entropies(joint: F64) -> tuple[float, float, float]:
+    """H(X), H(Y), H(X, Y) (nats) of a joint histogram (rows X, columns Y), normalised to a distribution."""
+    total = float(joint.sum())
+    if total <= 0:
+        raise CalibError("empty joint histogram: no point projects into an image")
+    p = joint / total
+    return _entropy(p.sum(axis=1)), _entropy(p.sum(axis=0)), _entropy(p)
+
+
+def kde_smooth(joint: F64, n_samples: float) -> F64:
+    """Pandey et al.'s kernel density estimate of a joint histogram: Gaussian smoothing with Silverman's
+    bandwidth h = 1.06 sigma n^(-1/5) per variable (sigma of the variable's marginal, in bins)."""
+    bins = joint.shape[0]
+    centres = np.arange(bins, dtype=np.float64)
+    p = joint / max(float(joint.sum()), 1e-300)
+    h = []
+    for marginal in (p.sum(axis=1), p.sum(axis=0)):
+        mean = float(marginal @ centres)
+        sd = float(np.sqrt(max(marginal @ (centres - mean) ** 2, 1e-12)))
+        h.append(max(1.06 * sd * max(n_samples, 1.0) ** -0.2, 0.5))
+    return np.asarray(scipy.ndimage.gaussian_filter(joint, sigma=h, mode="reflect"), dtype=np.float64)
+
+
+def mutual_information(joint: F64) -> float:
+    """MI = H(X) + H(Y) - H(X, Y) (Pandey 2015 eq. 4)."""
+    hx, hy, hxy = entropies(joint)
+    return hx + hy - hxy
+
+
+def nid(joint: F64) -> float:
+    """NID = (H(X, Y) - MI) / H(X, Y) in [0, 1] (koide3's CostCalculatorNID); 0 when one variable determines
+    the other, 1 when they are independent."""
+    hx, hy, hxy = entropies(joint)
+    if hxy <= 0:
+        return 0.0
+    return (hxy - (hx + hy - hxy)) / hxy
+
+
+@dataclass(frozen=True)
+class _LevelPair:
+    """One pair at one level: blurred grey (H,W) float32, its gradient (GOM), the kept points and their
+    reflectivity, and the frozen reflectivity gradients (M,2) per px (GOM)."""
+
+    camera: CameraModel
+    grey: F32
+    grad: tuple[F32, F32] | None
+    points_lidar: F64
+    reflectivity: F64
+    lidar_grad: F64 | None
+
+
+def _filtered(image: F32, camera: CameraModel, pad: int, fn: Callable[[F32], F32]) -> F32:
+    """``fn`` (a filter with reflected borders) over ``image``; a panorama is first padded by ``pad`` columns
+    from its other side, so its filters wrap around u = 0 / w (OpenCV's filters have no wrapping border)."""
+    if not isinstance(camera, Equirectangular):
+        return fn(image)
+    padded = np.pad(image, ((0, 0), (pad, pad)), mode="wrap")
+    return np.ascontiguousarray(fn(padded)[:, pad:pad + image.shape[1]])
+
+
+def _blur(grey: F32, camera: CameraModel, blur_deg: float) -> F32:
+    sigma_px = float(np.radians(blur_deg)) * camera.pixels_per_radian
+    if sigma_px < 0.3:
+        return grey
+    return _filtered(grey, camera, int(np.ceil(4 * sigma_px)) + 1, lambda im: np.asarray(
+        cv2.GaussianBlur(im, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT), dtype=np.float32))
+
+
+def _image_gradient(grey: F32, camera: CameraModel) -> tuple[F32, F32]:
+    """Sobel gradient (d/du, d/dv) per px of ``grey``."""
+    def sobel(dx: int, dy: int) -> F32:
+        return _filtered(grey, camera, 2, lambda im: np.asarray(
+            cv2.Sobel(im, cv2.CV_32F, dx, dy, ksize=3, scale=0.125, borderType=cv2.BORDER_REFLECT), dtype=np.float32))
+    return sobel(1, 0), sobel(0, 1)
+
+
+def sample(image: F32, camera: CameraModel, uv: F64) -> F64:
+    """Bilinear samples (N,) of ``image`` at ``uv`` (N,2) px (pixel centres at integers; panoramas wrap)."""
+    if len(uv) == 0:
+        return np.zeros(0)
+    border = cv2.BORDER_WRAP if isinstance(camera, Equirectangular) else cv2.BORDER_REPLICATE
+    mx = np.ascontiguousarray(uv[:, 0].astype(np.float32).reshape(1, -1))
+    my = np.ascontiguousarray(uv[:, 1].astype(np.float32).reshape(1, -1))
+    return np.asarray(cv2.remap(image, mx, my, cv2.INTER_LINEAR, borderMode=border), dtype=np.float64).reshape(-1)
+
+
+def _projected(lp: _LevelPair, tau: F64) -> tuple[F64, NDArray[np.bool_]]:
+    uv, valid = lp.camera.project(transform_points(tau, lp.points_lidar)[0])
+    return uv, in_image(lp.camera, uv, valid)
+
+
+def lidar_gradients(uv: F64, reflectivity: F64, neighbours: int) -> F64:
+    """Reflectivity gradient (N,2) per px at each projected point: least-squares plane through its
+    ``neighbours`` nearest projected neighbours, ridge-regularised by 1 px^2 so points whose neighbours lie on
+    one scan line get no gradient across it."""
+    if len(uv) <= neighbours:
+        return np.zeros((len(uv), 2))
+    _, nb = cKDTree(uv).query(uv, k=neighbours + 1)
+    d_uv = uv[nb[:, 1:]] - uv[:, None, :]  # (N,k,2)
+    d_r = reflectivity[nb[:, 1:]] - reflectivity[:, None]  # (N,k)
+    ata = np.einsum("nki,nkj->nij", d_uv, d_uv) + np.eye(2)
+    atb = np.einsum("nki,nk->ni", d_uv, d_r)
+    return np.asarray(np.linalg.solve(ata, atb[..., None])[..., 0], dtype=np.float64)
+
+
+def gom_terms(g_image: F64, g_lidar: F64) -> tuple[F64, F64]:
+    """Per sample: |g_I||g_L| (1 + cos 2 dtheta) / 2 and |g_I||g_L| (Taylor 2015's GOM numerator and
+    denominator terms); (1 + cos 2 dtheta) / 2 = (g_I . g_L)^2 / (|g_I|^2 |g_L|^2)."""
+    mag = np.linalg.norm(g_image, axis=1) * np.linalg.norm(g_lidar, axis=1)
+    dot = np.sum(g_image * g_lidar, axis=1)
+    agree = np.where(mag > 1e-12, dot**2 / np.maximum(mag, 1e-12), 0.0)
+    return agree, mag
+
+
+def level_cost(pairs: list[_LevelPair], tau: F64, params: PhotoParams) -> float:
+    """The level's cost at ``tau`` (lower is better): -MI, mean NID or -GOM over ``pairs``."""
+    bins = params.n_bins
+    if params.cost is PhotoCost.GOM:
+        num = den = 0.0
+        for lp in pairs:
+            assert lp.grad is not None and lp.lidar_grad is not None
+            uv, inside = _projected(lp, tau)
+            g_img = np.stack([sample(lp.grad[0], lp.camera, uv[inside]), sample(lp.grad[1], lp.camera, uv[inside])],
+                             axis=1)
+            agree, mag = gom_terms(g_img, lp.lidar_grad[inside])
+            num, den = num + float(agree.sum()), den + float(mag.sum())
+        return -num / den if den > 0 else 0.0
+    joints = []
+    for lp in pairs:
+        uv, inside = _projected(lp, tau)
+        joints.append(soft_joint_histogram(lp.reflectivity[inside], sample(lp.grey, lp.camera, uv[inside]), bins))
+    if params.cost is PhotoCost.NID:
+        return float(np.mean([nid(j) if j.sum() > 0 else 1.0 for j in joints]))
+    joint = np.sum(joints, axis=0)
+    if joint.sum() <= 0:
+        return 0.0
+    return -mutual_information(kde_smooth(joint, float(joint.sum())))
+
+
+def _in_view(pair: PhotoPair, tau0: F64, params: PhotoParams, cap: int) -> tuple[F64, F64]:
+    """The points that project into the image (with a 10 % margin) at ``tau0``, at most ``cap``."""
+    cam = pair.camera
+    uv, valid = cam.project(transform_points(tau0, pair.points_lidar)[0])
+    mw, mh = 0.1 * cam.width, 0.1 * cam.height
+    keep = valid & (uv[:, 0] > -mw) & (uv[:, 0] < cam.width + mw) & (uv[:, 1] > -mh) & (uv[:, 1] < cam.height + mh)
+    idx = np.flatnonzero(keep)
+    if idx.size > cap:
+        idx = np.sort(np.random.default_rng(params.seed).choice(idx, cap, replace=False))
+    return pair.points_lidar[idx], pair.reflectivity[idx]
+
+
+def level_pairs(pairs: list[PhotoPair], tau: F64, params: PhotoParams, level: int,
+                subsets: list[tuple[F64, F64]]) -> list[_LevelPair]:
+    """Each pair at ``level``: the blurred image (and its gradient and the frozen LiDAR gradients for GOM)."""
+    out = []
+    for pair, (pts, refl) in zip(pairs, subsets, strict=True):
+        grey = _blur(pair.grey, pair.camera, params.blur_deg[level])
+        lp = _LevelPair(pair.camera, grey, None, pts, refl, None)
+        if params.cost is PhotoCost.GOM:
+            uv, valid = pair.camera.project(transform_points(tau, pts)[0])
+            lg = np.zeros((len(pts), 2))
+            lg[valid] = lidar_gradients(uv[valid], refl[valid], params.gom_neighbours)
+            lp = replace(lp, grad=_image_gradient(grey, pair.camera), lidar_grad=lg)
+        out.append(lp)
+    return out
+
+
+def _nelder_mead(f: Callable[[F64], float], tau0: F64, step: F64, max_evals: int,
+                 max_move: float) -> tuple[F64, int, float]:
+    """Nelder-Mead (scipy) over local coordinates xi = x * step around ``tau0``; the initial simplex spans one
+    ``step`` per axis and x is bounded to +-``max_move`` (where a cost is flat, as on a hazy frame, the simplex
+    would otherwise wander off: measured 12 deg from a 2 deg start). Returns the pose, the evaluations and the
+    final cost."""
+    simplex = np.vstack([np.zeros(6), np.eye(6)])
+    res = scipy.optimize.minimize(lambda x: f(tau_at(tau0, x * step)), np.zeros(6), method="Nelder-Mead",
+                                  bounds=[(-max_move, max_move)] * 6,
+                                  options={"initial_simplex": simplex, "xatol": 0.01, "fatol": 1e-9,
+                                           "maxfev": max_evals})
+    return tau_at(tau0, res.x * step), int(res.nfev), float(res.fun)
+
+
+def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
+                         fixed_translation: bool = False) -> PhotoResult:
+    """Coarse to fine over ``params.blur_deg`` from ``tau0``; each level one
+    Nelder-Mead, the last rerun from its result up to ``params.restarts`` times until it moves less than the
+    restart tolerance. ``fixed_translation`` holds t (a zero simplex step)."""
+    if not pairs:
+        raise CalibError("no pairs to calibrate")
+    tau = np.asarray(tau0, dtype=np.float64).copy()
+    cap = max(params.max_points // len(pairs), params.min_points_per_pair)
+    subsets = [_in_view(p, tau, params, cap) for p in pairs]
+    if sum(len(s[0]) for s in subsets) == 0:
+        raise CalibError("no LiDAR point projects into any image under the initial guess")
+    traces = []
+    last = len(params.blur_deg) - 1
+    for level in range(last + 1):
+        lps = level_pairs(pairs, tau, params, level, subsets)
+        hold_t = fixed_translation or level < params.rotation_only_levels
+        step = np.array([np.radians(params.step_rot_deg[level])] * 3
+                        + [0.0 if hold_t else params.step_trans_m[level]] * 3)
+        step = np.where(step > 0, step, 1e-12)
+
+        def f(t: F64, lps: list[_LevelPair] = lps) -> float:
+            return level_cost(lps, t, params)
+
+        start_cost = f(tau)
+        tau, evals, cost = _nelder_mead(f, tau, step, params.max_evals, params.max_move_steps)
+        if level == last:
+            for _ in range(params.restarts):
+                new, n, cost = _nelder_mead(f, tau, 0.5 * step, params.max_evals, params.max_move_steps)
+                evals += n
+                xi = xi_of(tau, new)
+                tau = new
+                if (np.degrees(np.linalg.norm(xi[:3])) < params.restart_tol_deg
+                        and np.linalg.norm(xi[3:]) < params.restart_tol_m):
+                    break
+        traces.append(PhotoLevel(params.blur_deg[level], evals, (start_cost, cost), tau.copy()))
+    return PhotoResult(tau, tuple(traces), traces[-1].costs[-1])

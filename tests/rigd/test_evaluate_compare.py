@@ -1,0 +1,73 @@
+"""``rigd evaluate compare`` and ``rigd calibrate --method nid``: reports, table, plot, method names."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import yaml
+
+import calib.methods
+import rigd.calibration.service
+import rigd.evaluate_compare
+from calib.methods import Method, photo_params
+from rigd.cli import main
+from rigd.dataset import open_dataset
+from rigd.errors import RigdError
+from rigd.evaluate_compare import parse_methods
+from rigd.simulate import write_simulated_dataset
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cmp") / "indoor"
+    write_simulated_dataset(root, "indoor", 2, seed=5, width=512, height=256, progress=False)
+    return root
+
+
+@pytest.fixture
+def quick_photometric(monkeypatch):
+    """The photometric methods with a small budget (the test checks the plumbing, not the optimum); --workers 1
+    runs in this process, so the patch reaches the runs."""
+    def quick(method):
+        opts = photo_params(method)
+        return None if opts is None else replace(opts, max_points=3000, max_evals=120, restarts=0)
+    for module in (calib.methods, rigd.evaluate_compare, rigd.calibration.service):
+        monkeypatch.setattr(module, "photo_params", quick)
+
+
+def test_parse_methods():
+    assert parse_methods("gmm, nid,gom,nid") == (Method.RIGD, Method.NID, Method.GOM)
+    with pytest.raises(RigdError, match="unknown method 'sift'"):
+        parse_methods("gmm,sift")
+
+
+def test_compare_writes_one_table_one_plot_and_every_method(small_dataset, tmp_path, capsys, quick_photometric):
+    out = tmp_path / "cmp"
+    code = main(["evaluate", "compare", str(small_dataset), "--methods", "nid,gom", "--trials", "2", "--subsets",
+                 "1", "--size", "1", "--rot-deg", "1", "--trans-m", "0.02", "--workers", "1", "--out", str(out)])
+    printed = capsys.readouterr().out
+    assert code == 0
+    report = yaml.safe_load((out / "compare.yaml").read_text())
+    assert set(report["methods"]) == {"nid", "gom"}
+    assert report["settings"]["subsets"] == 1 and report["settings"]["trials"] == 2
+    for row in report["methods"].values():
+        assert row["convergence"]["runs"] == 2 and row["precision"]["runs"] == 1
+        assert len(row["errors_vs_reference"]) == 2
+    table = (out / "compare.md").read_text()
+    assert table.count("\n| nid |") == 1 and table.count("\n| gom |") == 1 and table in printed
+    assert (out / "compare.png").read_bytes().startswith(PNG_MAGIC)
+
+
+def test_calibrate_with_nid_is_not_assessed(small_dataset, tmp_path, capsys, quick_photometric):
+    truth = open_dataset(small_dataset).ground_truth
+    init = np.r_[truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m + [0.01, -0.01, 0.01]]
+    code = main(["calibrate", str(small_dataset), "--method", "nid", "--init", ",".join(map(str, init)), "--out",
+                 str(tmp_path / "out"), "--json", "--no-visuals"])
+    assert code == 5
+    report = json.loads(capsys.readouterr().out)
+    assert report["verdict"]["status"] == "not_assessed" and report["method"]["name"] == "nid"
+    assert report["uncertainty"]["rpy_deg"] == [None, None, None]
+    assert report["method"]["photometric"]["cost"] == "nid"
