@@ -36,6 +36,7 @@ Mask = NDArray[np.bool_]
 
 RUNGS_PER_OCTAVE = 3
 BAND_BLOCK = 16  # bands grow by whole blocks of this many image rows, so they are extended rarely
+ROW_CHUNK = 16  # pooled rows computed together (fixed windows: history-independent values)
 COLUMN_BLOCK = 128  # image columns that share one row band (a tilted LiDAR band moves ~60 rows across one)
 
 
@@ -194,6 +195,11 @@ class EdgeFields:
                              borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r] for i in range(9)]
         return np.stack(maps, axis=-1).astype(np.float32)
 
+    def _chunks(self, k: int, lo: int, hi: int, c0: int, c1: int, splat: tuple[F64, F64]) -> F32:
+        """Pooled rows ``lo:hi`` (chunk-aligned) of rung k, one ROW_CHUNK at a time."""
+        return np.concatenate([self._maps(k, a, min(a + ROW_CHUNK, hi), c0, c1, splat)
+                               for a in range(lo, hi, ROW_CHUNK)])
+
     def grow(self, need_lo: I64, need_hi: I64) -> None:
         """Extend the blocks so block (k, b) covers pooled rows ``need_lo[k, b] : need_hi[k, b]`` (nothing
         where lo >= hi).
@@ -215,6 +221,11 @@ class EdgeFields:
         new_hi = np.maximum(need_hi, np.minimum(-(-self.band_hi[None, :] // f), self.hf[:, None]))
         new_lo = np.where(self.rows > 0, np.minimum(new_lo, self.row0), new_lo)
         new_hi = np.where(self.rows > 0, np.maximum(new_hi, end), new_hi)
+        # Whole chunks of ROW_CHUNK pooled rows only, each always computed from the same window: a cell's
+        # value then does not depend on which rows were asked for first (filter2D's result depends on the
+        # window it is given at rounding level, which a long solve can amplify into a different answer).
+        new_lo = new_lo // ROW_CHUNK * ROW_CHUNK
+        new_hi = np.minimum(-(-new_hi // ROW_CHUNK) * ROW_CHUNK, self.hf[:, None])
         splat = self._splat()
         blocks = []
         for k, b in np.ndindex(*self.rows.shape):
@@ -223,8 +234,8 @@ class EdgeFields:
                 c0, c1 = b * int(self.cb[k]), b * int(self.cb[k]) + int(self.bw[k, b])
                 lo, hi = int(new_lo[k, b]), int(new_hi[k, b])
                 have_lo, have_hi = (int(self.row0[k, b]), int(end[k, b])) if self.rows[k, b] else (lo, lo)
-                above = self._maps(k, lo, have_lo, c0, c1, splat) if have_lo > lo else block[:0]
-                below = self._maps(k, have_hi, hi, c0, c1, splat) if hi > have_hi else block[:0]
+                above = self._chunks(k, lo, have_lo, c0, c1, splat) if have_lo > lo else block[:0]
+                below = self._chunks(k, have_hi, hi, c0, c1, splat) if hi > have_hi else block[:0]
                 block = np.concatenate([above, block, below]) if len(block) else np.concatenate([above, below])
                 self.row0[k, b], self.rows[k, b] = lo, hi - lo
             blocks.append(block.reshape(-1, 9))

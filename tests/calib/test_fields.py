@@ -147,3 +147,12 @@ def test_l0_smoothing_equals_the_textbook_solver():
     got, expected = l0_smooth(grey, 0.01), _l0_textbook(grey, 0.01)
     assert np.abs(got - expected).max() < 1e-10
     assert np.abs(np.diff(got, axis=1)).max() > 0.3  # it is a real edge-keeping smoothing, not a copy
+
+
+def test_samples_do_not_depend_on_what_was_sampled_before(pair):
+    # Ladders asked for the same centres after different histories give bit-identical samples, so a
+    # calibration's result cannot depend on the trials that ran before it in the same process.
+    uv, sigma = _centres(pair, (100.0, 200.0), 300, 6)
+    fresh, used = _fresh(pair), _fresh(pair)
+    used.sample(*_centres(pair, (0.0, 120.0), 300, 7))
+    assert np.array_equal(used.sample(uv, sigma), fresh.sample(uv, sigma))
