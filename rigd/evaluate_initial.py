@@ -8,6 +8,10 @@ is made from the dataset's own sweeps by expressing each cloud in the LiDAR fram
 point where it saw it before. (The ranges |p'| then differ from the sensor's by up to the lever-arm change,
 which eq. 23's sigma uses; decimetres against edges metres away.)
 
+Each trial runs what ``rigd calibrate`` runs: with the settings' trust options (the default) the runner-up of
+the search is solved in full too and the lower of the two kept, and the verdict is recorded; a wrong run
+that is not called ``trusted`` is a failure of the search but not a lie (``trusted_but_wrong`` counts those).
+
 A trial succeeds when it ends as close to its mount as a run started 5 deg / 10 cm from the ground truth on
 the unchanged dataset (the ``reference`` run), within the field tolerance: rotation error <= reference + 0.2
 deg and translation error <= reference + 2 cm.
@@ -61,6 +65,7 @@ class InitialTrial:
     search_s: float
     total_s: float
     runner_up_deg: float | None  # how far the search's second distinct start was from its first
+    verdict: str | None = None  # trusted / weak / failed; None without the trust assessment
     error: str | None = None
 
 
@@ -85,8 +90,8 @@ def _run_trial(state: WorkerState, task: _Task) -> InitialTrial:
     feats = list(state.feats) if task.mount is None else remount(list(state.feats), task.truth, task.mount)
     searched: list[float] = []
     try:
-        result = calibrate(feats, task.start, state.params, on_search=lambda d, n: searched.append(time.monotonic())
-                           if d == n else None)
+        result = calibrate(feats, task.start, state.params, trust=state.trust,
+                           on_search=lambda d, n: searched.append(time.monotonic()) if d == n else None)
     except CalibError as exc:
         return InitialTrial(task.index, (), None, None, 0.0, time.monotonic() - started, None, str(exc))
     T = result.T_camera_lidar
@@ -97,7 +102,8 @@ def _run_trial(state: WorkerState, task: _Task) -> InitialTrial:
     return InitialTrial(
         task.index, tuple(float(v) for v in target.rpy_deg), rotation_angle_deg(T.rotation, target.rotation),
         float(np.linalg.norm(T.translation_m - target.translation_m) * 100.0),
-        (searched[-1] - started) if searched else 0.0, time.monotonic() - started, runner_up)
+        (searched[-1] - started) if searched else 0.0, time.monotonic() - started, runner_up,
+        None if result.assessment is None else result.assessment.verdict.status.value)
 
 
 def _success(t: InitialTrial, ref: InitialTrial, request: InitialRequest) -> bool:
@@ -121,12 +127,13 @@ def run_initial(request: InitialRequest) -> dict[str, Any]:
     ref_start = random_starts(truth, 1, 5.0, 0.1, s.seed + 1)[0]
     mounts = _mounts(request, base)
     tasks = [_Task(-1, None, ref_start, truth)] + [_Task(i, m, None, truth) for i, m in enumerate(mounts)]
-    with trial_runner(s, dataset.root, params, None) as workers:
+    with trial_runner(s, dataset.root, params, s.trust) as workers:
         where = where_run(s, workers)
         done = sorted(workers.run(_run_trial, tasks, "initial guess", s.progress), key=lambda r: r.index)
     ref, trials = done[0], done[1:]
     ok = [_success(t, ref, request) for t in trials]
     search_s = [t.search_s for t in trials if t.error is None]
+    verdicts = [t.verdict for t in trials if t.verdict is not None]
     report = {
         "protocol": "initial", "dataset": str(dataset.root), "pairs": len(dataset),
         "settings": {"trials": request.trials, "seed": s.seed, **where, "yaw_deg": request.yaw_deg,
@@ -136,6 +143,8 @@ def run_initial(request: InitialRequest) -> dict[str, Any]:
         "reference": {"rotation_err_deg": ref.rotation_err_deg, "translation_err_cm": ref.translation_err_cm,
                       "wall_time_s": round(ref.total_s, 2), "error": ref.error},
         "success": int(sum(ok)), "success_rate": float(np.mean(ok)) if ok else 0.0,
+        "verdicts": {v: verdicts.count(v) for v in sorted(set(verdicts))},
+        "trusted_but_wrong": sum(1 for t, good in zip(trials, ok, strict=True) if not good and t.verdict == "trusted"),
         "median_search_s": float(np.median(search_s)) if search_s else None,
         "max_search_s": float(np.max(search_s)) if search_s else None,
         "median_total_s": float(np.median([t.total_s for t in trials])) if trials else None,
@@ -143,7 +152,7 @@ def run_initial(request: InitialRequest) -> dict[str, Any]:
         "trials": [{"index": t.index, "mount_rpy_deg": list(t.mount_rpy_deg), "rotation_err_deg": t.rotation_err_deg,
                     "translation_err_cm": t.translation_err_cm, "search_s": round(t.search_s, 2),
                     "total_s": round(t.total_s, 2), "runner_up_deg": t.runner_up_deg, "success": good,
-                    "error": t.error} for t, good in zip(trials, ok, strict=True)],
+                    "verdict": t.verdict, "error": t.error} for t, good in zip(trials, ok, strict=True)],
     }
     out = Path(s.out_dir) if s.out_dir is not None else dataset.root / "evaluation"
     out.mkdir(parents=True, exist_ok=True)

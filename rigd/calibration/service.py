@@ -24,7 +24,7 @@ from calib.photometric import PhotoPair, PhotoParams, photo_pair
 from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, paper_params
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
-from rigd.calibration.visuals import OVERLAY_STAGES, edge_views, write_coloured_ply
+from rigd.calibration.visuals import CLOUD_STAGE, OVERLAY_STAGES, cloud_top_view, edge_views, write_coloured_ply
 from rigd.dataset import Dataset, Pair, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.store import write_yaml
@@ -221,7 +221,7 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
 def _write_visuals(dataset: Dataset, feats: list[PairFeatures], initial: Transform, T: Transform, out: Path) -> None:
     """Per pair: the edge points the calibration used over the image with the initial guess and with the
     solution, the close-up of where they moved most (overlays/NNNN_{before,after,closeup}.png), and the
-    cloud coloured from the image (clouds/NNNN.ply)."""
+    cloud coloured from the image with the solution (clouds/NNNN.ply, and from above: overlays/NNNN_cloud.png)."""
     camera = dataset.rig.camera.model()
     (out / "overlays").mkdir(parents=True, exist_ok=True)
     (out / "clouds").mkdir(parents=True, exist_ok=True)
@@ -231,6 +231,8 @@ def _write_visuals(dataset: Dataset, feats: list[PairFeatures], initial: Transfo
         for name in OVERLAY_STAGES:
             cv2.imwrite(str(out / "overlays" / f"{i:04d}_{name}.png"), getattr(views, name))
         write_coloured_ply(out / "clouds" / f"{i:04d}.ply", pair.image, camera, T, pair.cloud.points_lidar)
+        cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"),
+                    cloud_top_view(pair.image, camera, T, pair.cloud.points_lidar))
 
 
 def run_calibration(request: CalibrationRequest, progress: Progress | None = None,

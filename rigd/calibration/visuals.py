@@ -1,5 +1,6 @@
 """Pictures people look at: LiDAR edge points over the image coloured by range (before and after a
-calibration, and an enlarged close-up of where they moved most), and a coloured point cloud."""
+calibration, and an enlarged close-up of where they moved most), and the point cloud coloured from the image
+(as a file, and seen from above)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ from calib.gmm import in_image
 DIM = 0.6  # the photo is darkened so that the dots stand out on bright walls
 CLOSEUP_MIN_WIDTH_PX = 480  # each half of a close-up is enlarged to at least this width
 OVERLAY_STAGES = ("before", "after", "closeup")  # the EdgeViews fields, and the overlay files' suffixes
+CLOUD_STAGE = "cloud"  # overlays/NNNN_cloud.png: the cloud from above, coloured from the image
+UNSEEN_BGR = (90, 90, 90)  # points the camera does not see
 
 
 def project_visible(camera: CameraModel, T_camera_lidar: Transform, points_lidar: NDArray[np.float64]):
@@ -159,3 +162,55 @@ def write_coloured_ply(path: Path, image: NDArray[np.uint8], camera: CameraModel
         fh.write(header.encode("ascii"))
         fh.write(rec.tobytes())
     return len(rec)
+
+
+def cloud_top_view(image: NDArray[np.uint8], camera: CameraModel, T_camera_lidar: Transform,
+                   points_lidar: NDArray[np.float64], size_px: int = 900) -> NDArray[np.uint8]:
+    """(size_px, size_px, 3) uint8 BGR: the cloud (N,3) m, LiDAR frame, seen from above (x forward up the
+    picture, y left to the left), each point in the colour of the pixel it projects to with
+    ``T_camera_lidar``, grey where the camera does not see it. With wrong extrinsics the colours of walls
+    and cars spill onto the ground beside them: the check people make in a coloured cloud.
+
+    The square spans the 95th percentile of the horizontal range (at least 2 m) around the LiDAR; higher
+    points are drawn last (they are what one sees from above). 1-m grid lines every 5 m, the LiDAR at the
+    centre as a white cross."""
+    canvas = np.full((size_px, size_px, 3), 24, np.uint8)
+    horizontal = np.linalg.norm(points_lidar[:, :2], axis=1) if len(points_lidar) else np.zeros(0)
+    extent_m = max(2.0, float(np.percentile(horizontal, 95))) if len(horizontal) else 2.0
+    px_per_m = (size_px / 2 - 4) / extent_m
+    centre = size_px / 2
+    _grid(canvas, extent_m, px_per_m)
+    colours = np.empty((len(points_lidar), 3), np.uint8)
+    colours[:] = UNSEEN_BGR
+    idx, uv, _ = project_visible(camera, T_camera_lidar, points_lidar)
+    photo = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    px = np.clip(np.rint(uv).astype(np.int64), 0, [photo.shape[1] - 1, photo.shape[0] - 1])
+    colours[idx] = photo[px[:, 1], px[:, 0]]
+    col = np.rint(centre - points_lidar[:, 1] * px_per_m).astype(np.int64)  # y left -> picture left
+    row = np.rint(centre - points_lidar[:, 0] * px_per_m).astype(np.int64)  # x forward -> picture up
+    order = np.argsort(points_lidar[:, 2], kind="stable")
+    dot = max(1, size_px // 450)
+    for dr in range(dot):
+        for dc in range(dot):
+            r, c = row[order] + dr, col[order] + dc
+            keep = (r >= 0) & (r < size_px) & (c >= 0) & (c < size_px)
+            canvas[r[keep], c[keep]] = colours[order][keep]  # later (higher) points overwrite lower ones
+    arm = max(4, size_px // 60)
+    cv2.line(canvas, (int(centre) - arm, int(centre)), (int(centre) + arm, int(centre)), (255, 255, 255), 1)
+    cv2.line(canvas, (int(centre), int(centre) - arm), (int(centre), int(centre) + arm), (255, 255, 255), 1)
+    return canvas
+
+
+def _grid(canvas: NDArray[np.uint8], extent_m: float, px_per_m: float) -> None:
+    """Lines every 5 m (every 1 m when the view spans less than 10 m) and the spacing written in a corner."""
+    step_m = 5.0 if extent_m >= 5.0 else 1.0
+    size = canvas.shape[0]
+    centre = size / 2
+    k = int(extent_m // step_m) + 1
+    for i in range(-k, k + 1):
+        at = int(round(centre + i * step_m * px_per_m))
+        if 0 <= at < size:
+            cv2.line(canvas, (at, 0), (at, size - 1), (48, 48, 48), 1)
+            cv2.line(canvas, (0, at), (size - 1, at), (48, 48, 48), 1)
+    cv2.putText(canvas, f"from above, x forward up; grid {step_m:g} m; grey: not in the image", (8, size - 10),
+                cv2.FONT_HERSHEY_SIMPLEX, max(0.4, size / 2000), (200, 200, 200), 1, cv2.LINE_AA)

@@ -135,7 +135,7 @@ def register(subparsers: Any) -> None:
     drift.add_argument("--rot-deg", type=str, default="0.3,0.5,1", help="injected rotations, deg (default 0.3,0.5,1)")
     drift.add_argument("--trans-cm", type=str, default="2,5", help="injected translations, cm (default 2,5)")
     drift.set_defaults(func=run_drift_command)
-    register_initial(protocols, _common, _positive_int, _non_negative_float, _settings)
+    register_initial(protocols, _common, _positive_int, _non_negative_float, _settings, _trust)
     add_compare_parser(protocols, _positive_int, _non_negative_float)
 
 
@@ -208,9 +208,12 @@ def run_drift_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def _trust(args: argparse.Namespace) -> TrustOptions | None:
+    return None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions())
+
+
 def run(args: argparse.Namespace) -> int:
-    trust = None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions())
-    settings = _settings(args, trust)
+    settings = _settings(args, _trust(args))
     if args.protocol == "convergence":
         outcome = run_convergence(ConvergenceRequest(settings, args.trials, args.rot_deg, args.trans_m))
     else:

@@ -8,8 +8,9 @@ from typing import Any
 from rigd.evaluate_initial import InitialRequest, run_initial
 
 
-def register_initial(protocols: Any, common: Any, positive_int: Any, non_negative_float: Any, settings: Any) -> None:
-    """``rigd evaluate initial``; ``common`` adds the shared options, ``settings(args, trust)`` reads them."""
+def register_initial(protocols: Any, common: Any, positive_int: Any, non_negative_float: Any, settings: Any,
+                     trust: Any) -> None:
+    """``rigd evaluate initial``; ``common`` adds the shared options, ``settings(args, trust(args))`` reads them."""
     parser = protocols.add_parser(
         "initial", help="calibrate with no initial guess from random mounts (the global search)",
         description="Mounts the camera at random (yaw within +-YAW_DEG, roll and pitch within +-TILT_DEG, lever arm "
@@ -23,11 +24,11 @@ def register_initial(protocols: Any, common: Any, positive_int: Any, non_negativ
                         help="roll and pitch range, +- deg (default 30)")
     parser.add_argument("--lever-m", type=non_negative_float, default=0.3,
                         help="lever-arm range per axis, +- m (default 0.3)")
-    parser.set_defaults(func=run_initial_command, make_settings=settings)
+    parser.set_defaults(func=run_initial_command, make_settings=settings, make_trust=trust)
 
 
 def run_initial_command(args: argparse.Namespace) -> int:
-    settings = args.make_settings(args, None)
+    settings = args.make_settings(args, args.make_trust(args))
     rep = run_initial(InitialRequest(settings, args.trials, args.yaw_deg, args.tilt_deg, args.lever_m))
     ref = rep["reference"]
     print(f"initial guess on {rep['dataset']} ({rep['pairs']} pairs): {rep['settings']['trials']} random mounts "
@@ -38,4 +39,6 @@ def run_initial_command(args: argparse.Namespace) -> int:
           f"({rep['success_rate'] * 100:.0f} %)")
     print(f"  search time: median {rep['median_search_s']:.1f} s, max {rep['max_search_s']:.1f} s; whole run median "
           f"{rep['median_total_s']:.1f} s; {rep['wall_time_s']:.0f} s wall")
+    if rep["verdicts"]:
+        print(f"  verdicts: {rep['verdicts']}; trusted but not as close as the reference: {rep['trusted_but_wrong']}")
     return 0

@@ -119,5 +119,7 @@ def test_initial_guess_evaluation_remounts_and_counts(small_dataset, tmp_path, c
         expected = (trial["rotation_err_deg"] <= ref["rotation_err_deg"] + 0.2
                     and trial["translation_err_cm"] <= ref["translation_err_cm"] + 2.0)
         assert trial["success"] == expected
+        assert trial["verdict"] in ("trusted", "weak", "failed")  # the product path: trust assessment on
     assert report["success"] == sum(t["success"] for t in report["trials"])
+    assert report["trusted_but_wrong"] == sum(not t["success"] and t["verdict"] == "trusted" for t in report["trials"])
     assert f"{report['success']}/2" in captured.out

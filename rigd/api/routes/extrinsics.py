@@ -101,9 +101,11 @@ def overlay_path(service: Service, version: ExtrinsicsVersion, pair: int, stage:
             responses={200: {"content": {"image/png": {}}, "description": "the LiDAR edge points over the image, "
                              "coloured by range"}, 404: {"model": ErrorOut}})
 def get_overlay(service: ServiceDep, number: VersionNumber, pair: Annotated[int, Path(ge=0, le=99999)],
-                stage: Annotated[str, Query(pattern="^(after|before|closeup)$",
+                stage: Annotated[str, Query(pattern="^(after|before|closeup|cloud)$",
                                             description="after: with this version; before: with its initial guess; "
-                                            "closeup: before | after where the points moved most, enlarged")
+                                            "closeup: before | after where the points moved most, enlarged; "
+                                            "cloud: the whole cloud from above, coloured from the image with "
+                                            "this version")
                                  ] = "after",
                 width: Annotated[int | None, Query(ge=64, le=8192, description="at most this wide (px): a smaller "
                                                    "copy for a screen; absent: full resolution")] = None) -> Response:

@@ -142,6 +142,7 @@ function showOverlays() {
   document.getElementById("overlay-empty").hidden = Boolean(row);
   document.getElementById("overlay-views").hidden = !row;
   document.getElementById("overlay-closeup").hidden = !row;
+  document.getElementById("overlay-cloud").hidden = !row;
   document.getElementById("overlay-title").textContent = row ? "version " + viewer.version + ", pair " + viewer.pair : "";
   const chips = document.getElementById("overlay-pairs");
   chips.replaceChildren(...pairs.map((p) => {
@@ -153,7 +154,7 @@ function showOverlays() {
     b.classList.toggle("current", p === viewer.pair);
     return b;
   }));
-  for (const stage of ["before", "after", "closeup"]) {
+  for (const stage of ["before", "after", "closeup", "cloud"]) {
     const img = document.getElementById("ov-" + stage);
     const link = document.getElementById("ov-" + stage + "-link");
     if (!row) { img.hidden = true; link.removeAttribute("href"); continue; }

@@ -131,7 +131,8 @@ def screenshot(driver, path: Path, size: tuple[int, int], mobile: bool) -> None:
 
 def images_loaded(driver) -> bool:
     return driver.execute_script(
-        "return ['ov-before', 'ov-after', 'ov-closeup'].every(id => { const i = document.getElementById(id);"
+        "return ['ov-before', 'ov-after', 'ov-closeup', 'ov-cloud'].every(id => {"
+        " const i = document.getElementById(id);"
         " return !i.hidden && i.complete && i.naturalWidth > 0; })")
 
 

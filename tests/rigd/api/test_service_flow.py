@@ -183,6 +183,10 @@ def check_overlays(client, version):
     assert np.any(images["before"] != images["after"])  # the points moved with the calibration
     closeup = client.get(version["overlays"][1], params={"stage": "closeup"})
     assert closeup.status_code == 200 and closeup.headers["content-type"] == "image/png"
+    cloud = client.get(version["overlays"][1], params={"stage": "cloud"})
+    assert cloud.status_code == 200 and cloud.headers["content-type"] == "image/png"
+    cloud_image = cv2.imdecode(np.frombuffer(cloud.content, np.uint8), cv2.IMREAD_COLOR)
+    assert cloud_image.shape[0] == cloud_image.shape[1] >= 400  # square, from above
     assert client.get(version["overlays"][1], params={"stage": "sideways"}).status_code == 422
     small = client.get(version["overlays"][1], params={"stage": "before", "width": 64})
     assert small.status_code == 200 and small.headers["content-type"] == "image/png"

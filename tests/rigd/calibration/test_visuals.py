@@ -7,7 +7,14 @@ import numpy as np
 
 from calib.camera import Equirectangular
 from calib.geometry import Transform
-from rigd.calibration.visuals import CLOSEUP_MIN_WIDTH_PX, dot_radius_px, edge_views, largest_change_box
+from rigd.calibration.visuals import (
+    CLOSEUP_MIN_WIDTH_PX,
+    UNSEEN_BGR,
+    cloud_top_view,
+    dot_radius_px,
+    edge_views,
+    largest_change_box,
+)
 
 CAMERA = Equirectangular(512, 256)
 IDENTITY = Transform.from_rpy_xyz(np.zeros(3), np.zeros(3))
@@ -61,3 +68,41 @@ def test_edge_views_draw_dots_where_the_points_project_and_move_them():
 
 def test_dots_grow_with_the_image():
     assert dot_radius_px(256, 128) == 1 and dot_radius_px(2048, 1024) == 3 and dot_radius_px(8000, 4000) == 11
+
+
+def test_the_top_view_colours_each_point_from_the_pixel_it_lands_on():
+    # A red wall ahead (x = 4 m) on a blue ground: the panorama's upper half red, lower half blue.
+    image = np.zeros((256, 512, 3), np.uint8)
+    image[:128] = (0, 0, 255)
+    image[128:] = (255, 0, 0)
+    ground = np.array([[x, y, -1.0] for x in np.linspace(-3.5, 3.5, 40) for y in np.linspace(-3.5, 3.5, 40)])
+    wall_pts = np.array([[4.0, y, z] for y in np.linspace(-3.5, 3.5, 40) for z in np.linspace(0.2, 2.0, 10)])
+    size = 400
+    view = cloud_top_view(image, CAMERA, IDENTITY, np.vstack([ground, wall_pts]), size)
+    assert view.shape == (size, size, 3)
+    # The wall is drawn red (up the picture: forward), the ground blue; nothing grey (all seen).
+    reddish = (view[..., 2] > 200) & (view[..., 0] < 50)
+    bluish = (view[..., 0] > 200) & (view[..., 2] < 50)
+    rows_red, _ = np.nonzero(reddish)
+    rows_blue, _ = np.nonzero(bluish)
+    assert len(rows_red) > 30 and len(rows_blue) > 500
+    assert rows_red.mean() < rows_blue.min()  # the wall lies ahead of all the ground
+    assert not np.all(view[:-30] == UNSEEN_BGR, axis=2).any()  # (the bottom rows hold the legend)
+    # Pitched 40 deg down, the camera sees the wall where the ground was: the wall turns blue, the far
+    # ground red. The picture changes with the extrinsics, which is the point of it.
+    pitched = Transform.from_rpy_xyz(np.array([0.0, 40.0, 0.0]), np.zeros(3))
+    wrong = cloud_top_view(image, CAMERA, pitched, np.vstack([ground, wall_pts]), size)
+    assert ((wrong[..., 2] > 200) & (wrong[..., 0] < 50)).sum() != reddish.sum()
+
+
+def test_the_top_view_greys_what_the_camera_does_not_see():
+    from calib.camera import Pinhole
+
+    camera = Pinhole(np.array([[100.0, 0, 100.0], [0, 100.0, 50.0], [0, 0, 1]]), np.zeros(4), 200, 100)
+    to_optical = Transform(np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), np.zeros(3))
+    image = np.full((100, 200, 3), (0, 200, 0), np.uint8)
+    points = np.array([[5.0, 0.0, 0.0], [-5.0, 0.0, 0.0]])  # one ahead (seen), one behind (not)
+    view = cloud_top_view(image, camera, to_optical, points, 200)
+    ahead, behind = view[100 - 96], view[100 + 96]  # 5 m at (200/2 - 4) px per 5 m
+    assert ((ahead == (0, 200, 0)).all(axis=1)).any()
+    assert ((behind == UNSEEN_BGR).all(axis=1)).any()
