@@ -146,6 +146,11 @@ class EdgeFields:
         self.flat = np.zeros((0, 9), np.float32)
         self.band_lo, self.band_hi = np.full(n_blocks, self.height), np.zeros(n_blocks, np.int64)
 
+    def __reduce__(self) -> tuple[type[EdgeFields], tuple[F64, F64, int, int, bool, F64]]:
+        """Pickled without the built bands: a copy sent to another process rebuilds what it samples, to the
+        same values (the cache only saves time), instead of carrying up to hundreds of MB along."""
+        return EdgeFields, (self.uv, self.score, self.width, self.height, self.wrap_u, self.sigmas_px)
+
     @classmethod
     def build(
         cls, uv: F64, score: F64, width: int, height: int, wrap_u: bool, sigma_min: float, sigma_max: float

@@ -21,6 +21,7 @@ keeps roll and pitch within ``tilt_deg`` of looking level along the LiDAR's hori
 from __future__ import annotations
 
 from collections.abc import Callable
+from concurrent.futures import Executor, as_completed
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -180,27 +181,52 @@ def _distinct(cands: list[Candidate], distinct_deg: float) -> list[Candidate]:
     return kept
 
 
+def _pair_costs(feats: list[PairFeatures], rotations: F64, translation_m: F64, opts: SearchOptions,
+                on_progress: Callable[[int, int], None] | None, executor: Executor | None) -> list[F64]:
+    """The grid cost (K,) of every rotation for each pair, in the pairs' order (pair by pair in ``executor``
+    if given)."""
+    def progress(done: int) -> None:
+        if on_progress is not None:
+            on_progress(done, len(feats))
+
+    if executor is None:
+        out = []
+        for feat in feats:
+            out.append(_costs([feat], rotations, translation_m, opts.sigma_deg, opts.batch))
+            progress(len(out))
+        return out
+    pending = [executor.submit(_costs, [feat], rotations, translation_m, opts.sigma_deg, opts.batch)
+               for feat in feats]
+    for done, _ in enumerate(as_completed(pending)):
+        progress(done + 1)
+    return [f.result() for f in pending]
+
+
 def search_initial(
     feats: list[PairFeatures],
     translation_m: F64,
     opts: SearchOptions | None = None,
     on_progress: Callable[[int, int], None] | None = None,
+    executor: Executor | None = None,
 ) -> SearchResult:
     """Distinct starts for the coarse-to-fine solve, best first; ``translation_m`` (3,) the lever arm
-    (the translation of T_camera_lidar) held during the search. ``on_progress(done, total)`` per pair."""
+    (the translation of T_camera_lidar) held during the search. ``on_progress(done, total)`` per pair.
+    ``executor`` (the application's process pool): the pairs' grids and all candidates but the first are
+    computed there, to the same result (the per-pair grids are summed in the pairs' order either way)."""
     opts = opts or default_search(feats[0].camera)
     base = base_rotation(feats[0].camera)
     mounts = grid_mounts(opts)
     rotations = _rotations(base, mounts)
     costs = np.zeros(len(mounts))
-    for i, feat in enumerate(feats):
-        costs += _costs([feat], rotations, translation_m, opts.sigma_deg, opts.batch)
-        if on_progress is not None:
-            on_progress(i + 1, len(feats))
+    for pair_costs in _pair_costs(feats, rotations, translation_m, opts, on_progress, executor):
+        costs += pair_costs
     if not np.any(costs < 0):
         raise InitialGuessError("global search: no grid mount brings any LiDAR edge near an image edge")
-    cands = []
-    for rank, k in enumerate(_grid_minima(rotations, costs, opts)):
-        rotation, cost = _polish(feats, rotations[k], translation_m, opts)
-        cands.append(Candidate(np.concatenate([so3_log(rotation), translation_m]), mounts[k].copy(), cost, rank))
+    minima = _grid_minima(rotations, costs, opts)
+    pending = [executor.submit(_polish, feats, rotations[k], translation_m, opts) for k in minima[1:]] \
+        if executor is not None else []
+    polished = [_polish(feats, rotations[k], translation_m, opts) for k in minima[:1 if pending else None]]
+    polished += [f.result() for f in pending]
+    cands = [Candidate(np.concatenate([so3_log(rotation), translation_m]), mounts[k].copy(), cost, rank)
+             for rank, (k, (rotation, cost)) in enumerate(zip(minima, polished, strict=True))]
     return SearchResult(tuple(_distinct(cands, opts.distinct_deg)), len(mounts))

@@ -15,6 +15,7 @@ mean range of the edge points) makes one step move rotation and translation by c
 from __future__ import annotations
 
 from collections.abc import Callable
+from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -247,6 +248,7 @@ def optimise(
     gmm: GmmOptions,
     on_iter: Callable[[int, int, float], None] | None = None,
     prior: Prior | None = None,
+    executor: Executor | None = None,
 ) -> OptimResult:
     """Coarse-to-fine from ``tau0``, also run with the first ``opts.alternative_schedules`` levels left out;
     the run ending at the lowest finest-level cost wins. ``on_iter(level, iteration, cost)``.
@@ -254,11 +256,20 @@ def optimise(
     A wide first level widens the basin on a 12-pair set (outdoor: 5/8 -> 10/10 converged from +-5 deg /
     +-10 cm) but on a small set (2 pairs) it can also pull a good start into a far minimum; every schedule
     ends on the same finest level, whose cost decides, so the extra run can only lower the objective.
+
+    ``executor`` (the application's process pool): the other schedules run there while this process runs
+    the main one; the result is the same as without it (each solve is deterministic, the fields' values do
+    not depend on what was sampled before).
     """
+    shorter = [replace(opts, sigmas_deg=opts.sigmas_deg[k:], rotation_only_levels=0)
+               for k in range(1, min(opts.alternative_schedules, len(opts.sigmas_deg) - 1) + 1)]
+    pending = [executor.submit(_coarse_to_fine, feats, tau0, s, gmm, None, prior) for s in shorter] \
+        if executor is not None else []
     best = _coarse_to_fine(feats, tau0, opts, gmm, on_iter, prior)
-    for k in range(1, min(opts.alternative_schedules, len(opts.sigmas_deg) - 1) + 1):
-        shorter = replace(opts, sigmas_deg=opts.sigmas_deg[k:], rotation_only_levels=0)
-        other = _coarse_to_fine(feats, tau0, shorter, gmm, None, prior)
+    others = [f.result() for f in pending] if executor is not None \
+        else (_coarse_to_fine(feats, tau0, s, gmm, None, prior) for s in shorter)
+    for other in others:
         if other.final_cost < best.final_cost:
             best = other
     return best
+

@@ -5,8 +5,9 @@ from __future__ import annotations
 import dataclasses
 import multiprocessing
 import time
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable, Iterator
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
@@ -47,7 +48,7 @@ class CalibrationRequest:
     fix_translation: bool = False  # hold the translation at the prior's (or the initial guess's) lever arm
     tolerance: TrustOptions | None = None  # None: rig.yaml's tolerance, else 0.2 deg / 2 cm
     search: bool = False  # True: the global search even if a guess exists (it runs anyway without one)
-    workers: int = 2  # processes extracting the pairs' edges side by side (the rig computer's 2+ cores)
+    workers: int = 2  # processes for the pairs' edges and the independent solves (the rig computer's 2+ cores)
 
 
 @dataclass(frozen=True)
@@ -100,27 +101,37 @@ def _pair_features(dataset: Dataset, params: CalibParams, i: int) -> PairFeature
 
 
 def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None,
-                     workers: int = 1) -> list[PairFeatures]:
-    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges), with
-    up to ``workers`` processes extracting pairs side by side (one inside a daemonic pool worker)."""
+                     executor: Executor | None = None) -> list[PairFeatures]:
+    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges), the
+    pairs extracted side by side in ``executor`` (a :func:`worker_pool`) if given."""
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
-    workers = 1 if multiprocessing.current_process().daemon else max(1, min(workers, len(dataset)))
-    if workers == 1:
+    if executor is None:
         feats = []
         for i in range(len(dataset)):
             if progress:
                 progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
             feats.append(_pair_features(dataset, params, i))
         return feats
-    # spawn, not fork (as rigd.evaluate): a child forked while OpenCV's or BLAS's own threads hold a lock can
-    # deadlock, and those threads are invisible to the threading module. Costs ~1 s of imports per worker.
+    futures = [executor.submit(_pair_features, dataset, params, i) for i in range(len(dataset))]
+    for done, _ in enumerate(as_completed(futures)):
+        if progress:
+            progress(f"edges of {done + 1}/{len(dataset)} pairs", done / len(dataset))
+    return [f.result() for f in futures]
+
+
+@contextmanager
+def worker_pool(workers: int) -> Iterator[Executor | None]:
+    """``workers`` spawned processes for the pairs' edges and the independent solves of one calibration, or
+    None (one worker, or inside a daemonic pool worker, which cannot have children).
+
+    Spawn, not fork (as rigd.evaluate): a child forked while OpenCV's or BLAS's own threads hold a lock can
+    deadlock, and those threads are invisible to the threading module. Costs ~1 s of imports per worker."""
+    if workers <= 1 or multiprocessing.current_process().daemon:
+        yield None
+        return
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = [pool.submit(_pair_features, dataset, params, i) for i in range(len(dataset))]
-        for done, _ in enumerate(as_completed(futures)):
-            if progress:
-                progress(f"edges of {done + 1}/{len(dataset)} pairs", done / len(dataset))
-        return [f.result() for f in futures]
+        yield pool
 
 
 T = TypeVar("T")
@@ -259,11 +270,13 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
 
     searched = time.monotonic()
     try:
-        feats = dataset_features(dataset, params, progress, request.workers) if method.uses_gmm else None
-        pairs = dataset_photo_pairs(dataset, photo, progress) if photo is not None else None
-        if progress:
-            progress("optimising" if initial is not None else "no initial guess: global search", 0.5)
-        result = calibrate_method(method, feats, pairs, initial, params, on_iter, prior, trust, search, on_search)
+        with worker_pool(request.workers) as pool:
+            feats = dataset_features(dataset, params, progress, pool) if method.uses_gmm else None
+            pairs = dataset_photo_pairs(dataset, photo, progress) if photo is not None else None
+            if progress:
+                progress("optimising" if initial is not None else "no initial guess: global search", 0.5)
+            result = calibrate_method(method, feats, pairs, initial, params, on_iter, prior, trust, search,
+                                      on_search, pool)
     except CalibError as exc:
         raise RigdError(f"{dataset.root}: {exc}") from exc
     if result.search is not None:

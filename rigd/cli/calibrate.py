@@ -106,6 +106,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
     parser.add_argument("--no-visuals", action="store_true", help="skip overlays and PLY clouds")
+    parser.add_argument("--workers", type=_workers, default=2, metavar="N",
+                        help="processes for the pairs' edges and the independent solves (default 2; 1: all in "
+                        "this process, the least memory; docs/performance.md)")
     parser.add_argument("--prior", type=str, default=None, metavar="X,Y,Z,SIGMA_CM",
                         help="Gaussian prior on the lever arm (t of T_camera_lidar, m) with its sigma in cm, e.g. "
                         "from the rig's drawing (default: rig.yaml prior)")
@@ -120,6 +123,16 @@ def register(subparsers: Any) -> None:
 
 def _progress(stage: str, fraction: float) -> None:
     print(f"[{fraction * 100:5.1f} %] {stage}", file=sys.stderr, flush=True)
+
+
+def _workers(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--workers needs a whole number, got {text!r}") from None
+    if not 1 <= n <= 64:
+        raise argparse.ArgumentTypeError(f"--workers must be 1 to 64, got {n}")
+    return n
 
 
 def _on_iter(level: int, iteration: int, cost: float) -> None:
@@ -138,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
         fix_translation=args.fix == "translation",
         tolerance=parse_tolerance(args.tolerance) if args.tolerance else None,
         search=args.search,
+        workers=args.workers,
     )
     outcome = run_calibration(request, _progress, _on_iter)
     verdict = outcome.report["verdict"]

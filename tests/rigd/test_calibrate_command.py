@@ -89,9 +89,14 @@ def test_fixed_translation_holds_the_prior_lever_arm_and_reports_no_translation_
 
 
 @pytest.mark.parametrize("args, words", [(["--prior", "0,0,0"], "--prior"), (["--prior", "0,0,0,-1"], "positive"),
-                                         (["--tolerance", "0.2"], "--tolerance"), (["--tolerance", "0,2"], "positive")])
-def test_bad_prior_or_tolerance_is_refused(small_dataset, args, words, capsys):
-    assert main(["calibrate", str(small_dataset), "--init", "0,0,0,0,0,0", "--no-visuals", *args]) == 2
+                                         (["--tolerance", "0.2"], "--tolerance"), (["--tolerance", "0,2"], "positive"),
+                                         (["--workers", "0"], "--workers"), (["--workers", "two"], "whole number")])
+def test_bad_prior_tolerance_or_workers_is_refused(small_dataset, args, words, capsys):
+    try:
+        code = main(["calibrate", str(small_dataset), "--init", "0,0,0,0,0,0", "--no-visuals", *args])
+    except SystemExit as exc:  # argparse's own refusal (a bad --workers)
+        code = exc.code
+    assert code == 2
     assert words in capsys.readouterr().err
 
 
