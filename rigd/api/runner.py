@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import queue
 import subprocess
 import sys
@@ -33,6 +34,7 @@ from rigd.store import (
     JobStatus,
     JobStore,
     NewVersion,
+    StoreError,
     VersionStore,
 )
 from rigd.store.datasets import DatasetCatalog
@@ -41,6 +43,7 @@ CALIBRATION_METHOD = "kang-doh-2020-gmm-edge-alignment"
 # What a refused client is told to wait: a small dataset calibrates in tens of seconds, a large one in minutes.
 QUEUE_RETRY_AFTER_S = 30
 PROGRESS_INTERVAL_S = 0.5  # progress is written at most this often (plus every change of stage)
+LOG = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -178,16 +181,24 @@ class JobRunner:
 
     def _worker_loop(self) -> None:
         while (job_id := self._queue.get()) is not None:
-            with self._lock:
-                job = self.jobs.get(job_id)
-                if job.status is not JobStatus.QUEUED or self._stopping:
-                    continue
-                job = self.jobs.start(job_id, "starting the worker")
             try:
-                self._run_in_worker(job)
-            except Exception as exc:  # a bug must fail its job, not stop every later calibration or check
-                self.jobs.log(job.id, traceback.format_exc())
-                self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"internal error: {exc!r}")
+                self._run_job(job_id)
+            except StoreError as exc:  # e.g. the data directory was deleted: the job cannot even be recorded
+                LOG.error("rigd: job %d stopped, its record cannot be written: %s", job_id, exc)
+
+    def _run_job(self, job_id: int) -> None:
+        with self._lock:
+            job = self.jobs.get(job_id)
+            if job.status is not JobStatus.QUEUED or self._stopping:
+                return
+            job = self.jobs.start(job_id, "starting the worker")
+        try:
+            self._run_in_worker(job)
+        except StoreError:
+            raise
+        except Exception as exc:  # a bug must fail its job, not stop every later calibration or check
+            self.jobs.log(job.id, traceback.format_exc())
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"internal error: {exc!r}")
 
     def _payload(self, job: Job) -> dict[str, Any]:
         """The worker's job line: ``kind`` selects what it runs (absent: calibrate)."""
@@ -212,11 +223,18 @@ class JobRunner:
             if job.id in self._cancelled or self._stopping:
                 proc.terminate()
         assert proc.stdin is not None and proc.stdout is not None
-        self.jobs.log(job.id, f"worker process {proc.pid} started")
-        with contextlib.suppress(BrokenPipeError):  # terminated before it read the job: its exit code tells
-            proc.stdin.write(json.dumps(payload) + "\n")
-            proc.stdin.flush()
-        result, error = self._follow_worker(job.id, proc.stdout)
+        try:
+            self.jobs.log(job.id, f"worker process {proc.pid} started")
+            with contextlib.suppress(BrokenPipeError):  # terminated before it read the job: its exit code tells
+                proc.stdin.write(json.dumps(payload) + "\n")
+                proc.stdin.flush()
+            result, error = self._follow_worker(job.id, proc.stdout)
+        except StoreError:  # nothing it computes could be stored: stop it rather than leave it blocked on its pipe
+            proc.kill()
+            proc.wait()
+            with self._lock:
+                del self._procs[job.id]
+            raise
         proc.stdin.close()
         code = proc.wait()
         with self._lock:

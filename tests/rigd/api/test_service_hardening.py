@@ -12,7 +12,7 @@ import time
 
 import pytest
 import yaml
-from api_helpers import REPO, Server, free_port, perturbed_truth, simulated_dataset, wait_job
+from api_helpers import REPO, Server, free_port, gone, perturbed_truth, simulated_dataset, wait_job, worker_pid
 
 JSON = {"Content-Type": "application/json"}
 IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}
@@ -177,6 +177,39 @@ def test_a_deleted_data_dir_answers_503_and_acknowledges_no_write(tmp_path, repl
             assert f"{data / 'rigd.db'}: the database was deleted or replaced" in status.json()["detail"]
             assert client.get("/extrinsics/versions").status_code == 503
         assert not (data / "rigd.db").exists() or (data / "rigd.db").stat().st_size == 0  # nothing recreated
+    finally:
+        server.kill()
+
+
+def test_a_data_dir_deleted_under_a_calibration_stops_its_worker_and_keeps_the_service_up(tmp_path):
+    data = tmp_path / "data"
+    dataset = simulated_dataset(data, "ds", pairs=3)
+    server = Server(data).start()
+    try:
+        with server.client() as client:
+            job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
+            deadline = time.monotonic() + 60
+            while True:
+                current = client.get(f"/jobs/{job['id']}").json()
+                if any("worker process" in line for line in current["log_tail"]):
+                    break
+                assert time.monotonic() < deadline and current["status"] in {"queued", "running"}, current
+                time.sleep(0.05)
+            pid = worker_pid(current["log_tail"])
+            shutil.rmtree(data)
+            deadline = time.monotonic() + 30
+            while not gone(pid):  # its next progress cannot be recorded: the runner stops it
+                assert time.monotonic() < deadline, f"worker {pid} still runs with nowhere to store its result"
+                time.sleep(0.1)
+            assert server.proc.poll() is None
+            status = client.get("/status")
+            assert status.status_code == 503 and "deleted or replaced" in status.json()["detail"]
+        said = f"rigd: job {job['id']} stopped, its record cannot be written"
+        deadline = time.monotonic() + 10  # logged just after the worker was reaped
+        while said not in (log := server.log_path.read_text()):
+            assert time.monotonic() < deadline, log
+            time.sleep(0.1)
+        assert str(data / "rigd.db") in log
     finally:
         server.kill()
 
