@@ -131,6 +131,16 @@ def wait_job(client: httpx.Client, job_id: int, timeout_s: float = 180.0) -> dic
     raise AssertionError(f"job {job_id} did not finish in {timeout_s} s: {job}")
 
 
+def wait_running(client: httpx.Client, job_id: int, log_text: str = "worker process") -> dict[str, Any]:
+    """The job once it runs and its log tail holds ``log_text`` (by default: its worker process started)."""
+    deadline = time.monotonic() + 60
+    while (job := client.get(f"/jobs/{job_id}").json())["status"] != "running" or not any(
+            log_text in line for line in job["log_tail"]):
+        assert time.monotonic() < deadline and job["status"] in {"queued", "running"}, job
+        time.sleep(0.05)
+    return job
+
+
 def matrix(transform: dict[str, Any]) -> np.ndarray:
     return np.asarray(transform["matrix"], dtype=np.float64)
 

@@ -5,16 +5,7 @@ from __future__ import annotations
 
 import time
 
-from api_helpers import Server, gone, perturbed_truth, simulated_dataset, wait_job, worker_pid
-
-
-def wait_running(client, job_id: int, log_text: str) -> dict:
-    deadline = time.monotonic() + 60
-    while (job := client.get(f"/jobs/{job_id}").json())["status"] != "running" or not any(
-            log_text in line for line in job["log_tail"]):
-        assert time.monotonic() < deadline and job["status"] in {"queued", "running"}, job
-        time.sleep(0.05)
-    return job
+from api_helpers import Server, gone, perturbed_truth, simulated_dataset, wait_job, wait_running, worker_pid
 
 
 def test_cancel_queued_and_running_jobs(tmp_path):

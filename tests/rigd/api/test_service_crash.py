@@ -9,7 +9,7 @@ import time
 
 import httpx
 import numpy as np
-from api_helpers import Server, gone, matrix, perturbed_truth, simulated_dataset, worker_pid
+from api_helpers import Server, gone, matrix, perturbed_truth, simulated_dataset, wait_running, worker_pid
 from scipy.spatial.transform import Rotation
 
 
@@ -83,11 +83,7 @@ def test_sigkill_during_a_calibration_marks_it_interrupted(tmp_path):
     server = Server(data).start()
     with server.client() as client:
         job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
-        deadline = time.monotonic() + 60
-        while (current := client.get(f"/jobs/{job['id']}").json())["status"] != "running" or not any(
-                "worker process" in line for line in current["log_tail"]):
-            assert time.monotonic() < deadline and current["status"] in {"queued", "running"}, current
-            time.sleep(0.05)
+        current = wait_running(client, job["id"])
     server.kill()
     pid = worker_pid(current["log_tail"])
     deadline = time.monotonic() + 20

@@ -12,7 +12,17 @@ import time
 
 import pytest
 import yaml
-from api_helpers import REPO, Server, free_port, gone, perturbed_truth, simulated_dataset, wait_job, worker_pid
+from api_helpers import (
+    REPO,
+    Server,
+    free_port,
+    gone,
+    perturbed_truth,
+    simulated_dataset,
+    wait_job,
+    wait_running,
+    worker_pid,
+)
 
 JSON = {"Content-Type": "application/json"}
 IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}
@@ -188,14 +198,7 @@ def test_a_data_dir_deleted_under_a_calibration_stops_its_worker_and_keeps_the_s
     try:
         with server.client() as client:
             job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
-            deadline = time.monotonic() + 60
-            while True:
-                current = client.get(f"/jobs/{job['id']}").json()
-                if any("worker process" in line for line in current["log_tail"]):
-                    break
-                assert time.monotonic() < deadline and current["status"] in {"queued", "running"}, current
-                time.sleep(0.05)
-            pid = worker_pid(current["log_tail"])
+            pid = worker_pid(wait_running(client, job["id"])["log_tail"])
             shutil.rmtree(data)
             deadline = time.monotonic() + 30
             while not gone(pid):  # its next progress cannot be recorded: the runner stops it
