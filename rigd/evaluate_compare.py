@@ -191,8 +191,14 @@ def _median_error(errors: Sequence[tuple[float, float] | None]) -> tuple[float, 
     return None if done.size == 0 else (float(np.median(done[:, 0])), float(np.median(done[:, 1])))
 
 
-def _median_time(runs: Sequence[Run]) -> float:
-    return float(np.median([r.wall_s for r in runs])) if runs else float("nan")
+def _median_time(runs: Sequence[Run]) -> float | None:
+    """Median wall seconds per run; None for a protocol that was not run (a single-frame dataset)."""
+    return float(np.median([r.wall_s for r in runs])) if runs else None
+
+
+def _fmt_time(runs: Sequence[Run]) -> str:
+    t = _median_time(runs)
+    return "—" if t is None else f"{t:.1f}"
 
 
 def table(rows: Sequence[MethodRows], req: CompareRequest) -> str:
@@ -208,7 +214,7 @@ def table(rows: Sequence[MethodRows], req: CompareRequest) -> str:
         c = r.convergence
         lines.append(f"| {r.method.value} | {_fmt_std(r.precision)} | {c.converged_count}/{c.runs} | "
                      f"{_near(r.errors, req)}/{len(r.errors)} | {err} | "
-                     f"{_median_time(r.precision_runs):.1f} / {_median_time(r.convergence_runs):.1f} |")
+                     f"{_fmt_time(r.precision_runs)} / {_fmt_time(r.convergence_runs)} |")
     return "\n".join(lines)
 
 

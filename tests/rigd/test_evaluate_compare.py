@@ -61,6 +61,20 @@ def test_compare_writes_one_table_one_plot_and_every_method(small_dataset, tmp_p
     assert (out / "compare.png").read_bytes().startswith(PNG_MAGIC)
 
 
+def test_compare_on_as_few_pairs_as_a_subset_runs_no_precision_and_says_so(small_dataset, tmp_path, capsys,
+                                                                          quick_photometric):
+    out = tmp_path / "cmp1"
+    code = main(["evaluate", "compare", str(small_dataset), "--methods", "nid", "--trials", "1", "--size", "2",
+                 "--rot-deg", "1", "--trans-m", "0.02", "--workers", "1", "--out", str(out)])
+    capsys.readouterr()
+    assert code == 0
+    row = yaml.safe_load((out / "compare.yaml").read_text())["methods"]["nid"]
+    assert row["precision"] is None and row["time_per_run_s"]["precision"] is None
+    assert row["time_per_run_s"]["convergence"] > 0
+    nid_line = next(ln for ln in (out / "compare.md").read_text().splitlines() if ln.startswith("| nid |"))
+    assert "nan" not in nid_line and "| — / " in nid_line
+
+
 def test_calibrate_with_nid_is_not_assessed(small_dataset, tmp_path, capsys, quick_photometric):
     truth = open_dataset(small_dataset).ground_truth
     init = np.r_[truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m + [0.01, -0.01, 0.01]]
