@@ -78,8 +78,11 @@ def clusters_at(model: LevelModel, tau_hat: F64, cell_deg: float) -> Clusters:
     pairs: list[I64] = []
     first = 0
     for i, feat in enumerate(model.feats):
-        uv, _ = feat.camera.project(transform_points(tau_hat, feat.points.points_lidar)[0])
-        cell = np.floor(np.nan_to_num(uv, nan=-1.0) / (np.radians(cell_deg) * feat.camera.pixels_per_radian))
+        uv, valid = feat.camera.project(transform_points(tau_hat, feat.points.points_lidar)[0])
+        # Points the camera cannot see share one cluster: a pinhole's uv there is not finite or is far beyond
+        # the int64 range (distortion polynomial), and they carry no cost terms.
+        uv = np.where((valid & np.isfinite(uv).all(axis=1))[:, None], uv, -1.0)
+        cell = np.floor(uv / (np.radians(cell_deg) * feat.camera.pixels_per_radian))
         _, inverse = np.unique(cell.astype(np.int64), axis=0, return_inverse=True)
         inverse = np.asarray(inverse, dtype=np.int64).reshape(-1)
         n = int(inverse.max()) + 1 if inverse.size else 0

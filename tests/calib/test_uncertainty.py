@@ -1,12 +1,17 @@
 """calib.uncertainty: local coordinates, per-cluster Hessian, sandwich scale, weakest direction."""
 
+import warnings
+
 import numpy as np
 import pytest
 
+from calib.camera import Pinhole
+from calib.edges_points import EdgePoints
 from calib.geometry import Transform, so3_exp
-from calib.gmm import GmmOptions, point_terms
+from calib.gmm import GmmOptions, PairFeatures, point_terms
 from calib.optimize import OptimOptions, hessian_steps, level_model
 from calib.uncertainty import (
+    LevelModel,
     clusters_at,
     hessian,
     local_gradient,
@@ -35,6 +40,20 @@ def test_local_coordinates_round_trip_and_rotate_about_lidar_axes():
     tau = tau_at(TRUTH.tau, np.array([0.01, 0, 0, 0, 0, 0]))
     rx = np.array([[1, 0, 0], [0, np.cos(0.01), -np.sin(0.01)], [0, np.sin(0.01), np.cos(0.01)]])
     assert np.allclose(so3_exp(tau[:3]), TRUTH.rotation @ rx, atol=1e-12)
+
+
+def test_points_a_pinhole_cannot_see_share_one_cluster_without_a_cast_warning():
+    camera = Pinhole(np.array([[1000.0, 0, 960], [0, 1000.0, 600], [0, 0, 1]]), np.array([-0.3, 0.1, 0, 0, -0.2]),
+                     1920, 1200)
+    # optical frame: two in view in different cells, one behind, one grazing (polynomial distortion far off scale)
+    points_cam = np.array([[0.0, 0.0, 10.0], [3.0, 1.0, 10.0], [0.0, 0.0, -5.0], [40.0, 30.0, 1e-2]])
+    feat = PairFeatures(camera, None, EdgePoints(points_cam, np.ones(4), np.zeros(4, np.int8)))  # type: ignore[arg-type]
+    model = LevelModel((feat,), (1.0,), GmmOptions())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        clusters = clusters_at(model, np.zeros(6), 1.0)
+    labels = clusters.labels[0]
+    assert labels[2] == labels[3] and len({labels[0], labels[1], labels[2]}) == 3 and clusters.count == 3
 
 
 def test_cluster_gradients_sum_to_the_cost_gradient_and_hessian_matches_second_differences(pairs):
