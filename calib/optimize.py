@@ -125,7 +125,7 @@ def wolfe_step(
     return armijo
 
 
-def _typical_range(feats: list[PairFeatures]) -> float:
+def typical_range_m(feats: list[PairFeatures]) -> float:
     """Harmonic mean range of the edge points: image motion per metre of translation is the mean of 1/r."""
     ranges = np.concatenate([np.linalg.norm(f.points.points_lidar, axis=1) for f in feats])
     return float(1.0 / np.mean(1.0 / np.maximum(ranges, 0.5))) if ranges.size else 1.0
@@ -197,7 +197,7 @@ def hessian_steps(feats: list[PairFeatures], gmm: GmmOptions) -> F64:
     and as the translation that moves an edge at the typical range by that angle."""
     h_rot = 0.05 * max(float(np.radians(gmm.sigma_floor_deg)),
                        gmm.sigma_floor_px / min(f.camera.pixels_per_radian for f in feats))
-    return np.array([h_rot] * 3 + [h_rot * _typical_range(feats)] * 3)
+    return np.array([h_rot] * 3 + [h_rot * typical_range_m(feats)] * 3)
 
 
 def estimate_kappa(model: LevelModel, tau: F64, steps: F64, cell_deg: float) -> float:
@@ -223,7 +223,7 @@ def _coarse_to_fine(
 ) -> OptimResult:
     """Algorithm 1: coarse-to-fine over ``opts.sigmas_deg`` (with the prior's MAP term if given)."""
     tau = np.asarray(tau0, dtype=np.float64).copy()
-    r_typ = _typical_range(feats) if opts.precondition else 1.0
+    r_typ = typical_range_m(feats) if opts.precondition else 1.0
     scale = np.array([1.0, 1.0, 1.0, r_typ**2, r_typ**2, r_typ**2])
     fixed_t = prior is not None and prior.fix_translation
     steps = hessian_steps(feats, gmm) if prior is not None and prior.active else None

@@ -21,10 +21,12 @@ from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
 from calib.initial import SearchOptions, SearchResult, default_search
 from calib.methods import Method, calibrate_method, gmm_params, photo_params  # Method: also the CLI's
+from calib.optimize import typical_range_m
 from calib.photometric import PhotoPair, PhotoParams, photo_pair
 from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, paper_params
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
+from rigd.calibration.advice import SceneFacts, next_steps
 from rigd.calibration.visuals import CLOUD_STAGE, OVERLAY_STAGES, cloud_top_view, edge_views, write_coloured_ply
 from rigd.dataset import Dataset, Pair, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
@@ -175,8 +177,9 @@ def _finite(values: Any) -> Any:
     return [_finite(v) for v in arr] if arr.ndim else (float(arr) if np.isfinite(arr) else None)
 
 
-def assessment_yaml(a: Assessment) -> dict[str, Any]:
-    """The ``uncertainty`` and ``verdict`` sections of a report (docs/trust.md)."""
+def assessment_yaml(a: Assessment, steps: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The ``uncertainty`` and ``verdict`` sections of a report (docs/trust.md); ``steps``: what to do next
+    (rigd.calibration.advice)."""
     u, v = a.uncertainty, a.verdict
     cov_display = u.covariance * np.outer(TO_DISPLAY, TO_DISPLAY)
     return {
@@ -192,11 +195,18 @@ def assessment_yaml(a: Assessment) -> dict[str, Any]:
             "restarts": [{"offset_rpy_deg": _finite(r.offset[:3]), "offset_xyz_cm": _finite(r.offset[3:]),
                           "delta_nll": r.delta_nll} for r in a.restarts],
         },
-        "verdict": {"status": v.status.value, "weak_axes": list(v.weak_axes), "reasons": list(v.reasons)},
+        "verdict": {"status": v.status.value, "weak_axes": list(v.weak_axes), "reasons": list(v.reasons),
+                    "next_steps": list(steps)},
     }
 
 
-def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: float) -> dict[str, Any]:
+def _scene_facts(dataset: Dataset, feats: list[PairFeatures], prior: Prior | None) -> SceneFacts:
+    return SceneFacts(len(dataset), typical_range_m(feats), dataset.rig.camera.model().pixels_per_radian,
+                      prior is not None and (prior.xyz_m is not None or prior.fix_translation))
+
+
+def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: float,
+            steps: tuple[str, ...]) -> dict[str, Any]:
     T = result.T_camera_lidar
     report: dict[str, Any] = {
         "T_camera_lidar": transform_to_yaml(T),
@@ -225,7 +235,7 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
             "local_deg_cm": (xi_of(gt.tau, T.tau) * TO_DISPLAY).tolist(),
         }
     if result.assessment is not None:
-        report.update(assessment_yaml(result.assessment))
+        report.update(assessment_yaml(result.assessment, steps))
     return report
 
 
@@ -282,7 +292,9 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     if result.search is not None:
         initial = Transform.from_tau(result.search.best.tau)
     assert initial is not None
-    report = _report(result, initial, dataset, time.monotonic() - started)
+    steps = () if result.assessment is None or feats is None else next_steps(
+        result.assessment, _scene_facts(dataset, feats, prior), trust)
+    report = _report(result, initial, dataset, time.monotonic() - started, steps)
     if result.search is not None:
         report["initial_search"] = search_yaml(result.search, search, time.monotonic() - searched)
     if result.assessment is None:

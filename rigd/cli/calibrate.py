@@ -191,3 +191,7 @@ def print_trust(report: dict[str, Any]) -> None:
     print(f"verdict: {v['status'].upper()}{axes}")
     for reason in v["reasons"]:
         print(f"  - {reason}")
+    if v.get("next_steps"):
+        print("what to do:")
+        for step in v["next_steps"]:
+            print(f"  - {step}")

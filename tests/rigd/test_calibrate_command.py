@@ -31,6 +31,8 @@ def test_calibrate_json_prints_one_object_and_writes_outputs(small_dataset, tmp_
     assert proc.returncode == {"trusted": 0, "weak": 3, "failed": 4}[verdict["status"]], proc.stderr
     assert set(verdict["weak_axes"]) <= {"roll", "pitch", "yaw", "x", "y", "z"} and verdict["reasons"]
     assert (verdict["status"] == "trusted") == (not verdict["weak_axes"])
+    assert (verdict["status"] == "trusted") == (not verdict["next_steps"])
+    assert verdict["status"] == "trusted" or any(s.startswith("only 2 pairs") for s in verdict["next_steps"])
     unc = report["uncertainty"]
     assert len(unc["rpy_deg"]) == 3 and len(unc["xyz_cm"]) == 3 and isinstance(unc["weakest"], str)
     assert np.array(unc["covariance"], dtype=float).shape == (6, 6)

@@ -182,6 +182,10 @@ def test_page_capture_calibrate_check_activate(browser, server, figures):
 
     with server.client() as client:
         v1 = client.get("/extrinsics/versions/1").json()
+        steps = v1["verdict"].get("next_steps") or []  # what to do about an untrusted result, shown under it
+        assert bool(steps) == (v1["verdict"]["status"] != "trusted")
+        if steps:
+            assert steps[0] in text(browser, "#v1 .next-steps")
         if v1["status"] != "active":  # an untrusted first version waits for a person: that is this page
             click(browser, '#v1 button[data-action="activate"]')
             until(browser, 10, lambda d: d.find_element(By.ID, "v1").get_attribute("data-status")

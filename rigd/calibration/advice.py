@@ -1,0 +1,97 @@
+"""What an operator can do about a calibration that is not trusted, from the assessment's own numbers.
+
+Each step follows from something the verdict measured: translation is seen only through parallax, so
+edges far away hold it loosely; per-axis sigma shrinks roughly as 1/sqrt(pairs) when pairs are independent;
+a restart that ends elsewhere as low means the scenes cannot tell two poses apart.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from calib.assess import Assessment, Status, TrustOptions
+
+TRANSLATION = ("x", "y", "z")
+ROTATION = ("roll", "pitch", "yaw")
+MEASURED_PAIRS = 12  # the paper's and docs/results.md's protocols
+MAX_USEFUL_PAIRS = 60  # beyond this, more of the same scenes is not the answer
+NEAR_M = 10.0  # edges beyond this typical range tie the translation loosely: ask for nearer structure
+
+
+class SceneFacts(NamedTuple):
+    """``pairs``: how many pairs were calibrated; ``typical_range_m``: harmonic mean range of the edge points
+    (m); ``pixels_per_radian``: the camera's scale; ``translation_prior``: a translation prior or a fixed
+    translation was used."""
+
+    pairs: int
+    typical_range_m: float
+    pixels_per_radian: float
+    translation_prior: bool
+
+
+def _pairs_needed(sigma: np.ndarray, tolerance: np.ndarray, factor: float, pairs: int) -> int:
+    """Pairs that would bring ``factor * sigma`` within ``tolerance`` on every given axis if sigma falls as
+    1/sqrt(pairs)."""
+    ratio = float(np.max(factor * sigma / tolerance))
+    return math.ceil(pairs * ratio * ratio)
+
+
+def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustOptions) -> str | None:
+    if not axes:
+        return None
+    idx = [(*ROTATION, *TRANSLATION).index(ax) for ax in axes]
+    sigma = a.uncertainty.sigma[idx]
+    if not np.all(np.isfinite(sigma)):
+        return None
+    needed = _pairs_needed(sigma, trust.tolerance_display[idx], trust.sigma_factor, facts.pairs)
+    names = ", ".join(axes)
+    if needed > MAX_USEFUL_PAIRS:
+        return (f"{names}: more pairs of scenes like these would not do it (about {needed} needed at the rate sigma "
+                "falls); capture in places with more distinct edges (buildings, poles, doorways) in several "
+                "directions")
+    return (f"{names}: capture more pairs at new places and headings, about {needed} in all (sigma falls roughly "
+            f"as 1/sqrt(pairs); now {facts.pairs}), and keep the rig still during each capture")
+
+
+def _translation(axes: list[str], facts: SceneFacts) -> str | None:
+    if not axes or facts.translation_prior:
+        return None
+    px_per_cm = facts.pixels_per_radian * 0.01 / max(facts.typical_range_m, 1e-3)
+    seen = (f"{', '.join(axes)}: translation is seen only through parallax; at these scenes' typical edge range "
+            f"({facts.typical_range_m:.0f} m) 1 cm moves an edge {px_per_cm:.2g} px")
+    drawing = ("the lever arm from the rig's drawing (rig.yaml prior: {xyz_m: [x, y, z], sigma_cm: 1.0}, "
+               "or --fix translation)")
+    if facts.typical_range_m > NEAR_M:
+        return f"{seen}; capture pairs with structure 2-{NEAR_M:g} m from the rig, or give {drawing}"
+    return f"{seen}; give {drawing}"
+
+
+def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[str, ...]:
+    """What to do next, most useful first; empty for a trusted result."""
+    v = a.verdict
+    if v.status is Status.TRUSTED:
+        return ()
+    steps: list[str | None] = []
+    if not a.uncertainty.is_minimum:
+        steps.append("the finest level did not end at a minimum: look at the 'before' overlays; if the edge dots "
+                     "are far from the image's edges, give a closer --init or let the global search find one "
+                     "(--search)")
+    weak_t = [ax for ax in TRANSLATION if ax in v.weak_axes]
+    weak_r = [ax for ax in ROTATION if ax in v.weak_axes]
+    steps.append(_translation(weak_t, facts))
+    tol = trust.tolerance_display
+    ties = [r for r in a.restarts if r.delta_nll < trust.ambiguity_nll and bool((np.abs(r.offset) > tol).any())]
+    if ties:
+        which = "the first solution" if ties[0].origin == "solution" else ties[0].origin
+        steps.append(f"another pose fits these pairs as well ({which}): the scenes' edges are too few or repeat; "
+                     "add pairs in other places")
+    steps.append(_more_pairs(weak_r + ([] if facts.translation_prior else weak_t), a, facts, trust))
+    if facts.pairs < MEASURED_PAIRS:
+        have = "1 pair" if facts.pairs == 1 else f"{facts.pairs} pairs"
+        steps.append(f"only {have}: rigd is measured with {MEASURED_PAIRS} (rigd capture --n {MEASURED_PAIRS})")
+    if v.status is Status.FAILED:
+        steps.append("do not use this result: keep the active calibration (the service does not activate it)")
+    return tuple(s for s in steps if s is not None)

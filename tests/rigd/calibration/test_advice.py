@@ -1,0 +1,57 @@
+"""rigd.calibration.advice: next steps follow the assessment's numbers."""
+
+import numpy as np
+
+from calib.assess import Assessment, Restart, Status, TrustOptions, Uncertainty, Verdict
+from rigd.calibration.advice import SceneFacts, next_steps
+
+TRUST = TrustOptions()  # 0.2 deg / 2 cm, 2.5 sigma
+FAR = SceneFacts(pairs=12, typical_range_m=16.0, pixels_per_radian=1000.0, translation_prior=False)
+
+
+def assessment(sigma, status, weak, restarts=(), is_minimum=True):
+    sigma = np.asarray(sigma, dtype=float)
+    unc = Uncertainty(np.eye(6), sigma, sigma, None, 0, "", is_minimum, 1.0, 0.9)
+    return Assessment(np.zeros(6), None, unc, tuple(restarts), Verdict(status, tuple(weak), ("r",)))
+
+
+def test_trusted_needs_nothing():
+    assert next_steps(assessment([0.01] * 3 + [0.3] * 3, Status.TRUSTED, ()), FAR, TRUST) == ()
+
+
+def test_far_scene_with_weak_translation_suggests_near_structure_or_a_lever_arm_prior():
+    steps = next_steps(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)), FAR, TRUST)
+    first = steps[0]
+    assert first.startswith("y: translation is seen only through parallax") and "(16 m)" in first
+    assert "0.62 px" in first  # 1000 px/rad * 1 cm / 16 m
+    assert "structure 2-10 m" in first and "prior" in first and "--fix translation" in first
+    near = next_steps(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)),
+                      FAR._replace(typical_range_m=4.0), TRUST)[0]
+    assert "(4 m) 1 cm moves an edge 2.5 px" in near and "structure" not in near and "--fix translation" in near
+    # sigma 3 cm at 2.5 sigma against 2 cm: (7.5 / 2)^2 * 12 = 168.75 pairs: more of the same will not do it
+    assert any("would not do it (about 169 needed" in s for s in steps)
+    with_prior = next_steps(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)),
+                            FAR._replace(translation_prior=True), TRUST)
+    assert not any("parallax" in s or "y:" in s for s in with_prior)
+
+
+def test_weak_rotation_asks_for_about_as_many_pairs_as_sigma_needs():
+    # pitch 2.5 * 0.1 = 0.25 deg against 0.2: 12 * 1.25^2 = 18.75 -> 19 pairs
+    steps = next_steps(assessment([0.05, 0.1, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), FAR, TRUST)
+    assert steps == ("pitch: capture more pairs at new places and headings, about 19 in all (sigma falls roughly "
+                     "as 1/sqrt(pairs); now 12), and keep the rig still during each capture",)
+
+
+def test_failed_with_a_tie_and_few_pairs_says_why_and_not_to_use_it():
+    tie = Restart(np.array([1.0, 0, 0, 0, 0, 0]), 0.5, "search runner-up")
+    few = FAR._replace(pairs=4)
+    steps = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.FAILED, ("roll",), [tie], is_minimum=False),
+                       few, TRUST)
+    assert steps[0].startswith("the finest level did not end at a minimum")
+    assert any("another pose fits these pairs as well (search runner-up)" in s for s in steps)
+    assert any(s.startswith("only 4 pairs") for s in steps)
+    assert steps[-1].startswith("do not use this result")
+    # a restart that ends elsewhere but clearly higher is not a tie
+    far_above = Restart(np.array([1.0, 0, 0, 0, 0, 0]), 20.0)
+    steps = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.WEAK, ("roll",), [far_above]), FAR, TRUST)
+    assert not any("another pose" in s for s in steps)
