@@ -145,7 +145,7 @@ def test_l0_smoothing_equals_the_textbook_solver():
     grey[35:, :15] = 0.4
     grey += rng.normal(0.0, 0.02, grey.shape)
     got, expected = l0_smooth(grey, 0.01), _l0_textbook(grey, 0.01)
-    assert np.abs(got - expected).max() < 1e-10
+    assert np.abs(got - expected).max() < 1e-5  # float32 solver against float64: far below a grey level (1/255)
     assert np.abs(np.diff(got, axis=1)).max() > 0.3  # it is a real edge-keeping smoothing, not a copy
 
 
