@@ -3,6 +3,13 @@
 The score map ``E_I`` (H,W) float64 is normalised to [0, 1]; edge pixels are the pixels above a threshold
 (paper: 0.15). Panoramas wrap horizontally (u = 0 and u = w are neighbours), so for them every filter
 treats the left and right borders as adjacent.
+
+Texture (foliage, fence bars, grass, a traffic light's face) is then dropped: a LiDAR occlusion edge is an
+object's silhouette, a long contour with few others beside it, while texture packs many short edges into a
+small area. An edge pixel is kept when the edge pixels within a radius r of it amount to at most
+``texture_max_lines`` straight lines through that disk (a line through its centre holds 2r + 1 pixels). The
+radius is an angle (``texture_radius_deg``, at least ``texture_min_radius_px``): about the finest Gaussian's
+reach on a pinhole camera, so edges closer together than the cost can tell apart count as texture.
 """
 
 from __future__ import annotations
@@ -26,7 +33,9 @@ class ImageEdgeParams:
     normalised score (paper 0.15). ``normalise_percentile``: the score is divided by this percentile of the
     non-zero NMS responses (100 = the paper's max), which keeps one very strong edge (a lamp) from
     silencing the rest. ``clahe_clip``: contrast-limited adaptive histogram equalisation before smoothing
-    (0 disables), so an edge's score follows local contrast rather than global exposure or haze."""
+    (0 disables), so an edge's score follows local contrast rather than global exposure or haze.
+    ``texture_radius_deg``, ``texture_min_radius_px``, ``texture_max_lines``: texture suppression (module
+    docstring; radius 0 disables, the paper has none)."""
 
     clahe_clip: float = 0.0
     l0_lambda: float = 0.01
@@ -34,6 +43,15 @@ class ImageEdgeParams:
     l0_beta_max: float = 1e5
     threshold: float = 0.15
     normalise_percentile: float = 100.0
+    texture_radius_deg: float = 0.3
+    texture_min_radius_px: int = 3
+    texture_max_lines: float = 2.0
+
+    def texture_radius_px(self, pixels_per_radian: float) -> int:
+        """The texture disk's radius in pixels for a camera with ``pixels_per_radian`` (0: no suppression)."""
+        if self.texture_radius_deg <= 0:
+            return 0
+        return max(self.texture_min_radius_px, round(float(np.radians(self.texture_radius_deg)) * pixels_per_radian))
 
 
 @dataclass(frozen=True)
@@ -187,11 +205,30 @@ def image_edge_score(image: NDArray[np.uint8], params: ImageEdgeParams, wrap_u: 
     return _normalise(_edge_maps(image, params, wrap_u)[3], params.normalise_percentile)
 
 
-def image_edge_pixels(image: NDArray[np.uint8], params: ImageEdgeParams, wrap_u: bool) -> EdgePixels:
-    """Edge pixels above the threshold, each moved to its sub-pixel peak across the edge."""
+def edge_line_density(mask: NDArray[np.bool_], radius_px: int, wrap_u: bool) -> F64:
+    """(H,W) float64: the edge pixels of ``mask`` within ``radius_px`` of each pixel, in straight lines through
+    the disk (2 radius + 1 pixels each): about 1 on an isolated contour, several in texture."""
+    r = int(radius_px)
+    yy, xx = np.mgrid[-r : r + 1, -r : r + 1]
+    disk = (xx * xx + yy * yy <= r * r).astype(np.float32)
+    padded = np.pad(mask.astype(np.float32), ((r, r), (r, r)), mode="constant")
+    if wrap_u:  # the panorama's left and right borders are neighbours
+        padded[:, :r] = padded[:, -2 * r : -r]
+        padded[:, -r:] = padded[:, r : 2 * r]
+    counts = cv2.filter2D(padded, cv2.CV_32F, disk, borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r]
+    return np.asarray(counts, dtype=np.float64) / (2 * r + 1)
+
+
+def image_edge_pixels(image: NDArray[np.uint8], params: ImageEdgeParams, wrap_u: bool,
+                      pixels_per_radian: float) -> EdgePixels:
+    """Edge pixels above the threshold and not in texture, each moved to its sub-pixel peak across the edge."""
     magnitude, gx, gy, nms = _edge_maps(image, params, wrap_u)
     score = _normalise(nms, params.normalise_percentile)
-    rows, cols = np.nonzero(score > params.threshold)
+    edges = score > params.threshold
+    radius = params.texture_radius_px(pixels_per_radian)
+    if radius > 0:
+        edges &= edge_line_density(edges, radius, wrap_u) <= params.texture_max_lines
+    rows, cols = np.nonzero(edges)
     offsets = subpixel_offsets(magnitude, gx, gy, wrap_u)[rows, cols]
     uv = np.stack([cols, rows], axis=1).astype(np.float64) + offsets
     if wrap_u:

@@ -81,6 +81,7 @@ class CalibResult:
 def paper_params() -> CalibParams:
     """The paper's method as printed (section 8.2 settings), for the ablations and comparisons."""
     return CalibParams(
+        image_edges=ImageEdgeParams(texture_radius_deg=0.0),
         point_method=PointEdgeMethod.PAPER,
         gmm=replace(GmmOptions(), kernel_norm=KernelNorm.PAPER, sigma_range_cap_m=1e9, sigma_floor_deg=0.0),
         optim=replace(OptimOptions(), sigmas_deg=(5.27, 3.52, 1.76), precondition=False, rotation_only_levels=0,
@@ -97,7 +98,7 @@ def _edge_points(pair: PairInput, params: CalibParams) -> EdgePoints:
 def extract_features(pair: PairInput, camera: CameraModel, params: CalibParams, index: int = 0) -> PairFeatures:
     """Edge pixels and edge points of one pair (paper 4.3); raises FeaturelessError naming the pair."""
     wrap = isinstance(camera, Equirectangular)
-    pixels = image_edge_pixels(pair.image, params.image_edges, wrap_u=wrap)
+    pixels = image_edge_pixels(pair.image, params.image_edges, wrap, camera.pixels_per_radian)
     points = _edge_points(pair, params)
     if len(pixels.uv) < params.min_edge_pixels or len(points) < params.min_edge_points:
         raise FeaturelessError(
