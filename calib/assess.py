@@ -192,7 +192,9 @@ def _combine(cov_l: F64, sigma: F64) -> F64:
 
 
 def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: GmmOptions, prior: Prior | None,
-                 trust: TrustOptions) -> Uncertainty:
+                 trust: TrustOptions, solving: Prior | None) -> Uncertainty:
+    """The data's (and the declared ``prior``'s) uncertainty at ``tau``; the jackknife's left-out solves use the
+    prior the solve used (``solving``), so they vary as the solve itself would."""
     model = level_model(feats, opts, gmm, len(opts.sigmas_deg) - 1)
     frozen = model.freeze(tau)
     clusters = clusters_at(model, tau, opts.cluster_cell_deg)
@@ -209,7 +211,8 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     cov_l[np.ix_(free, free)] = sandwich(h, b, prior_info) if known else np.diag(np.full(int(free.sum()), np.inf))
     groups, n_groups = _groups(clusters, len(feats), trust)
     extra = np.zeros((6, 6))
-    extra[np.ix_(free, free)] = kappa * prior_info
+    extra[np.ix_(free, free)] = kappa * (solving.information() if solving is not None else np.zeros((6, 6)))[
+        np.ix_(free, free)]
     jack = _jackknife(grads, hessians, extra, groups, n_groups, free)
     laplace = sigmas_display(cov_l)
     jack_sigma = None if jack is None else sigmas_display(jack)
@@ -259,13 +262,17 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> 
 
 
 def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions,
-           prior: Prior | None, trust: TrustOptions, alternatives: tuple[OptimResult, ...] = ()) -> Assessment:
+           prior: Prior | None, trust: TrustOptions, alternatives: tuple[OptimResult, ...] = (),
+           solving: Prior | None = None) -> Assessment:
     """Restarts, uncertainty and verdict of ``result`` (the coarse-to-fine solution on ``feats``).
     ``alternatives``: full solves from other starts (the global search's runners-up); they count as
-    restarts, so one that ends lower becomes the solution and one that ends elsewhere as low is ambiguity."""
-    best, runs = _run_restarts(feats, result, opts, gmm, prior, trust)
+    restarts, so one that ends lower becomes the solution and one that ends elsewhere as low is ambiguity.
+    ``prior``: the declared prior, part of the reported uncertainty; ``solving`` (default ``prior``): the prior
+    the solve used (:func:`calib.pipeline.solve_prior`), with which the restarts run."""
+    solving = prior if solving is None else solving
+    best, runs = _run_restarts(feats, result, opts, gmm, solving, trust)
     best = min([best, *alternatives], key=lambda r: r.final_cost)
-    unc = _uncertainty(feats, best.tau, opts, gmm, prior, trust)
+    unc = _uncertainty(feats, best.tau, opts, gmm, prior, trust, solving)
     origins = ["solution"] + ["restart"] * len(runs) + ["search runner-up"] * len(alternatives)
     restarts = tuple(
         Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (r.final_cost - best.final_cost) / unc.kappa, origin)

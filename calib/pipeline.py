@@ -50,6 +50,9 @@ class CalibParams:
     min_edge_points: int = 30
     max_translation_m: float = 5.0  # camera and LiDAR share one rig: a longer baseline is a wrong guess
     min_boundary_points: int = 300  # fewer occlusion edge points in all pairs: folds stay in every level
+    # The initial guess's lever arm as a weak prior (sigma per axis, m; 0: none) when no translation prior is
+    # given: where the images leave the translation undetermined it stays near the guess (docs/method.md).
+    guess_sigma_m: float = 0.10
 
 
 @dataclass(frozen=True)
@@ -76,6 +79,7 @@ class CalibResult:
     pairs: tuple[PairStats, ...]
     assessment: Assessment | None = None
     search: SearchResult | None = None  # the global search, when no initial guess was given
+    guess_sigma_m: float | None = None  # the guess's lever arm entered the solve as a prior of this sigma
 
 
 def paper_params() -> CalibParams:
@@ -136,6 +140,17 @@ def schedule(feats: list[PairFeatures], params: CalibParams) -> OptimOptions:
     return params.optim
 
 
+def solve_prior(prior: Prior | None, guess: Transform, params: CalibParams) -> Prior | None:
+    """The prior the solve uses: ``prior``, plus the guess's lever arm with ``params.guess_sigma_m`` when
+    ``prior`` says nothing of the translation. The assessment reports the data's uncertainty without it."""
+    if params.guess_sigma_m <= 0 or (prior is not None and (prior.sigma_xyz_m is not None or prior.fix_translation)):
+        return prior
+    sigma = np.full(3, params.guess_sigma_m)
+    if prior is None:
+        return Prior(xyz_m=guess.translation_m, sigma_xyz_m=sigma)
+    return replace(prior, xyz_m=guess.translation_m, sigma_xyz_m=sigma)
+
+
 def _alternatives(feats: list[PairFeatures], found: SearchResult | None, optim: OptimOptions, gmm: GmmOptions,
                   prior: Prior | None, runners_up: int, executor: Executor | None) -> Callable[[], list[OptimResult]]:
     """Full solves from the global search's next-best distinct starts (the assessment weighs them): started
@@ -167,6 +182,7 @@ def calibrate(
 
     ``initial`` None: the global search of :mod:`calib.initial` (``search`` options, the lever arm from the
     prior or zero) gives the start, and its runner-up is solved in full too and weighed by the assessment.
+    A given ``initial`` without a translation prior adds its lever arm as a weak prior (:func:`solve_prior`).
 
     ``executor`` (the application's process pool): the independent full solves (the alternative schedule, the
     search's runners-up) run there while this process runs the main one, to the same result. The restarts
@@ -188,9 +204,11 @@ def calibrate(
     optim = schedule(feats, params)
     others = _alternatives(feats, found, optim, params.gmm, prior, 0 if trust is None else trust.search_runners_up,
                            executor)
-    result = optimise(feats, tau0, optim, params.gmm, on_iter, prior, executor)
+    solving = prior if found is not None else solve_prior(prior, initial, params)
+    guess_sigma = params.guess_sigma_m if solving is not prior else None
+    result = optimise(feats, tau0, optim, params.gmm, on_iter, solving, executor)
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
     if trust is None:
-        return CalibResult(Transform.from_tau(result.tau), result, stats, search=found)
-    assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()))
-    return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found)
+        return CalibResult(Transform.from_tau(result.tau), result, stats, search=found, guess_sigma_m=guess_sigma)
+    assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()), solving)
+    return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found, guess_sigma)

@@ -216,6 +216,8 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
             "levels": [{"sigma_in_deg": lv.sigma_in_deg, "iterations": lv.iterations, "converged": lv.converged,
                         "final_cost": lv.costs[-1]} for lv in result.optim.levels],
             "pairs": [{"edge_pixels": p.edge_pixels, "edge_points": p.edge_points} for p in result.pairs],
+            # the initial guess's lever arm as a weak prior of the solve (docs/method.md), not of the uncertainty
+            "guess_prior_sigma_cm": None if result.guess_sigma_m is None else result.guess_sigma_m * 100.0,
             "wall_time_s": round(wall_s, 3),
         },
         "change_from_initial": {
