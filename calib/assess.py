@@ -204,15 +204,17 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     h = symmetric(hessians.sum(axis=0))[np.ix_(free, free)]
     b = scatter(grads[:, free])
     prior_info = (prior.information() if prior is not None else np.zeros((6, 6)))[np.ix_(free, free)]
+    solving_info = (solving.information() if solving is not None else np.zeros((6, 6)))[np.ix_(free, free)]
     known = bool(np.all(np.isfinite(b)))
     kappa = nll_scale(h, b) if known else 1.0
-    _, is_min = positive_part(h + kappa * prior_info)
+    # A minimum of what the solve minimised; a direction only the guess's prior holds is reported below as
+    # the data leave it (a large sigma), not as a failed solve.
+    _, is_min = positive_part(h + kappa * solving_info)
     cov_l = np.zeros((6, 6))
     cov_l[np.ix_(free, free)] = sandwich(h, b, prior_info) if known else np.diag(np.full(int(free.sum()), np.inf))
     groups, n_groups = _groups(clusters, len(feats), trust)
     extra = np.zeros((6, 6))
-    extra[np.ix_(free, free)] = kappa * (solving.information() if solving is not None else np.zeros((6, 6)))[
-        np.ix_(free, free)]
+    extra[np.ix_(free, free)] = kappa * solving_info
     jack = _jackknife(grads, hessians, extra, groups, n_groups, free)
     laplace = sigmas_display(cov_l)
     jack_sigma = None if jack is None else sigmas_display(jack)

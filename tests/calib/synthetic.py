@@ -19,8 +19,9 @@ from calib.gmm import PairFeatures
 TRUTH = Transform.from_rpy_xyz(np.array([-0.18, 15.47, -55.14]), np.array([0.0934, 0.0597, -0.1659]))
 
 
-def segments(seed: int, n: int = 40) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Random vertical and horizontal segments 2-8 m from the origin, in the LiDAR frame."""
+def segments(seed: int, n: int = 40, scale: float = 1.0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Random vertical and horizontal segments 2-8 m from the origin, in the LiDAR frame (all of it times
+    ``scale``: a scene so far that the lever arm moves no edge by a measurable amount)."""
     rng = np.random.default_rng(seed)
     out = []
     for _ in range(n):
@@ -31,13 +32,14 @@ def segments(seed: int, n: int = 40) -> list[tuple[np.ndarray, np.ndarray]]:
             d = np.array([0.0, 0.0, rng.uniform(0.8, 1.5)])
         else:
             d = np.array([-np.sin(az), np.cos(az), 0.0]) * rng.uniform(0.8, 1.5)
-        out.append((base, base + d))
+        out.append((base * scale, (base + d) * scale))
     return out
 
 
-def make_pair(seed: int, width: int = 512, height: int = 256, evaluator_fields: bool = True) -> PairFeatures:
+def make_pair(seed: int, width: int = 512, height: int = 256, evaluator_fields: bool = True,
+              scale: float = 1.0) -> PairFeatures:
     cam = Equirectangular(width, height)
-    segs = segments(seed)
+    segs = segments(seed, scale=scale)
     pts_lidar = np.concatenate([a + np.linspace(0, 1, 60)[:, None] * (b - a) for a, b in segs])
     dense = np.concatenate([a + np.linspace(0, 1, 2000)[:, None] * (b - a) for a, b in segs])
     uv, _ = cam.project(TRUTH.apply(dense))

@@ -170,3 +170,21 @@ def test_the_guess_lever_arm_is_a_weak_prior_of_the_solve_and_not_of_the_reporte
     declared_tight = assess(pairs, result, OptimOptions(), GmmOptions(), tight, TrustOptions(restarts=0))
     np.testing.assert_array_equal(solved_with.uncertainty.laplace, alone.uncertainty.laplace)
     assert np.all(declared_tight.uncertainty.laplace[3:] < 0.5 * alone.uncertainty.laplace[3:])
+
+
+def test_a_translation_the_images_cannot_see_stays_at_the_guess_and_is_reported_unknown():
+    """Edges 200-800 km away: the lever arm moves none of them. The guess's weak prior holds the translation
+    (without it the solve runs off by metres and is not a minimum); the reported sigma is the data's (huge)."""
+    from calib.pipeline import CalibParams, calibrate
+
+    far = [make_pair(1, scale=1e5), make_pair(2, scale=1e5)]
+    guess = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.0, -1.0, 1.0], TRUTH.translation_m + [0.04, -0.03, 0.03])
+    held = calibrate(far, guess, CalibParams(), trust=TrustOptions(restarts=1))
+    loose = calibrate(far, guess, CalibParams(guess_sigma_m=0.0), trust=TrustOptions(restarts=1))
+    assert held.assessment is not None and loose.assessment is not None
+    assert np.linalg.norm(held.T_camera_lidar.translation_m - guess.translation_m) < 0.01
+    assert held.assessment.uncertainty.is_minimum  # of what the solve minimised
+    assert np.all(held.assessment.uncertainty.sigma[3:] > 100.0)  # cm: the images say nothing of it
+    assert set(held.assessment.verdict.weak_axes) >= {"x", "y", "z"}
+    assert np.linalg.norm(loose.T_camera_lidar.translation_m - guess.translation_m) > 1.0
+    assert not loose.assessment.uncertainty.is_minimum
