@@ -67,8 +67,8 @@ class TrustOptions:
     sigma_factor: float = 2.5
     restarts: int = 4
     restart_levels: int = 2
-    restart_rot_deg: float = 0.5
-    restart_trans_m: float = 0.03
+    restart_rot_deg: float = 2.0  # beyond the finest level's basin (docs/trust.md: 0.5 deg stayed inside it)
+    restart_trans_m: float = 0.05
     ambiguity_nll: float = 4.5  # 2 * delta NLL < 9: within 3 sigma of the best, statistically a tie
     jackknife_min_pairs: int = 4  # fewer pairs: the jackknife leaves out groups of image cells instead
     jackknife_groups: int = 8
