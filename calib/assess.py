@@ -74,6 +74,7 @@ class TrustOptions:
     jackknife_groups: int = 8
     search_runners_up: int = 1  # without an initial guess: the global search's next starts solved in full
     failed_tolerances: float = 5.0  # ambiguity or sigma beyond this many tolerances on most axes: failed
+    min_returned_share: float = 0.5  # fewer restarts back at the solution: the cost has several minima nearby
     seed: int = 0
 
     @property
@@ -229,6 +230,22 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
                        kappa, share)
 
 
+def _restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> str | None:
+    """A reason to fail when most restarts ended at other, clearly higher minima instead of coming back to the
+    solution (every axis within its tolerance or 3 sigma; a tie elsewhere is ambiguity, judged apart). The last
+    levels' basin around a determined pose is wider than the restart offsets (simulated sets: every restart
+    back within 0.01 of that bound), so minima this close mean the cost is rugged here and the solution is one
+    of several (docs/trust.md). None otherwise."""
+    local = [r for r in restarts if r.origin != "search runner-up"]
+    bound = np.maximum(trust.tolerance_display, 3.0 * unc.sigma)
+    away = [r for r in local if r.delta_nll >= trust.ambiguity_nll and np.any(np.abs(r.offset) > bound)]
+    if not local or len(away) <= (1.0 - trust.min_returned_share) * len(local):
+        return None
+    return (f"{len(local) - len(away)} of {len(local)} restarts came back to the solution; the others ended at "
+            f"other minima (delta NLL {', '.join(f'{r.delta_nll:.1f}' for r in away)}): the cost has several "
+            "minima within the restart offsets")
+
+
 def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> Verdict:
     tol = trust.tolerance_display
     reasons: list[str] = []
@@ -252,6 +269,10 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> 
             reasons.append(f"{r.origin} {i + 1} ended {where} away at a cost the data cannot tell apart "
                            f"(delta NLL {r.delta_nll:.2f})")
             ambiguous_far |= bool((np.abs(r.offset) > trust.failed_tolerances * tol).any())
+    away = _restarts_elsewhere(unc, restarts, trust)
+    if away is not None:
+        reasons.append(away)
+        return Verdict(Status.FAILED, AXES, tuple(reasons))
     far = trust.sigma_factor * unc.sigma > trust.failed_tolerances * tol
     if ambiguous_far or int(far.sum()) >= 3:
         reasons.append("the pose is not determined: several axes are off by more than "

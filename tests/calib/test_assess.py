@@ -82,7 +82,14 @@ def test_verdict_trusted_weak_and_failed():
     amb = _verdict(_unc([0.05] * 3 + [0.5] * 3), [tie], trust)
     assert amb.status is Status.WEAK and amb.weak_axes == ("pitch",)
     far_but_worse = Restart(np.array([3.0, 0, 0, 0, 0, 0]), delta_nll=50.0)  # a worse minimum: no ambiguity
-    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [far_but_worse], trust).status is Status.TRUSTED
+    back = Restart(np.array([0.01, 0, 0, 0.1, 0, 0]), delta_nll=0.1)
+    one_stuck = [far_but_worse, back, back, back]
+    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), one_stuck, trust).status is Status.TRUSTED
+    # Most restarts at other, worse minima: the solution is one of several nearby, so nothing is claimed.
+    rugged = _verdict(_unc([0.05] * 3 + [0.5] * 3), [far_but_worse, far_but_worse, back, far_but_worse], trust)
+    assert rugged.status is Status.FAILED and "1 of 4 restarts came back" in rugged.reasons[-1]
+    runner_up = Restart(np.array([30.0, 0, 0, 0, 0, 0]), delta_nll=80.0, origin="search runner-up")
+    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [back, runner_up], trust).status is Status.TRUSTED
     far_tie = Restart(np.array([3.0, 0, 0, 0, 0, 0]), delta_nll=0.5)
     assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [far_tie], trust).status is Status.FAILED
     assert _verdict(_unc([0.05] * 6, is_min=False), [], trust).status is Status.FAILED
