@@ -230,7 +230,7 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
                        kappa, share)
 
 
-def _restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> str | None:
+def restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> str | None:
     """A reason to fail when most restarts ended at other, clearly higher minima instead of coming back to the
     solution (every axis within its tolerance or 3 sigma; a tie elsewhere is ambiguity, judged apart). The last
     levels' basin around a determined pose is wider than the restart offsets (simulated sets: every restart
@@ -269,7 +269,7 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> 
             reasons.append(f"{r.origin} {i + 1} ended {where} away at a cost the data cannot tell apart "
                            f"(delta NLL {r.delta_nll:.2f})")
             ambiguous_far |= bool((np.abs(r.offset) > trust.failed_tolerances * tol).any())
-    away = _restarts_elsewhere(unc, restarts, trust)
+    away = restarts_elsewhere(unc, restarts, trust)
     if away is not None:
         reasons.append(away)
         return Verdict(Status.FAILED, AXES, tuple(reasons))

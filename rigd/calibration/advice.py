@@ -2,7 +2,8 @@
 
 Each step follows from something the verdict measured: translation is seen only through parallax, so
 edges far away hold it loosely; per-axis sigma shrinks roughly as 1/sqrt(pairs) when pairs are independent;
-a restart that ends elsewhere as low means the scenes cannot tell two poses apart.
+a restart that ends elsewhere as low means the scenes cannot tell two poses apart; most restarts ending at
+other minima mean the edges do not agree in one clear way.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from calib.assess import Assessment, Status, TrustOptions
+from calib.assess import Assessment, Status, TrustOptions, restarts_elsewhere
 
 TRANSLATION = ("x", "y", "z")
 ROTATION = ("roll", "pitch", "yaw")
@@ -88,6 +89,11 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[s
         which = "the first solution" if ties[0].origin == "solution" else ties[0].origin
         steps.append(f"another pose fits these pairs as well ({which}): the scenes' edges are too few or repeat; "
                      "add pairs in other places")
+    if restarts_elsewhere(a.uncertainty, list(a.restarts), trust) is not None:
+        steps.append("restarts near the solution ended at other minima: the LiDAR edges do not line up with the "
+                     "image's in one clear way; look at the 'after' overlays for edges on foliage or texture, "
+                     "check the camera model (K, D) and that the rig stood still, and capture scenes with "
+                     "buildings, poles or doorways")
     steps.append(_more_pairs(weak_r + ([] if facts.translation_prior else weak_t), a, facts, trust))
     if facts.pairs < MEASURED_PAIRS:
         have = "1 pair" if facts.pairs == 1 else f"{facts.pairs} pairs"

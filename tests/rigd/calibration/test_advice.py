@@ -55,3 +55,13 @@ def test_failed_with_a_tie_and_few_pairs_says_why_and_not_to_use_it():
     far_above = Restart(np.array([1.0, 0, 0, 0, 0, 0]), 20.0)
     steps = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.WEAK, ("roll",), [far_above]), FAR, TRUST)
     assert not any("another pose" in s for s in steps)
+
+
+def test_most_restarts_at_other_minima_point_at_the_edges_and_one_stuck_restart_does_not():
+    away = Restart(np.array([2.0, 0, 0, 0, 0, 0]), 15.0)  # 2 deg off at a clearly higher cost
+    back = Restart(np.array([0.01, 0, 0, 0.1, 0, 0]), 0.2)
+    sigma = [0.05] * 3 + [0.3] * 3
+    rugged = next_steps(assessment(sigma, Status.FAILED, (), [away, away, back, away]), FAR, TRUST)
+    assert any(s.startswith("restarts near the solution ended at other minima") for s in rugged)
+    one = next_steps(assessment(sigma, Status.WEAK, ("roll",), [away, back, back, back]), FAR, TRUST)
+    assert not any("other minima" in s for s in one)
