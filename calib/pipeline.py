@@ -89,7 +89,7 @@ def paper_params() -> CalibParams:
         point_method=PointEdgeMethod.PAPER,
         gmm=replace(GmmOptions(), kernel_norm=KernelNorm.PAPER, sigma_range_cap_m=1e9, sigma_floor_deg=0.0),
         optim=replace(OptimOptions(), sigmas_deg=(5.27, 3.52, 1.76), precondition=False, rotation_only_levels=0,
-                      fold_levels=99),
+                      fold_levels=99, quasi_newton=False),  # eq. 24: plain gradient descent
     )
 
 

@@ -25,6 +25,8 @@ def test_ablations_change_one_thing_each():
     assert gmm_params(Method.GMM_PAPER_EDGES) == replace(rigd, point_method=PointEdgeMethod.PAPER)
     assert gmm_params(Method.GMM_PAPER_SCHEDULE) == replace(rigd, optim=paper_params().optim)
     assert gmm_params(Method.PAPER) == paper_params()
+    paper = paper_params().optim  # eq. 24: the paper steps along the plain negative gradient
+    assert not paper.quasi_newton and not paper.precondition
 
 
 def test_photometric_methods_have_no_gmm_and_the_hybrid_has_both():
