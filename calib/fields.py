@@ -36,7 +36,7 @@ Mask = NDArray[np.bool_]
 
 RUNGS_PER_OCTAVE = 3
 BAND_BLOCK = 16  # bands grow by whole blocks of this many image rows, so they are extended rarely
-ROW_CHUNK = 16  # pooled rows computed together (fixed windows: history-independent values)
+ROW_CHUNK = 32  # pooled rows computed together (fixed windows: history-independent values; 32: docs/performance.md)
 COLUMN_BLOCK = 128  # image columns that share one row band (a tilted LiDAR band moves ~60 rows across one)
 
 
