@@ -12,7 +12,8 @@ After the coarse-to-fine solve:
    sigmas; correlations come from the sandwich.
 3. Verdict: ``trusted`` when every axis is known to within the field tolerance (``2.5 sigma <= tolerance``)
    and no restart found a different, equally good pose; ``weak`` naming the axes that are not; ``failed`` when
-   the solution is not a minimum, is ambiguous by several tolerances, or most axes are far from known.
+   the solution is not a minimum, is ambiguous by several tolerances, most restarts ended at other, higher
+   minima instead of coming back (``min_returned_share``), or most axes are far from known.
 """
 
 from __future__ import annotations
