@@ -211,10 +211,8 @@ def edge_line_density(mask: NDArray[np.bool_], radius_px: int, wrap_u: bool) -> 
     r = int(radius_px)
     yy, xx = np.mgrid[-r : r + 1, -r : r + 1]
     disk = (xx * xx + yy * yy <= r * r).astype(np.float32)
-    padded = np.pad(mask.astype(np.float32), ((r, r), (r, r)), mode="constant")
-    if wrap_u:  # the panorama's left and right borders are neighbours
-        padded[:, :r] = padded[:, -2 * r : -r]
-        padded[:, -r:] = padded[:, r : 2 * r]
+    padded = np.pad(mask.astype(np.float32), ((r, r), (0, 0)))
+    padded = np.pad(padded, ((0, 0), (r, r)), mode="wrap" if wrap_u else "constant")
     counts = cv2.filter2D(padded, cv2.CV_32F, disk, borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r]
     return np.asarray(counts, dtype=np.float64) / (2 * r + 1)
 

@@ -144,9 +144,11 @@ def typical_range_m(feats: list[PairFeatures]) -> float:
 
 
 def _run_level(
-    prob: _Problem, tau: F64, opts: OptimOptions, scale: F64, sigma_rad: float,
+    prob: _Problem, tau: F64, opts: OptimOptions, scale: F64, sigma_rad: float, range_m: float,
     on_iter: Callable[[int, float], None] | None,
 ) -> tuple[F64, LevelTrace]:
+    """One level from ``tau``; ``range_m`` the edge points' typical range, which turns a translation step into
+    the angle it moves edges by."""
     prob.refreeze(tau)
     here = prob.evaluate(tau)
     if here.n_active == 0:
@@ -157,7 +159,6 @@ def _run_level(
     quiet = 0
     converged = False
     it = 0
-    r_typ = typical_range_m(prob.feats)
     for it in range(1, opts.max_iter + 1):
         direction = -(inverse @ here.gradient if inverse is not None else scale * here.gradient)
         if inverse is not None and float(direction @ here.gradient) >= 0:  # lost its way: steepest again
@@ -166,7 +167,7 @@ def _run_level(
         # Step length as an angle: rotation plus translation seen at the typical range. No step goes beyond
         # one sigma, where the Gaussians' local picture of the cost ends (a quasi-Newton step along a flat
         # direction would otherwise land in another basin).
-        length = float(np.linalg.norm(direction[:3])) + float(np.linalg.norm(direction[3:])) / r_typ
+        length = float(np.linalg.norm(direction[:3])) + float(np.linalg.norm(direction[3:])) / range_m
         alpha_max = sigma_rad / max(length, 1e-12)
         if alpha_prev is None:  # first step: move about half a sigma
             alpha0 = 0.5 * alpha_max
@@ -260,7 +261,8 @@ def _coarse_to_fine(
 ) -> OptimResult:
     """Algorithm 1: coarse-to-fine over ``opts.sigmas_deg`` (with the prior's MAP term if given)."""
     tau = np.asarray(tau0, dtype=np.float64).copy()
-    r_typ = typical_range_m(feats) if opts.precondition else 1.0
+    range_m = typical_range_m(feats)
+    r_typ = range_m if opts.precondition else 1.0
     scale = np.array([1.0, 1.0, 1.0, r_typ**2, r_typ**2, r_typ**2])
     fixed_t = prior is not None and prior.fix_translation
     steps = hessian_steps(feats, gmm) if prior is not None and prior.active else None
@@ -273,7 +275,7 @@ def _coarse_to_fine(
         cb = (lambda i, c, lv=level: on_iter(lv, i, c)) if on_iter else None
         moves_t = not fixed_t and level >= opts.rotation_only_levels
         level_scale = scale * ([1.0] * 3 + [1.0 if moves_t else 0.0] * 3)
-        tau, trace = _run_level(prob, tau, opts, level_scale, sigma_rad, cb)
+        tau, trace = _run_level(prob, tau, opts, level_scale, sigma_rad, range_m, cb)
         levels.append(trace)
     return OptimResult(tau, tuple(levels), all(t.converged for t in levels), levels[-1].costs[-1])
 
