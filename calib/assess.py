@@ -18,6 +18,7 @@ After the coarse-to-fine solve:
 
 from __future__ import annotations
 
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from enum import Enum
 
@@ -127,19 +128,34 @@ class Assessment:
 
 
 def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptions, gmm: GmmOptions,
-                  prior: Prior | None, trust: TrustOptions) -> tuple[OptimResult, list[OptimResult]]:
+                  prior: Prior | None, trust: TrustOptions,
+                  executor: Executor | None) -> tuple[OptimResult, list[OptimResult]]:
     """Rerun the last levels from ``trust.restarts`` poses around the solution; returns the best run (the
-    solution itself unless a restart ended lower) and every restart."""
+    solution itself unless a restart ended lower) and every restart. With ``executor``, the second half of
+    the restarts runs there, in one worker, while this process runs the first half with the field bands the
+    main solve built here (the worker builds its own; a worker per restart would compete with this process for
+    the cores of a small rig computer)."""
     rng = np.random.default_rng(trust.seed)
     tail = tail_options(opts, min(trust.restart_levels, len(opts.sigmas_deg)))
     fixed_t = prior is not None and prior.fix_translation
-    runs = []
+    starts = []
     for _ in range(trust.restarts):
         offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
                                  np.zeros(3) if fixed_t else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
-        runs.append(optimise(feats, tau_at(best.tau, offset), tail, gmm, None, prior))
+        starts.append(tau_at(best.tau, offset))
+    here = len(starts) if executor is None else (len(starts) + 1) // 2
+    pending = None if executor is None or here == len(starts) else \
+        executor.submit(_restart_solves, feats, starts[here:], tail, gmm, prior)
+    runs = _restart_solves(feats, starts[:here], tail, gmm, prior)
+    runs += [] if pending is None else pending.result()
     winner = min([best, *runs], key=lambda r: r.final_cost)
     return winner, runs
+
+
+def _restart_solves(feats: list[PairFeatures], starts: list[F64], tail: OptimOptions, gmm: GmmOptions,
+                    prior: Prior | None) -> list[OptimResult]:
+    """The restarts from ``starts`` one after the other (in one worker they share the bands it builds)."""
+    return [optimise(feats, s, tail, gmm, None, prior) for s in starts]
 
 
 def _groups(clusters: Clusters, n_pairs: int, trust: TrustOptions) -> tuple[NDArray[np.int64], int]:
@@ -287,14 +303,15 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> 
 
 def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions,
            prior: Prior | None, trust: TrustOptions, alternatives: tuple[OptimResult, ...] = (),
-           solving: Prior | None = None) -> Assessment:
+           solving: Prior | None = None, executor: Executor | None = None) -> Assessment:
     """Restarts, uncertainty and verdict of ``result`` (the coarse-to-fine solution on ``feats``).
     ``alternatives``: full solves from other starts (the global search's runners-up); they count as
     restarts, so one that ends lower becomes the solution and one that ends elsewhere as low is ambiguity.
     ``prior``: the declared prior, part of the reported uncertainty; ``solving`` (default ``prior``): the prior
-    the solve used (:func:`calib.pipeline.solve_prior`), with which the restarts run."""
+    the solve used (:func:`calib.pipeline.solve_prior`), with which the restarts run. ``executor``: the
+    application's process pool, where half the restarts run (same result as without it)."""
     solving = prior if solving is None else solving
-    best, runs = _run_restarts(feats, result, opts, gmm, solving, trust)
+    best, runs = _run_restarts(feats, result, opts, gmm, solving, trust, executor)
     best = min([best, *alternatives], key=lambda r: r.final_cost)
     unc = _uncertainty(feats, best.tau, opts, gmm, prior, trust, solving)
     origins = ["solution"] + ["restart"] * len(runs) + ["search runner-up"] * len(alternatives)

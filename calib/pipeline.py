@@ -185,9 +185,8 @@ def calibrate(
     A given ``initial`` without a translation prior adds its lever arm as a weak prior (:func:`solve_prior`).
 
     ``executor`` (the application's process pool): the independent full solves (the alternative schedule, the
-    search's runners-up) run there while this process runs the main one, to the same result. The restarts
-    stay here: they reuse the field bands this process has built, which a worker would rebuild (measured:
-    4.9 s here, 5.9 s in 2 workers)."""
+    search's runners-up) run there while this process runs the main one, and half the restarts while this
+    process runs the other half, to the same result."""
     found = None
     if initial is None:
         lever_arm = prior.xyz_m if prior is not None and prior.xyz_m is not None else np.zeros(3)
@@ -210,5 +209,5 @@ def calibrate(
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
     if trust is None:
         return CalibResult(Transform.from_tau(result.tau), result, stats, search=found, guess_sigma_m=guess_sigma)
-    assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()), solving)
+    assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()), solving, executor)
     return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found, guess_sigma)

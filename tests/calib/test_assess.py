@@ -121,9 +121,9 @@ def test_fixed_translation_reports_no_translation_uncertainty(pairs):
 
 
 def test_independent_solves_in_a_process_pool_end_exactly_where_serial_ones_do(pairs):
-    """calib.pipeline.calibrate with the application's pool: the alternative schedule and the search's
-    runner-up solved in workers (their fields rebuilt there: pickled without their bands) give the serial
-    run's numbers, bit for bit."""
+    """calib.pipeline.calibrate with the application's pool: the alternative schedule, the search's
+    runner-up and the second restart solved in workers (their fields rebuilt there: pickled without their
+    bands) give the serial run's numbers, bit for bit."""
     import multiprocessing
     import pickle
     from concurrent.futures import ProcessPoolExecutor
@@ -131,7 +131,7 @@ def test_independent_solves_in_a_process_pool_end_exactly_where_serial_ones_do(p
     from calib.initial import SearchOptions
     from calib.pipeline import CalibParams, calibrate
 
-    trust = TrustOptions(restarts=1)
+    trust = TrustOptions(restarts=2)  # one here, one in a worker
     search = SearchOptions(yaw_range_deg=30.0, tilt_deg=0.0)  # a few mounts: a runner-up, quickly
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
         serial = calibrate(pairs, None, CalibParams(), trust=trust, search=search)
