@@ -22,6 +22,7 @@ from drivers.sim.errors import SimError
 from drivers.sim.pose import Pose, rotate
 from drivers.sim.raycast import cast
 from drivers.sim.scene import Scene
+from drivers.sim.stitched import StitchConfig, sensor_gains, split_rays
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -43,14 +44,15 @@ def equirectangular_rays(uv: F64, width: int, height: int) -> F64:
 
 
 def radiance(scene: Scene, origin_world: F64, directions_world: F64) -> F64:
-    """Linear radiance (N,) arriving at ``origin_world`` (3,) m from unit ``directions_world`` (N,3)."""
+    """Linear radiance (N,) arriving at ``origin_world`` (3,) or (N,3) m from unit ``directions_world`` (N,3)."""
     light = scene.lighting
     hits = cast(scene, origin_world, directions_world)
     sun_dir = np.asarray(light.sun_dir_world, dtype=np.float64)
     cos_sun = np.maximum(np.einsum("ij,j->i", hits.normal, sun_dir), 0.0)
     if light.shadows:
         lit = np.flatnonzero(hits.hit & (cos_sun > 0))
-        points = origin_world + hits.depth_m[lit, None] * directions_world[lit]
+        origins = np.broadcast_to(origin_world, directions_world.shape)[lit]  # one centre or one per ray
+        points = origins + hits.depth_m[lit, None] * directions_world[lit]
         starts = points + SHADOW_OFFSET_M * hits.normal[lit]
         blocked = cast(scene, starts, np.broadcast_to(sun_dir, starts.shape)).hit
         cos_sun[lit[blocked]] = 0.0
@@ -83,19 +85,52 @@ def render_rays(scene: Scene, origin_world: F64, rotation_world_cam: F64, rays_c
 
 
 def render_panorama(scene: Scene, pose_world_camera: Pose, width: int, height: int, rng: np.random.Generator,
-                    noise_grey: float = 1.5, supersample: int = 2, color: bool = False) -> U8:
-    """An equirectangular panorama (H,W) uint8 grey, or (H,W,3) BGR when ``color``."""
+                    noise_grey: float = 1.5, supersample: int = 2, color: bool = False,
+                    stitch: StitchConfig | None = None, jpeg_quality: int | None = None) -> U8:
+    """An equirectangular panorama (H,W) uint8 grey, or (H,W,3) BGR when ``color``: from one projection
+    centre, or stitched from the Ladybug5's side sensors (``stitch``: parallax, seams, gains, falloff;
+    drivers.sim.stitched), then JPEG-compressed at ``jpeg_quality`` (1..100) if given."""
     _check_size(width, height, supersample)
     rays_cam = _panorama_rays(width, height, supersample)
+    gains = None if stitch is None else sensor_gains(stitch, rng)
     per_row = width * supersample * supersample
-    band = max(1, BAND_RAYS // per_row)
+    band = max(1, BAND_RAYS // (per_row * (1 if stitch is None else 2)))
     linear = np.empty((height, width))
     for r0 in range(0, height, band):
         r1 = min(r0 + band, height)
-        dirs = rotate(rays_cam[r0 * per_row : r1 * per_row], pose_world_camera.rotation)
-        lin = radiance(scene, pose_world_camera.translation_m, dirs)
+        rays = rays_cam[r0 * per_row : r1 * per_row]
+        if stitch is None or gains is None:
+            lin = radiance(scene, pose_world_camera.translation_m, rotate(rays, pose_world_camera.rotation))
+        else:
+            lin = _stitched_radiance(scene, pose_world_camera, rays, stitch, gains)
         linear[r0:r1] = lin.reshape(-1, supersample, width, supersample).mean(axis=(1, 3))
-    return _to_8bit(tone(scene, linear), rng, noise_grey, color)
+    image = _to_8bit(tone(scene, linear), rng, noise_grey, color)
+    return image if jpeg_quality is None else jpeg_round_trip(image, jpeg_quality)
+
+
+def _stitched_radiance(scene: Scene, pose_world_camera: Pose, rays_cam: F64, stitch: StitchConfig,
+                       gains: F64) -> F64:
+    """Linear radiance (N,) of panorama rays as the blend of the sensors that see them."""
+    out = np.zeros(len(rays_cam))
+    for sensor in split_rays(rays_cam, stitch, gains):
+        seen = np.flatnonzero(sensor.weight > 0)
+        if seen.size == 0:
+            continue
+        origins = pose_world_camera.apply(sensor.origins[seen])
+        dirs = rotate(sensor.directions[seen], pose_world_camera.rotation)
+        out[seen] += sensor.weight[seen] * sensor.gain[seen] * radiance(scene, origins, dirs)
+    return out
+
+
+def jpeg_round_trip(image: U8, quality: int) -> U8:
+    """``image`` as it comes back from JPEG at ``quality`` (blocking and ringing at edges)."""
+    if not 1 <= quality <= 100:
+        raise SimError(f"JPEG quality must be 1..100, got {quality}")
+    ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise SimError("OpenCV could not JPEG-encode the simulated image")
+    flag = cv2.IMREAD_COLOR if image.ndim == 3 else cv2.IMREAD_GRAYSCALE
+    return np.asarray(cv2.imdecode(data, flag), dtype=np.uint8)
 
 
 @lru_cache(maxsize=2)

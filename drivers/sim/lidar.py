@@ -48,13 +48,35 @@ RING_OF_LASER = np.argsort(np.argsort(LASER_ELEVATIONS_DEG)).astype(np.int16)
 
 
 @dataclass(frozen=True)
+class Footprint:
+    """The beam's width, which makes mixed returns at depth edges. The VLP-16's spot leaves a 12.7 mm wide
+    exit and diverges by 3 mrad horizontally (user manual); it is traced as ``sub_rays`` rays across its
+    width. Echoes within ``merge_m`` of the nearest one merge into one return at their energy-weighted range
+    (a "veil" point between a foreground edge and its background); farther echoes are separate and the
+    sensor, in its default strongest-return mode, reports the one with more energy (energy ~ albedo x
+    cos(incidence) / r^2, so a near edge wins with less than half the spot). ``merge_m`` is an assumption
+    of the order of the pulse's length."""
+
+    divergence_mrad: float = 3.0
+    aperture_m: float = 0.0127
+    sub_rays: int = 5
+    merge_m: float = 0.6
+
+    def __post_init__(self) -> None:
+        if self.divergence_mrad < 0 or self.aperture_m < 0 or self.sub_rays < 2 or self.merge_m < 0:
+            raise SimError("beam footprint needs divergence, aperture, merge distance >= 0 and >= 2 sub-rays")
+
+
+@dataclass(frozen=True)
 class LidarConfig:
-    """Noise and limits: range noise sigma (m), usable range (m), reflectivity noise sigma (counts)."""
+    """Noise and limits: range noise sigma (m), usable range (m), reflectivity noise sigma (counts), and the
+    beam ``footprint`` (None: an ideal thin beam, no mixed returns)."""
 
     range_noise_m: float = 0.02
     min_range_m: float = 0.5
     max_range_m: float = 100.0
     reflectivity_noise: float = 1.0
+    footprint: Footprint | None = None
 
     def __post_init__(self) -> None:
         if self.range_noise_m < 0 or self.reflectivity_noise < 0:
@@ -109,14 +131,18 @@ def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config:
     beams = beams.reshape(-1, 3)
     laser_origins = np.zeros_like(beams)  # (1800*16, 3) m in the LiDAR frame, firing-major like the beams
     laser_origins[:, 2] = np.tile(LASER_OFFSETS_M, FIRINGS_PER_TURN)
-    beams_world = rotate(beams, pose_world_lidar.rotation)
-    hits = cast(scene, pose_world_lidar.apply(laser_origins), beams_world)
-    noisy = hits.depth_m + rng.normal(0.0, cfg.range_noise_m, size=len(beams))
+    if cfg.footprint is None:
+        beams_world = rotate(beams, pose_world_lidar.rotation)
+        hits = cast(scene, pose_world_lidar.apply(laser_origins), beams_world)
+        depth_m = hits.depth_m
+        bright = hits.albedo * np.abs(np.sum(hits.normal * beams_world, axis=1))
+    else:
+        depth_m, bright = _footprint_returns(scene, pose_world_lidar, laser_origins, beams, cfg.footprint)
+    noisy = depth_m + rng.normal(0.0, cfg.range_noise_m, size=len(beams))
     ranges = np.round(noisy / RANGE_RESOLUTION_M) * RANGE_RESOLUTION_M
-    valid = hits.hit & (ranges >= cfg.min_range_m) & (ranges <= cfg.max_range_m)
+    valid = np.isfinite(depth_m) & (ranges >= cfg.min_range_m) & (ranges <= cfg.max_range_m)
     ranges = np.where(valid, ranges, 0.0)
-    cos_incidence = np.abs(np.sum(hits.normal * beams_world, axis=1))
-    counts = 100.0 * hits.albedo * cos_incidence + rng.normal(0.0, cfg.reflectivity_noise, size=len(beams))
+    counts = 100.0 * bright + rng.normal(0.0, cfg.reflectivity_noise, size=len(beams))
     reflectivity = np.where(valid, np.clip(np.rint(counts), 0, 255), 0).astype(np.uint8)
     laser = np.tile(np.arange(N_LASERS, dtype=np.int16), FIRINGS_PER_TURN)
     keep = np.flatnonzero(valid)
@@ -130,3 +156,33 @@ def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config:
         ranges_m=ranges.reshape(FIRINGS_PER_TURN, N_LASERS),
         reflectivity=reflectivity.reshape(FIRINGS_PER_TURN, N_LASERS),
     )
+
+
+def _footprint_returns(scene: Scene, pose_world_lidar: Pose, origins: F64, beams: F64,
+                       footprint: Footprint) -> tuple[F64, F64]:
+    """Range (M,) m (inf: no return) and brightness ``albedo * cos(incidence)`` (M,) of each beam (M,3) from
+    ``origins`` (M,3) (LiDAR frame) with a horizontal footprint (:class:`Footprint`), reported along the
+    beam's nominal direction as the sensor does."""
+    k = footprint.sub_rays
+    tangent = np.stack([-beams[:, 1], beams[:, 0], np.zeros(len(beams))], axis=1)  # horizontal, across the beam
+    tangent /= np.maximum(np.linalg.norm(tangent, axis=1, keepdims=True), 1e-12)
+    across = np.linspace(-0.5, 0.5, k)
+    dirs = beams[:, None, :] + np.tan(across * footprint.divergence_mrad * 1e-3)[None, :, None] * tangent[:, None]
+    starts = origins[:, None, :] + (across * footprint.aperture_m)[None, :, None] * tangent[:, None]
+    dirs_world = rotate(dirs.reshape(-1, 3), pose_world_lidar.rotation)
+    dirs_world /= np.linalg.norm(dirs_world, axis=1, keepdims=True)
+    hits = cast(scene, pose_world_lidar.apply(starts.reshape(-1, 3)), dirs_world)
+    depth = hits.depth_m.reshape(-1, k)
+    bright = (hits.albedo * np.abs(np.sum(hits.normal * dirs_world, axis=1))).reshape(-1, k)
+    hit = np.isfinite(depth)
+    energy = np.where(hit, bright / np.maximum(np.where(hit, depth, 1.0), 0.5) ** 2, 0.0) + hit * 1e-12
+    nearest = np.min(np.where(hit, depth, np.inf), axis=1, keepdims=True)
+    near = hit & (depth <= nearest + footprint.merge_m)
+    far = hit & ~near
+    use = np.where((energy * near).sum(axis=1, keepdims=True) >= (energy * far).sum(axis=1, keepdims=True), near, far)
+    weight = energy * use
+    total = np.maximum(weight.sum(axis=1), 1e-300)
+    rng_m = (weight * np.where(hit, depth, 0.0)).sum(axis=1) / total
+    out_bright = (weight * bright).sum(axis=1) / total
+    any_hit = hit.any(axis=1)
+    return np.where(any_hit, rng_m, np.inf), np.where(any_hit, out_bright, 0.0)

@@ -8,6 +8,7 @@ the ground truth ``T_camera_lidar``: ``T_world_lidar = T_world_camera @ T_camera
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,6 +22,7 @@ from drivers.sim.lidar import LidarConfig, Sweep, scan
 from drivers.sim.outdoor import outdoor_scene
 from drivers.sim.pose import Pose
 from drivers.sim.scene import Scene, SceneKind
+from drivers.sim.stitched import StitchConfig
 
 # Kang & Doh 2020, Table 2, indoor dataset, GMM: roll, pitch, yaw (deg) and t (m).
 PAPER_T_CAMERA_LIDAR = Pose.from_rpy_xyz((-0.18, 15.47, -55.14), (0.0934, 0.0597, -0.1659))
@@ -43,6 +45,8 @@ class SimConfig:
     image_noise_grey: float = 1.5
     supersample: int = 2
     color: bool = False
+    stitch: StitchConfig | None = None  # None: one projection centre; else the stitched sensors' effects
+    jpeg_quality: int | None = None  # None: the image as rendered; else JPEG-compressed at this quality
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0 or self.supersample <= 0:
@@ -136,7 +140,7 @@ class SimRig:
         pose_cam = place_rig(scene, rng_for(k, seed, index, "pose"), cfg.T_camera_lidar)
         pose_lidar = pose_cam.compose(cfg.T_camera_lidar)
         image = render_panorama(scene, pose_cam, cfg.width, cfg.height, rng_for(k, seed, index, "camera"),
-                                cfg.image_noise_grey, cfg.supersample, cfg.color)
+                                cfg.image_noise_grey, cfg.supersample, cfg.color, cfg.stitch, cfg.jpeg_quality)
         sweep = scan(scene, pose_lidar, rng_for(k, seed, index, "lidar"), cfg.lidar)
         meta = {
             "source": "simulated",
@@ -149,6 +153,12 @@ class SimRig:
             "range_noise_m": float(cfg.lidar.range_noise_m),
             "image_noise_grey": float(cfg.image_noise_grey),
         }
+        if cfg.stitch is not None:
+            meta["stitched_sensors"] = dataclasses.asdict(cfg.stitch)
+        if cfg.jpeg_quality is not None:
+            meta["jpeg_quality"] = int(cfg.jpeg_quality)
+        if cfg.lidar.footprint is not None:
+            meta["beam_footprint"] = dataclasses.asdict(cfg.lidar.footprint)
         return SimCapture(image, sweep, meta, scene, pose_cam, pose_lidar)
 
 

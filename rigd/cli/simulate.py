@@ -39,11 +39,17 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--height", type=_positive_int, default=None, help="panorama height px (default width/2)")
     parser.add_argument("--noise-m", type=_non_negative_float, default=0.02,
                         help="LiDAR range noise sigma in metres (default 0.02)")
+    parser.add_argument("--sensor-effects", action="store_true",
+                        help="what a real rig adds (docs/simulator.md): the Ladybug5's separate sensors stitched "
+                        "(parallax of near objects, blended seams, per-sensor gain and falloff), JPEG images, "
+                        "and the VLP-16's beam footprint (mixed returns at depth edges)")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     height = args.height if args.height is not None else max(1, args.width // 2)
-    out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, args.width, height, args.noise_m)
-    print(f"wrote {args.pairs} simulated {args.scene} pairs ({args.width}x{height}) to {out}")
+    out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, args.width, height, args.noise_m,
+                                  sensor_effects=args.sensor_effects)
+    extra = " with sensor effects" if args.sensor_effects else ""
+    print(f"wrote {args.pairs} simulated {args.scene} pairs ({args.width}x{height}){extra} to {out}")
     return 0

@@ -72,3 +72,18 @@ def test_simulate_rejects_bad_arguments(tmp_path):
         main(["simulate", str(tmp_path / "b"), "--pairs", "0"])
     assert exc.value.code == 2
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_simulate_sensor_effects_are_recorded_and_change_the_data(tmp_path):
+    plain, real = tmp_path / "plain", tmp_path / "effects"
+    common = ["--scene", "indoor", "--pairs", "1", "--seed", "3", "--width", "256"]
+    assert main(["simulate", str(plain), *common]) == 0
+    assert main(["simulate", str(real), *common, "--sensor-effects"]) == 0
+    a, b = open_dataset(plain).load_pair(0), open_dataset(real).load_pair(0)
+    assert "stitched_sensors" not in a.meta and "beam_footprint" not in a.meta
+    assert b.meta["stitched_sensors"]["sphere_radius_m"] == 20.0 and b.meta["jpeg_quality"] == 85
+    assert b.meta["beam_footprint"]["divergence_mrad"] == 3.0
+    # Same place and scene: the clouds differ only at depth edges, the images everywhere a little.
+    moved = np.linalg.norm(a.cloud.points_lidar - b.cloud.points_lidar, axis=1) > 0.05
+    assert 0 < np.count_nonzero(moved) < 0.05 * len(moved)
+    assert np.abs(a.image.astype(int) - b.image.astype(int)).mean() > 1.0

@@ -116,3 +116,52 @@ def test_shadow_of_a_box_is_darker_and_colour_output_is_bgr():
                                rtol=1e-6)
     image = render_panorama(scene, Pose(np.eye(3), origin), 64, 32, np.random.default_rng(0), color=True)
     assert image.shape == (32, 64, 3) and image.dtype == np.uint8
+
+
+def _stitched_direction(point_cam: np.ndarray, sensor_centre: np.ndarray, sphere_m: float) -> np.ndarray:
+    """The panorama direction d at which a stitched head shows ``point_cam``: the sensor at ``sensor_centre``
+    sees it along its ray towards the stitching sphere point sphere_m * d (the stitching's definition)."""
+    ray = (point_cam - sensor_centre) / np.linalg.norm(point_cam - sensor_centre)
+    b = float(sensor_centre @ ray)  # |c + s ray| = sphere_m, s > 0
+    s = -b + np.sqrt(b * b - (sensor_centre @ sensor_centre - sphere_m**2))
+    return (sensor_centre + s * ray) / sphere_m
+
+
+def test_stitched_head_shows_near_objects_with_parallax_and_far_ones_in_place():
+    from drivers.sim import StitchConfig
+    from drivers.sim.stitched import sensor_axes
+
+    # An exaggerated 0.3 m sensor radius so the parallax is several pixels at 512 px; no gains or falloff.
+    stitch = StitchConfig(sensor_radius_m=0.3, sphere_radius_m=20.0, blend_deg=0.0, vignetting=0.0, gain_sigma=0.0)
+    camera = Pose(np.eye(3), np.array([0.0, 0.0, 1.5]))
+    az = np.radians([20.0, -100.0])  # sensor 0 (20 deg off its axis) and sensor 4 (axis at -72 deg)
+    near = np.stack([np.cos(az), np.sin(az), np.zeros(2)], axis=1) * 1.5
+    far = np.array([[np.cos(np.radians(60.0)), np.sin(np.radians(60.0)), 0.0]]) * 20.0
+    b = SceneBuilder()
+    for c, half in zip(camera.apply(np.vstack([near, far])), (0.02, 0.02, 0.3), strict=True):
+        b.box(c - half, c + half, 1.0, texture=0.0)
+    scene = b.build(SceneKind.OUTDOOR, DARK, (0, 1, 0, 1), 0.0, (1.0, 1.5))
+    width, height = 512, 256
+    image = render_panorama(scene, camera, width, height, np.random.default_rng(0), noise_grey=0.0, stitch=stitch)
+    centres = 0.3 * sensor_axes()[[0, 4, 1]]
+    dirs = np.array([_stitched_direction(p, c, 20.0) for p, c in zip(np.vstack([near, far]), centres, strict=True)])
+    expected, _ = Equirectangular(width, height).project(dirs)
+    single, _ = Equirectangular(width, height).project(np.vstack([near, far]))
+    found = _blob_centroids(image)
+    assert len(found) == 3
+    assert _match(found, expected).max() < 0.3
+    shift = np.linalg.norm(expected - single, axis=1)
+    assert shift[:2].min() > 3.0 and shift[2] < 0.05  # near: pixels of parallax; at the sphere: in place
+
+
+def test_stitched_seams_cross_fade_two_sensors():
+    from drivers.sim import StitchConfig
+    from drivers.sim.stitched import split_rays
+
+    stitch = StitchConfig(blend_deg=3.0)
+    az = np.radians([0.0, 30.0, 34.5, 36.0, 37.5, 42.0])
+    rays = np.stack([np.cos(az), np.sin(az), np.zeros(len(az))], axis=1)
+    first, second = split_rays(rays, stitch, np.ones(5))
+    np.testing.assert_allclose(first.weight + second.weight, 1.0)
+    np.testing.assert_allclose(second.weight, [0.0, 0.0, 0.25, 0.5, 0.25, 0.0])
+    np.testing.assert_allclose(np.linalg.norm(first.directions, axis=1), 1.0)

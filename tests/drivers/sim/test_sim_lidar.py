@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drivers.sim import LidarConfig, Lighting, Pose, SceneBuilder, SceneKind, SimError, scan
+from drivers.sim import Footprint, LidarConfig, Lighting, Pose, SceneBuilder, SceneKind, SimError, scan
 from drivers.sim.lidar import FIRINGS_PER_TURN, LASER_ELEVATIONS_DEG
 
 # The VLP-16 manual: laser k's origin is 41.91 mm * tan(-elevation) above the sensor origin (11.2 mm at -15 deg).
@@ -97,3 +97,34 @@ def test_reflectivity_is_albedo_times_cosine_of_incidence():
     assert np.abs(sweep.intensity - expected).max() <= 5.0
     assert abs(np.mean(sweep.intensity - expected)) < 0.1
     assert sweep.intensity.dtype == np.float32 and sweep.reflectivity.dtype == np.uint8
+
+
+def _pole_scene(gap_m: float):
+    """A floor, a 0.2 m wide pole 4 m ahead along +x and a wall ``gap_m`` behind it."""
+    b = SceneBuilder()
+    b.box((-500.0, -500.0, -1.0), (500.0, 500.0, 0.0), 0.5, texture=0.0)
+    b.box((3.9, -0.1, 0.0), (4.1, 0.1, 4.0), 0.5, texture=0.0)
+    b.box((4.1 + gap_m, -20.0, 0.0), (4.6 + gap_m, 20.0, 6.0), 0.5, texture=0.0)
+    return b.build(SceneKind.OUTDOOR, LIGHT, (0, 1, 0, 1), 0.0, (1.0, 1.5))
+
+
+def _horizontal_ranges(gap_m: float, footprint: Footprint | None) -> np.ndarray:
+    """Ranges of the laser nearest 0 deg elevation over the firings within 10 deg of forward."""
+    sweep = scan(_pole_scene(gap_m), _level_pose(), np.random.default_rng(0),
+                 LidarConfig(range_noise_m=0.0, footprint=footprint))
+    laser = int(np.argmin(np.abs(LASER_ELEVATIONS_DEG)))
+    az = np.mod(np.arange(FIRINGS_PER_TURN) * 0.2 + 180.0, 360.0) - 180.0
+    return sweep.ranges_m[np.abs(az) < 10.0, laser]
+
+
+def test_beam_footprint_makes_veils_on_small_depth_gaps_and_widens_near_edges():
+    # 0.3 m behind the pole (within a pulse): mixed returns between the two surfaces, none with a thin beam.
+    for footprint, veils in ((None, 0), (Footprint(), 1)):
+        r = _horizontal_ranges(0.3, footprint)
+        between = np.count_nonzero((r > 3.95) & (r < 4.35))  # pole face 3.9 m, wall 4.4 m (+-2 mm steps)
+        assert (between >= veils) if veils else between == 0
+    # 3 m behind (separate echoes): no veil, and the nearer, brighter echo wins with less than half the spot,
+    # so the pole looks wider than with a thin beam.
+    thin, wide = _horizontal_ranges(3.0, None), _horizontal_ranges(3.0, Footprint(divergence_mrad=30.0))
+    assert np.count_nonzero((wide > 4.2) & (wide < 7.0)) == 0
+    assert np.count_nonzero(wide < 4.2) > np.count_nonzero(thin < 4.2)
