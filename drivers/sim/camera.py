@@ -92,14 +92,14 @@ def render_panorama(scene: Scene, pose_world_camera: Pose, width: int, height: i
     drivers.sim.stitched), then JPEG-compressed at ``jpeg_quality`` (1..100) if given."""
     _check_size(width, height, supersample)
     rays_cam = _panorama_rays(width, height, supersample)
-    gains = None if stitch is None else sensor_gains(stitch, rng)
+    gains = None if stitch is None else sensor_gains(stitch, rng)  # drawn first: the noise then follows
     per_row = width * supersample * supersample
     band = max(1, BAND_RAYS // (per_row * (1 if stitch is None else 2)))
     linear = np.empty((height, width))
     for r0 in range(0, height, band):
         r1 = min(r0 + band, height)
         rays = rays_cam[r0 * per_row : r1 * per_row]
-        if stitch is None or gains is None:
+        if stitch is None or gains is None:  # (gains is None exactly when stitch is)
             lin = radiance(scene, pose_world_camera.translation_m, rotate(rays, pose_world_camera.rotation))
         else:
             lin = _stitched_radiance(scene, pose_world_camera, rays, stitch, gains)

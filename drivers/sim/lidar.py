@@ -175,6 +175,7 @@ def _footprint_returns(scene: Scene, pose_world_lidar: Pose, origins: F64, beams
     depth = hits.depth_m.reshape(-1, k)
     bright = (hits.albedo * np.abs(np.sum(hits.normal * dirs_world, axis=1))).reshape(-1, k)
     hit = np.isfinite(depth)
+    # (+ a tiny floor: a black surface still returns a range when nothing brighter shares the spot)
     energy = np.where(hit, bright / np.maximum(np.where(hit, depth, 1.0), 0.5) ** 2, 0.0) + hit * 1e-12
     nearest = np.min(np.where(hit, depth, np.inf), axis=1, keepdims=True)
     near = hit & (depth <= nearest + footprint.merge_m)
@@ -182,7 +183,7 @@ def _footprint_returns(scene: Scene, pose_world_lidar: Pose, origins: F64, beams
     use = np.where((energy * near).sum(axis=1, keepdims=True) >= (energy * far).sum(axis=1, keepdims=True), near, far)
     weight = energy * use
     total = np.maximum(weight.sum(axis=1), 1e-300)
-    rng_m = (weight * np.where(hit, depth, 0.0)).sum(axis=1) / total
+    range_m = (weight * np.where(hit, depth, 0.0)).sum(axis=1) / total
     out_bright = (weight * bright).sum(axis=1) / total
     any_hit = hit.any(axis=1)
-    return np.where(any_hit, rng_m, np.inf), np.where(any_hit, out_bright, 0.0)
+    return np.where(any_hit, range_m, np.inf), np.where(any_hit, out_bright, 0.0)
