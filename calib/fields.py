@@ -187,23 +187,15 @@ class EdgeFields:
         a, r, w = int(self.offset[k, b]), int(self.rows[k, b]), int(self.bw[k, b])
         return self.flat[a: a + r * w].reshape(r, w, 9)
 
-    def _maps(self, k: int, lo: int, hi: int, c0: int, c1: int, splat: tuple[F64, F64]) -> F32:
+    def _maps(self, k: int, lo: int, hi: int, c0: int, c1: int, pooled: tuple[F64, F64], kernels: F64) -> F32:
         """Pooled rows ``lo:hi`` and columns ``c0:c1`` of rung k, (hi - lo, c1 - c0, 9) float32: the 2-D
-        correlation of the pooled maps with the rung's kernels, zero outside the image except across the u
+        correlation of the pooled maps with the rung's ``kernels``, zero outside the image except across the u
         seam of a panorama, from only the window of the maps the kernels reach."""
-        f = int(self.factor[k])
-        kernels = _kernels(float(self.sigmas_px[k]), f)
         r = kernels.shape[1] // 2
-        score_map, mask_map = (_pool(_window(m, (lo - r) * f, (hi + r) * f, (c0 - r) * f, (c1 + r) * f,
-                                             self.wrap_u), f) for m in splat)
+        score_map, mask_map = (_window(m, lo - r, hi + r, c0 - r, c1 + r, self.wrap_u) for m in pooled)
         maps = [cv2.filter2D(score_map if i < 3 else mask_map, cv2.CV_64F, kernels[i],
                              borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r] for i in range(9)]
         return np.stack(maps, axis=-1).astype(np.float32)
-
-    def _chunks(self, k: int, lo: int, hi: int, c0: int, c1: int, splat: tuple[F64, F64]) -> F32:
-        """Pooled rows ``lo:hi`` (chunk-aligned) of rung k, one ROW_CHUNK at a time."""
-        return np.concatenate([self._maps(k, a, min(a + ROW_CHUNK, hi), c0, c1, splat)
-                               for a in range(lo, hi, ROW_CHUNK)])
 
     def grow(self, need_lo: I64, need_hi: I64) -> None:
         """Extend the blocks so block (k, b) covers pooled rows ``need_lo[k, b] : need_hi[k, b]`` (nothing
@@ -231,22 +223,45 @@ class EdgeFields:
         # window it is given at rounding level, which a long solve can amplify into a different answer).
         new_lo = new_lo // ROW_CHUNK * ROW_CHUNK
         new_hi = np.minimum(-(-new_hi // ROW_CHUNK) * ROW_CHUNK, self.hf[:, None])
-        splat = self._splat()
+        chunks = self._compute(self._chunk_jobs(short, new_lo, new_hi, end))
         blocks = []
         for k, b in np.ndindex(*self.rows.shape):
             block = self._block(k, b)
-            if short[k, b]:  # only the missing rows: a built cell keeps its value
-                c0, c1 = b * int(self.cb[k]), b * int(self.cb[k]) + int(self.bw[k, b])
-                lo, hi = int(new_lo[k, b]), int(new_hi[k, b])
-                have_lo, have_hi = (int(self.row0[k, b]), int(end[k, b])) if self.rows[k, b] else (lo, lo)
-                above = self._chunks(k, lo, have_lo, c0, c1, splat) if have_lo > lo else block[:0]
-                below = self._chunks(k, have_hi, hi, c0, c1, splat) if hi > have_hi else block[:0]
-                block = np.concatenate([above, block, below]) if len(block) else np.concatenate([above, below])
-                self.row0[k, b], self.rows[k, b] = lo, hi - lo
+            if short[k, b]:  # only the missing rows were computed: a built cell keeps its value
+                parts = chunks[k, b]  # an unbuilt block has row0 = rows = 0: all its chunks go below
+                block = np.concatenate([m for a, m in parts if a < self.row0[k, b]] + [block]
+                                       + [m for a, m in parts if a >= end[k, b]])
+                self.row0[k, b], self.rows[k, b] = new_lo[k, b], new_hi[k, b] - new_lo[k, b]
             blocks.append(block.reshape(-1, 9))
         sizes = np.array([len(b) for b in blocks], np.int64)
         self.offset = (np.cumsum(sizes) - sizes).reshape(self.rows.shape)
         self.flat = np.concatenate(blocks)
+
+    def _chunk_jobs(self, short: Mask, new_lo: I64, new_hi: I64, end: I64) -> list[tuple[int, int, int, int]]:
+        """(rung, block, first pooled row, end row) of each ROW_CHUNK the short blocks miss, above and below
+        the rows they hold."""
+        jobs = []
+        for k, b in zip(*np.nonzero(short), strict=True):
+            lo, hi = int(new_lo[k, b]), int(new_hi[k, b])
+            have_lo, have_hi = (int(self.row0[k, b]), int(end[k, b])) if self.rows[k, b] else (lo, lo)
+            jobs += [(int(k), int(b), a, min(a + ROW_CHUNK, have_lo)) for a in range(lo, have_lo, ROW_CHUNK)]
+            jobs += [(int(k), int(b), a, min(a + ROW_CHUNK, hi)) for a in range(have_hi, hi, ROW_CHUNK)]
+        return jobs
+
+    def _compute(self, jobs: list[tuple[int, int, int, int]]) -> dict[tuple[int, int], list[tuple[int, F32]]]:
+        """The chunks of ``jobs``, per block in row order. The edge maps are splatted and pooled once per
+        factor, and each rung's kernels made once, for all of them (a chunk's window of the pooled map holds
+        the same sums as the pooled window of the map: windows start on whole pooling cells)."""
+        rungs = sorted({k for k, _, _, _ in jobs})
+        splat = self._splat()
+        pooled = {int(f): (_pool(splat[0], int(f)), _pool(splat[1], int(f))) for f in set(self.factor[rungs])}
+        kernels = {k: _kernels(float(self.sigmas_px[k]), int(self.factor[k])) for k in rungs}
+        out: dict[tuple[int, int], list[tuple[int, F32]]] = {}
+        for k, b, a, z in jobs:
+            c0 = b * int(self.cb[k])
+            maps = self._maps(k, a, z, c0, c0 + int(self.bw[k, b]), pooled[int(self.factor[k])], kernels[k])
+            out.setdefault((k, b), []).append((a, maps))
+        return out
 
     def sample(self, uv: F64, sigma: F64) -> F64:
         """(N, 9): A, dA/dc, B, dB/dc, |Omega|, d|Omega|/dc at centres ``uv`` (N,2) px with widths ``sigma``
