@@ -27,7 +27,15 @@ from numpy.typing import NDArray
 
 from calib.edges_points import FOLD
 from calib.gmm import GmmOptions, PairFeatures, in_image, transform_points
-from calib.optimize import OptimOptions, OptimResult, hessian_steps, level_model, optimise, tail_options
+from calib.optimize import (
+    OptimOptions,
+    OptimResult,
+    hessian_steps,
+    level_model,
+    optimise,
+    tail_options,
+    typical_range_m,
+)
 from calib.prior import Prior
 from calib.uncertainty import (
     AXES,
@@ -167,20 +175,50 @@ def _groups(clusters: Clusters, n_pairs: int, trust: TrustOptions) -> tuple[NDAr
     return rng.permutation(clusters.count) % trust.jackknife_groups, trust.jackknife_groups
 
 
+def trust_region_step(h: F64, g: F64, scale: F64, radius: float) -> F64:
+    """argmin over s of g.s + s.H s / 2 with |scale * s| <= radius (Moré & Sorensen's trust-region step, by
+    the eigenvectors of the small H): the Newton step where H is positive definite and the step is short
+    enough, else the step to the boundary along which the quadratic model falls most."""
+    hy, gy = h / np.outer(scale, scale), g / scale  # y = scale * s: a ball in y
+    w, v = np.linalg.eigh(0.5 * (hy + hy.T))
+    gv = v.T @ gy
+
+    def length(lam: float) -> float:
+        with np.errstate(divide="ignore"):
+            return float(np.linalg.norm(gv / (w + lam)))
+
+    if w[0] > 0 and length(0.0) <= radius:
+        return np.asarray(v @ (-gv / w) / scale, dtype=np.float64)
+    lo = max(0.0, -float(w[0])) * (1.0 + 1e-12) + 1e-300
+    if length(lo) <= radius:  # the "hard case": g has (almost) no component along the lowest curvature
+        y = v @ (-gv / np.maximum(w + lo, 1e-300))
+        rest = np.sqrt(max(radius**2 - float(y @ y), 0.0))
+        return np.asarray((y + (1.0 if gv[0] <= 0 else -1.0) * rest * v[:, 0]) / scale, dtype=np.float64)
+    hi = lo + float(np.linalg.norm(gy)) / radius + float(np.abs(w).max())
+    for _ in range(200):  # |y(lam)| falls monotonically in lam: bisect for |y| = radius
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if length(mid) > radius else (lo, mid)
+    return np.asarray(v @ (-gv / (w + hi)) / scale, dtype=np.float64)
+
+
 def _jackknife(grads: F64, hessians: F64, extra_h: F64, groups: NDArray[np.int64], n_groups: int,
-               free: NDArray[np.bool_]) -> F64 | None:
+               free: NDArray[np.bool_], scale: F64, radius: float) -> F64 | None:
     """Delete-a-group jackknife covariance (6,6) of the local coordinates. Each left-out solve is one Newton
     step of the finest level from the solution (the finite-difference Hessian is per cluster, so this costs
-    no further evaluation): xi_g = -(H - H_g)^-1 (g - g_g). ``free`` masks the estimated coordinates."""
+    no further evaluation): xi_g = -(H - H_g)^-1 (g - g_g), kept within the finest level's kernel width
+    (``|scale * xi| <= radius``, :func:`trust_region_step`). Beyond it the quadratic model says nothing: where
+    the other groups leave a direction flat or curved down, the left-out solve would slide along it to
+    wherever the cost next rises, and an unbounded Newton step put thousands of degrees into the jackknife
+    of one frame. ``free`` masks the estimated coordinates."""
     offsets = []
     total_g, total_h = grads.sum(axis=0), hessians.sum(axis=0)
     for g in range(n_groups):
         mine = groups == g
         if not mine.any():
             continue
-        h_rest, _ = positive_part(symmetric(total_h - hessians[mine].sum(axis=0) + extra_h)[np.ix_(free, free)])
+        h_rest = symmetric(total_h - hessians[mine].sum(axis=0) + extra_h)[np.ix_(free, free)]
         step = np.zeros(6)
-        step[free] = -np.linalg.solve(h_rest, (total_g - grads[mine].sum(axis=0))[free])
+        step[free] = trust_region_step(h_rest, (total_g - grads[mine].sum(axis=0))[free], scale[free], radius)
         offsets.append(step)
     if len(offsets) < 3:
         return None
@@ -233,7 +271,10 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     groups, n_groups = _groups(clusters, len(feats), trust)
     extra = np.zeros((6, 6))
     extra[np.ix_(free, free)] = kappa * solving_info
-    jack = _jackknife(grads, hessians, extra, groups, n_groups, free)
+    # A translation moves edges at the typical range by dt / range radians; the kernel's width at the finest
+    # level is where a Gaussian's curvature changes sign, the end of any quadratic model of the cost.
+    scale = np.array([1.0] * 3 + [1.0 / typical_range_m(feats)] * 3)
+    jack = _jackknife(grads, hessians, extra, groups, n_groups, free, scale, float(np.radians(opts.sigmas_deg[-1])))
     laplace = sigmas_display(cov_l)
     jack_sigma = None if jack is None else sigmas_display(jack)
     sigma = laplace if jack_sigma is None else np.maximum(laplace, jack_sigma)

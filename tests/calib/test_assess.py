@@ -5,7 +5,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from calib.assess import Restart, Status, TrustOptions, Uncertainty, _jackknife, _verdict, assess
+from calib.assess import (
+    Restart,
+    Status,
+    TrustOptions,
+    Uncertainty,
+    _jackknife,
+    _verdict,
+    assess,
+    trust_region_step,
+)
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.gmm import Evaluator, GmmOptions
@@ -61,11 +70,57 @@ def test_newton_jackknife_is_exact_for_quadratic_clusters():
     b = [rng.normal(size=6) for _ in range(n)]
     theta = np.linalg.solve(sum(a), sum(b))
     grads = np.array([ai @ theta - bi for ai, bi in zip(a, b, strict=True)])
-    cov = _jackknife(grads, np.array(a), np.zeros((6, 6)), groups, 6, np.ones(6, bool))
+    cov = _jackknife(grads, np.array(a), np.zeros((6, 6)), groups, 6, np.ones(6, bool), np.ones(6), 1e9)
     loo = np.array([np.linalg.solve(sum(a[i] for i in range(n) if groups[i] != g),
                                     sum(b[i] for i in range(n) if groups[i] != g)) for g in range(6)])
     centred = loo - loo.mean(axis=0)
     assert np.allclose(cov, 5 / 6 * centred.T @ centred, rtol=1e-8, atol=1e-14)
+
+
+def _model(h, g, s):
+    return g @ s + 0.5 * s @ h @ s
+
+
+@pytest.mark.parametrize("kind", ["newton inside", "positive definite, long", "indefinite", "hard case"])
+def test_trust_region_step_is_the_lowest_point_of_the_model_in_the_scaled_ball(kind):
+    rng = np.random.default_rng(3)
+    q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    w = {"newton inside": [1, 2, 3, 4, 5, 6], "positive definite, long": [1e-4, 2, 3, 4, 5, 6],
+         "indefinite": [-2, -0.1, 1, 2, 3, 4], "hard case": [-1, 0.5, 1, 2, 3, 4]}[kind]
+    h = q @ np.diag(w) @ q.T
+    g = q @ np.array([0.0 if kind == "hard case" else 0.3, 0.2, -0.1, 0.4, 0.1, -0.2])
+    scale, radius = np.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1]), 0.5
+    step = trust_region_step(h, g, scale, radius)
+    newton = -np.linalg.solve(h, g)
+    if kind == "newton inside":
+        assert np.linalg.norm(scale * newton) < radius and np.allclose(step, newton)
+        return
+    assert np.linalg.norm(scale * step) == pytest.approx(radius, rel=1e-6)
+    ball = rng.normal(size=(20000, 6))
+    ball = ball / np.linalg.norm(ball, axis=1, keepdims=True) * radius * rng.uniform(0, 1, (20000, 1)) ** (1 / 6)
+    others = [_model(h, g, y / scale) for y in ball]
+    assert _model(h, g, step) <= min(others) + 1e-9
+
+
+def test_a_group_that_alone_sees_a_direction_moves_the_jackknife_by_the_kernel_width_not_without_bound():
+    """One frame in groups of image cells: if only one group pins an axis, leaving it out leaves that axis
+    flat (here slightly curved down). The left-out solve is then bounded by the quadratic model's reach, so
+    the jackknife sigma is a few radii, where an unbounded Newton step gave an arbitrarily large one."""
+    rng = np.random.default_rng(4)
+    n, n_groups, radius = 40, 8, np.radians(1.76)
+    groups = np.arange(n) % n_groups
+    hessians = np.array([np.diag([1.0, 1.0, 1.0, 1.0, 1.0, 0.0]) for _ in range(n)])
+    hessians[groups == 0, 5, 5] = 8.0 / 5  # only group 0's 5 clusters see z, and a little negative elsewhere
+    hessians[groups != 0, 5, 5] = -1e-3
+    grads = rng.normal(scale=0.01, size=(n, 6))
+    grads -= grads.mean(axis=0)  # at the solution: the gradient sums to zero
+    cov = _jackknife(grads, hessians, np.zeros((6, 6)), groups, n_groups, np.ones(6, bool), np.ones(6), radius)
+    unbounded = _jackknife(grads, hessians, np.zeros((6, 6)), groups, n_groups, np.ones(6, bool), np.ones(6), 1e9)
+    assert cov is not None and unbounded is not None
+    sigma = np.sqrt(np.diag(cov))
+    assert 0.5 * radius < sigma[5] <= np.sqrt(n_groups - 1) * radius  # z: as unknown as the kernel lets it be
+    assert np.sqrt(unbounded[5, 5]) > 10 * radius
+    assert np.all(sigma[:5] < 0.1 * radius)  # the other axes: their own small spread
 
 
 def _unc(sigma, is_min=True):
