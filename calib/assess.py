@@ -266,15 +266,17 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     # A minimum of what the solve minimised; a direction only the guess's prior holds is reported below as
     # the data leave it (a large sigma), not as a failed solve.
     _, is_min = positive_part(h + kappa * solving_info)
+    # The kernel's width at the finest level, where a Gaussian's curvature changes sign, ends any quadratic
+    # model of the cost; a translation moves edges at the typical range by dt / range radians.
+    radius = float(np.radians(opts.sigmas_deg[-1]))
+    scale = np.array([1.0] * 3 + [1.0 / typical_range_m(feats)] * 3)
     cov_l = np.zeros((6, 6))
-    cov_l[np.ix_(free, free)] = sandwich(h, b, prior_info) if known else np.diag(np.full(int(free.sum()), np.inf))
+    cov_l[np.ix_(free, free)] = sandwich(h, b, prior_info, radius / scale[free]) if known \
+        else np.diag(np.full(int(free.sum()), np.inf))
     groups, n_groups = _groups(clusters, len(feats), trust)
     extra = np.zeros((6, 6))
     extra[np.ix_(free, free)] = kappa * solving_info
-    # A translation moves edges at the typical range by dt / range radians; the kernel's width at the finest
-    # level is where a Gaussian's curvature changes sign, the end of any quadratic model of the cost.
-    scale = np.array([1.0] * 3 + [1.0 / typical_range_m(feats)] * 3)
-    jack = _jackknife(grads, hessians, extra, groups, n_groups, free, scale, float(np.radians(opts.sigmas_deg[-1])))
+    jack = _jackknife(grads, hessians, extra, groups, n_groups, free, scale, radius)
     laplace = sigmas_display(cov_l)
     jack_sigma = None if jack is None else sigmas_display(jack)
     sigma = laplace if jack_sigma is None else np.maximum(laplace, jack_sigma)

@@ -118,3 +118,15 @@ def test_weakest_direction_names_the_ridge_or_the_axis():
 def test_transform_helpers_agree_with_transform_class():
     t = Transform.from_tau(tau_at(TRUTH.tau, np.zeros(6)))
     assert np.allclose(t.matrix, TRUTH.matrix, atol=1e-12)
+
+
+def test_a_direction_the_data_leave_flat_is_known_to_the_kernel_reach_not_to_the_eigenvalue_floor():
+    rng = np.random.default_rng(5)
+    h = np.diag([4e6, 4e6, 4e6, 9e4, 9e4, -1e-6])  # sigma 0.03 deg, 0.3 cm; z: flat (curved down a little)
+    b = np.diag([4e6, 4e6, 4e6, 9e4, 9e4, 1.0]) * (1.0 + 0.01 * rng.uniform(size=6))
+    reach = np.array([0.03] * 3 + [0.4] * 3)  # rad, m
+    free = sandwich(h, b, np.zeros((6, 6)))
+    held = sandwich(h, b, np.zeros((6, 6)), reach)
+    assert free[5, 5] > 100.0  # m^2: set by positive_part's 1e-9 floor, not by the data
+    assert held[5, 5] == pytest.approx(0.4**2 / 3, rel=1e-9)  # a uniform spread over +-reach
+    assert np.allclose(np.diag(held)[:5], np.diag(free)[:5], rtol=1e-9)  # the known axes keep their sigma
