@@ -96,8 +96,12 @@ def _rung_label(score_map: Any, mask_map: Any, sigma: float, wrap_u: bool) -> st
     return f"  field rung sigma {sigma:5.1f} px"
 
 
-def _band_label(fields: Any, k: int, *rest: Any) -> str:
-    return f"  field rung sigma {fields.sigmas_px[k]:5.1f} px (band, on demand)"
+def _band_label(fields: Any, *args: Any) -> str:
+    kernels = args[-1]  # the rung's kernels (and spectra) are _maps' last argument; before, rung k its first
+    radius = kernels.radius if hasattr(kernels, "radius") else None
+    if radius is None:
+        return f"  field rung sigma {fields.sigmas_px[args[0]]:5.1f} px (band, on demand)"
+    return f"  field band chunks, kernel radius {radius:3d} pooled px"
 
 
 def install() -> None:

@@ -15,16 +15,16 @@ The maps are built lazily (docs/performance.md): a rung only when a sample needs
 ``COLUMN_BLOCK`` image columns only for the rows that samples reach (projected LiDAR points cover a band of
 the panorama a few tens of degrees high, tilted with the rig), grown as the samples move. A band is filtered
 with the same zero rows outside the image as the whole map, so a sample's value does not depend on how the
-band grew (up to the rounding of the DFT that ``cv2.filter2D`` uses for large kernels:
-``tests/calib/test_fields.py`` pins it against whole-image maps).
+band grew (chunks of fixed windows, each correlated by FFT: ``tests/calib/test_fields.py`` pins the bands
+against whole-image maps).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
+import scipy.fft
 from numpy.typing import NDArray
 
 from calib.errors import CalibError
@@ -103,6 +103,30 @@ def _kernels(sigma: float, f: int) -> F64:
     cu, cv = -dc_dd * xx * f / d, -dc_dd * yy * f / d
     return np.stack([g, gu, gv, g, gu, gv, c, cu, cv])
 
+
+
+_CHANNEL_MAP = [0, 0, 0, 1, 1, 1, 1, 1, 1]  # the window (score 0, mask 1) each of the nine kernels reads
+
+
+class _Spectra:
+    """One rung's nine kernels, flipped and transformed for each window shape they meet (a growth meets one
+    or two: chunks of ROW_CHUNK rows, a shorter last one; a narrower last column block)."""
+
+    def __init__(self, kernels: F64) -> None:
+        self.flipped = np.ascontiguousarray(kernels[:, ::-1, ::-1])
+        self.radius = kernels.shape[1] // 2
+        self._by_shape: dict[tuple[int, int], tuple[NDArray[np.complex128], tuple[int, int]]] = {}
+
+    def spectra(self, window: tuple[int, ...]) -> tuple[NDArray[np.complex128], tuple[int, int]]:
+        """(9, H', W'//2+1) spectra for a window (H, W), and the transform shape (H', W') >= (H, W)."""
+        key = (int(window[0]), int(window[1]))
+        if key not in self._by_shape:
+            shape = (scipy.fft.next_fast_len(key[0], real=True), scipy.fft.next_fast_len(key[1], real=True))
+            padded = np.zeros((9, *shape))
+            size = self.flipped.shape[1]
+            padded[:, :size, :size] = self.flipped
+            self._by_shape[key] = (scipy.fft.rfft2(padded), shape)
+        return self._by_shape[key]
 
 @dataclass
 class EdgeFields:
@@ -187,15 +211,18 @@ class EdgeFields:
         a, r, w = int(self.offset[k, b]), int(self.rows[k, b]), int(self.bw[k, b])
         return self.flat[a: a + r * w].reshape(r, w, 9)
 
-    def _maps(self, k: int, lo: int, hi: int, c0: int, c1: int, pooled: tuple[F64, F64], kernels: F64) -> F32:
-        """Pooled rows ``lo:hi`` and columns ``c0:c1`` of rung k, (hi - lo, c1 - c0, 9) float32: the 2-D
+    def _maps(self, lo: int, hi: int, c0: int, c1: int, pooled: tuple[F64, F64], kernels: _Spectra) -> F32:
+        """Pooled rows ``lo:hi`` and columns ``c0:c1`` of one rung, (hi - lo, c1 - c0, 9) float32: the 2-D
         correlation of the pooled maps with the rung's ``kernels``, zero outside the image except across the u
-        seam of a panorama, from only the window of the maps the kernels reach."""
-        r = kernels.shape[1] // 2
-        score_map, mask_map = (_window(m, lo - r, hi + r, c0 - r, c1 + r, self.wrap_u) for m in pooled)
-        maps = [cv2.filter2D(score_map if i < 3 else mask_map, cv2.CV_64F, kernels[i],
-                             borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r] for i in range(9)]
-        return np.stack(maps, axis=-1).astype(np.float32)
+        seam of a panorama, from only the window of the maps the kernels reach. By FFT: the window's two
+        transforms times the nine kernels' (made once per window shape), one inverse for all nine; the
+        cyclic wrap of an unpadded transform only reaches the kernel margin, which is cut off."""
+        r = kernels.radius
+        windows = np.stack([_window(m, lo - r, hi + r, c0 - r, c1 + r, self.wrap_u) for m in pooled])
+        spectra, shape = kernels.spectra(windows.shape[1:])
+        product = scipy.fft.rfft2(windows, s=shape)[_CHANNEL_MAP] * spectra
+        maps: F64 = scipy.fft.irfft2(product, s=shape)[:, 2 * r: windows.shape[1], 2 * r: windows.shape[2]]
+        return np.moveaxis(maps, 0, -1).astype(np.float32)
 
     def grow(self, need_lo: I64, need_hi: I64) -> None:
         """Extend the blocks so block (k, b) covers pooled rows ``need_lo[k, b] : need_hi[k, b]`` (nothing
@@ -219,7 +246,7 @@ class EdgeFields:
         new_lo = np.where(self.rows > 0, np.minimum(new_lo, self.row0), new_lo)
         new_hi = np.where(self.rows > 0, np.maximum(new_hi, end), new_hi)
         # Whole chunks of ROW_CHUNK pooled rows only, each always computed from the same window: a cell's
-        # value then does not depend on which rows were asked for first (filter2D's result depends on the
+        # value then does not depend on which rows were asked for first (an FFT's result depends on the
         # window it is given at rounding level, which a long solve can amplify into a different answer).
         new_lo = new_lo // ROW_CHUNK * ROW_CHUNK
         new_hi = np.minimum(-(-new_hi // ROW_CHUNK) * ROW_CHUNK, self.hf[:, None])
@@ -250,16 +277,16 @@ class EdgeFields:
 
     def _compute(self, jobs: list[tuple[int, int, int, int]]) -> dict[tuple[int, int], list[tuple[int, F32]]]:
         """The chunks of ``jobs``, per block in row order. The edge maps are splatted and pooled once per
-        factor, and each rung's kernels made once, for all of them (a chunk's window of the pooled map holds
-        the same sums as the pooled window of the map: windows start on whole pooling cells)."""
+        factor, and each rung's kernels and their spectra made once, for all of them (a chunk's window of the
+        pooled map holds the same sums as the pooled window of the map: windows start on whole pooling cells)."""
         rungs = sorted({k for k, _, _, _ in jobs})
         splat = self._splat()
         pooled = {int(f): (_pool(splat[0], int(f)), _pool(splat[1], int(f))) for f in set(self.factor[rungs])}
-        kernels = {k: _kernels(float(self.sigmas_px[k]), int(self.factor[k])) for k in rungs}
+        kernels = {k: _Spectra(_kernels(float(self.sigmas_px[k]), int(self.factor[k]))) for k in rungs}
         out: dict[tuple[int, int], list[tuple[int, F32]]] = {}
         for k, b, a, z in jobs:
             c0 = b * int(self.cb[k])
-            maps = self._maps(k, a, z, c0, c0 + int(self.bw[k, b]), pooled[int(self.factor[k])], kernels[k])
+            maps = self._maps(a, z, c0, c0 + int(self.bw[k, b]), pooled[int(self.factor[k])], kernels[k])
             out.setdefault((k, b), []).append((a, maps))
         return out
 
