@@ -6,7 +6,7 @@ import dataclasses
 import multiprocessing
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +27,7 @@ from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.advice import SceneFacts, next_steps
+from rigd.calibration.pool import FeaturePool
 from rigd.calibration.visuals import CLOUD_STAGE, OVERLAY_STAGES, cloud_top_view, edge_views, write_coloured_ply
 from rigd.dataset import Dataset, Pair, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
@@ -125,14 +126,15 @@ def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress |
 @contextmanager
 def worker_pool(workers: int) -> Iterator[Executor | None]:
     """``workers`` spawned processes for the pairs' edges and the independent solves of one calibration, or
-    None (one worker, or inside a daemonic pool worker, which cannot have children).
+    None (one worker, or inside a daemonic pool worker, which cannot have children). The workers keep the
+    features they are sent, with the field bands their solves build (:class:`FeaturePool`).
 
     Spawn, not fork (as rigd.evaluate): a child forked while OpenCV's or BLAS's own threads hold a lock can
     deadlock, and those threads are invisible to the threading module. Costs ~1 s of imports per worker."""
     if workers <= 1 or multiprocessing.current_process().daemon:
         yield None
         return
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+    with FeaturePool(workers) as pool:
         yield pool
 
 

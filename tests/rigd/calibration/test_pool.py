@@ -1,0 +1,55 @@
+"""rigd.calibration.pool: workers keep the features they were sent; a later task with them goes to a free
+worker that holds them, and ends where a serial run does."""
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+from calib.assess import TrustOptions
+from calib.geometry import Transform
+from calib.pipeline import CalibParams, calibrate
+from rigd.calibration.pool import FeaturePool
+from tests.calib.synthetic import TRUTH, make_pair
+
+
+def _probe(feats, wait_s=0.0):
+    """(worker pid, band bytes the features held when the task began); then builds a band."""
+    held = sum(f.fields.nbytes for f in feats)
+    feats[0].fields.sample(np.array([[100.0, 100.0]]), np.array([3.0]))
+    time.sleep(wait_s)
+    return os.getpid(), held
+
+
+@pytest.fixture(scope="module")
+def pairs():
+    return [make_pair(1), make_pair(2)]
+
+
+def test_a_task_with_the_same_features_reuses_the_worker_copy_and_its_bands(pairs):
+    with FeaturePool(2) as pool:
+        first_pid, first_held = pool.submit(_probe, pairs).result()
+        again_pid, again_held = pool.submit(_probe, pairs).result()
+        assert first_held == 0  # pickled without bands
+        assert again_pid == first_pid and again_held > 0  # the same copy, with the band the first task built
+        slow = pool.submit(_probe, pairs, 1.0)  # the holder is busy: the next goes to the other worker
+        other_pid, other_held = pool.submit(_probe, pairs).result()
+        assert other_pid != first_pid and other_held == 0
+        assert slow.result()[0] == first_pid
+        fresh_pid, fresh_held = pool.submit(_probe, [make_pair(1), make_pair(2)]).result()
+        assert fresh_held == 0  # another list is sent, never confused with a held one
+
+
+def test_a_calibration_in_the_pool_ends_exactly_where_the_serial_one_does(pairs):
+    guess = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.5, -1.0, 1.0], TRUTH.translation_m + [0.03, -0.02, 0.02])
+    trust = TrustOptions(restarts=2)  # one here, one in the worker that ran the alternative schedule
+    serial = calibrate(pairs, guess, CalibParams(), trust=trust)
+    with FeaturePool(2) as pool:
+        pooled = calibrate(pairs, guess, CalibParams(), trust=trust, executor=pool)
+    assert serial.assessment is not None and pooled.assessment is not None
+    assert np.array_equal(serial.T_camera_lidar.tau, pooled.T_camera_lidar.tau)
+    assert serial.optim.final_cost == pooled.optim.final_cost
+    for a, b in zip(serial.assessment.restarts, pooled.assessment.restarts, strict=True):
+        assert np.array_equal(a.offset, b.offset) and a.delta_nll == b.delta_nll
+    assert serial.assessment.verdict == pooled.assessment.verdict
