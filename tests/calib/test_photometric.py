@@ -14,6 +14,7 @@ from calib.photometric import (
     PhotoCost,
     PhotoPair,
     PhotoParams,
+    average_ranks,
     entropies,
     gom_terms,
     gradient_fit,
@@ -172,3 +173,11 @@ def test_fixed_translation_holds_t():
     start = tau_at(TRUTH.tau, np.array([np.radians(0.3), 0.0, 0.0, 0.0, 0.0, 0.0]))
     result = optimise_photometric([pair], start, replace(_small(PhotoCost.NID), restarts=0), fixed_translation=True)
     assert np.allclose(result.tau[3:], start[3:], atol=1e-9)
+
+
+@pytest.mark.parametrize("values", [np.array([3.0, 1.0, 2.0]), np.array([2.0, 2.0, 1.0, 2.0, 5.0, 1.0]),
+                                    np.round(np.random.default_rng(2).normal(size=500), 1), np.ones(4)])
+def test_average_ranks_are_scipys_rankdata(values):
+    from scipy.stats import rankdata
+
+    assert np.array_equal(average_ranks(values), rankdata(values))
