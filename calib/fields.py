@@ -104,7 +104,6 @@ def _kernels(sigma: float, f: int) -> F64:
     return np.stack([g, gu, gv, g, gu, gv, c, cu, cv])
 
 
-
 _CHANNEL_MAP = [0, 0, 0, 1, 1, 1, 1, 1, 1]  # the window (score 0, mask 1) each of the nine kernels reads
 
 
@@ -127,6 +126,7 @@ class _Spectra:
             padded[:, :size, :size] = self.flipped
             self._by_shape[key] = (scipy.fft.rfft2(padded), shape)
         return self._by_shape[key]
+
 
 @dataclass
 class EdgeFields:
