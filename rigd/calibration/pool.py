@@ -5,6 +5,7 @@ and those are built on demand where the samples land: seconds of work that pickl
 ``EdgeFields`` travels without its bands). This pool sends a features list to a worker once; a later task
 with the same list goes to a worker that holds it, if one is free, and uses that copy with the bands it
 built. Results do not depend on where a task runs: a band's values do not depend on what was sampled before.
+A worker holds what it was sent until the pool closes, at the end of the calibration.
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ def _call(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any])
 
 
 def _is_features(arg: Any) -> bool:
+    """A whole set's features: the global search's one-pair lists are made per task and never come back, so
+    holding them would only fill the workers (a one-pair set is sent each time, as before)."""
     return isinstance(arg, list) and len(arg) > 1 and all(isinstance(f, PairFeatures) for f in arg)
 
 
