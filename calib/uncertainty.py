@@ -161,14 +161,14 @@ def nll_scale(h: F64, b: F64) -> float:
 
 
 def sandwich(h: F64, b: F64, information_prior: F64, reach: F64 | None = None) -> F64:
-    """Covariance (6,6) of the local coordinates: the sandwich H^-1 B H^-1 of the data (``h`` the GMM cost's
+    """Covariance (n,n) of the estimated local coordinates: the sandwich H^-1 B H^-1 of the data (``h`` the GMM cost's
     Hessian alone), combined with the prior's information (NLL units) as a posterior: (H B^-1 H + I_prior)^-1.
 
-    ``reach`` (6,) rad/m: how far the quadratic model of the cost holds along each coordinate (the finest
-    kernel's width). A direction the data leave flat is known no worse than a uniform spread over +-reach:
-    the data's information, in coordinates scaled by ``reach``, is floored at 3 (that spread's). Without it
-    a flat direction's variance was set by the eigenvalue floor's 1e-9 (metres of lever arm, tens of
-    degrees), a number from the arithmetic rather than the data."""
+    ``reach`` (n,) rad/m: how far the quadratic model of the cost holds along each coordinate (the finest
+    kernel's width; n the estimated coordinates). A direction the data leave flat is known no worse than a
+    uniform spread over +-reach: the data's information, in coordinates scaled by ``reach``, is floored at 3
+    (that spread's). Without it a flat direction's variance was set by the eigenvalue floor's 1e-9 (metres of
+    lever arm, tens of degrees), a number from the arithmetic rather than the data."""
     h_data, _ = positive_part(h)
     b_pd, _ = positive_part(b)
     info = h_data @ np.linalg.solve(b_pd, h_data)
