@@ -141,8 +141,8 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
     """Rerun the last levels from ``trust.restarts`` poses around the solution; returns the best run (the
     solution itself unless a restart ended lower) and every restart. With ``executor``, the second half of
     the restarts runs there, in one worker, while this process runs the first half with the field bands the
-    main solve built here (the worker builds its own; a worker per restart would compete with this process for
-    the cores of a small rig computer)."""
+    main solve built here (the worker has only the bands its own solves built, if the application's pool kept
+    them; a worker per restart would compete with this process for the cores of a small rig computer)."""
     rng = np.random.default_rng(trust.seed)
     tail = tail_options(opts, min(trust.restart_levels, len(opts.sigmas_deg)))
     fixed_t = prior is not None and prior.fix_translation
