@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.edges_points import FOLD
+from calib.geometry import rotation_angle_deg, so3_exp
 from calib.gmm import GmmOptions, PairFeatures, in_image, transform_points
 from calib.optimize import (
     OptimOptions,
@@ -85,6 +86,7 @@ class TrustOptions:
     search_runners_up: int = 1  # without an initial guess: the global search's next starts solved in full
     failed_tolerances: float = 5.0  # ambiguity or sigma beyond this many tolerances on most axes: failed
     min_returned_share: float = 0.5  # fewer restarts back at the solution: the cost has several minima nearby
+    max_move_deg: float = 20.0  # a solve that ends farther from its start ran to another alignment (docs/trust.md)
     seed: int = 0
 
     @property
@@ -133,6 +135,7 @@ class Assessment:
     uncertainty: Uncertainty
     restarts: tuple[Restart, ...]
     verdict: Verdict
+    moved_deg: float | None = None  # rotation from the nearest start of a solve to the solution; None: unknown
 
 
 def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptions, gmm: GmmOptions,
@@ -306,12 +309,19 @@ def restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOp
             "minima within the restart offsets")
 
 
-def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> Verdict:
+def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None = None) -> Verdict:
     tol = trust.tolerance_display
     reasons: list[str] = []
     weak = set()
     if not unc.is_minimum:
         return Verdict(Status.FAILED, AXES, ("the solution is not a minimum of the finest-level cost",))
+    if moved_deg is not None and moved_deg > trust.max_move_deg:
+        # Local evidence (sigmas, restarts) describes whatever minimum the solve reached; one this far from
+        # every start is another alignment of the edges, or the start was that far off: neither is checked.
+        return Verdict(Status.FAILED, AXES, (
+            f"the solve ended {moved_deg:.1f} deg from its start, more than {trust.max_move_deg:g} deg: it ran "
+            "to another alignment of the edges, or the start was that far off; the sigmas describe that "
+            "alignment, not the distance to the truth",))
     over = trust.sigma_factor * unc.sigma > tol
     for k in np.flatnonzero(over):
         weak.add(AXES[k])
@@ -346,13 +356,16 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> 
 
 def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions,
            prior: Prior | None, trust: TrustOptions, alternatives: tuple[OptimResult, ...] = (),
-           solving: Prior | None = None, executor: Executor | None = None) -> Assessment:
+           solving: Prior | None = None, executor: Executor | None = None,
+           starts: tuple[F64, ...] = ()) -> Assessment:
     """Restarts, uncertainty and verdict of ``result`` (the coarse-to-fine solution on ``feats``).
     ``alternatives``: full solves from other starts (the global search's runners-up); they count as
     restarts, so one that ends lower becomes the solution and one that ends elsewhere as low is ambiguity.
     ``prior``: the declared prior, part of the reported uncertainty; ``solving`` (default ``prior``): the prior
     the solve used (:func:`calib.pipeline.solve_prior`), with which the restarts run. ``executor``: the
-    application's process pool, where half the restarts run (same result as without it)."""
+    application's process pool, where half the restarts run (same result as without it). ``starts``: the
+    poses (6,) tau the solves started from (the initial guess, the search's runners-up); the solution's
+    rotation from the nearest one is reported, and beyond ``trust.max_move_deg`` fails the result."""
     solving = prior if solving is None else solving
     best, runs = _run_restarts(feats, result, opts, gmm, solving, trust, executor)
     best = min([best, *alternatives], key=lambda r: r.final_cost)
@@ -362,4 +375,5 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
         Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (r.final_cost - best.final_cost) / unc.kappa, origin)
         for r, origin in zip([result, *runs, *alternatives], origins, strict=True) if r is not best
     )
-    return Assessment(best.tau, best, unc, restarts, _verdict(unc, list(restarts), trust))
+    moved = min((rotation_angle_deg(so3_exp(s[:3]), so3_exp(best.tau[:3])) for s in starts), default=None)
+    return Assessment(best.tau, best, unc, restarts, _verdict(unc, list(restarts), trust, moved), moved)

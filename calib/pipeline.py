@@ -209,5 +209,7 @@ def calibrate(
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
     if trust is None:
         return CalibResult(Transform.from_tau(result.tau), result, stats, search=found, guess_sigma_m=guess_sigma)
-    assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()), solving, executor)
+    runner_starts = [] if found is None else [c.tau for c in found.candidates[1:1 + trust.search_runners_up]]
+    assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()), solving, executor,
+                        (tau0, *runner_starts))
     return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found, guess_sigma)

@@ -80,6 +80,10 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[s
         steps.append("the finest level did not end at a minimum: look at the 'before' overlays; if the edge dots "
                      "are far from the image's edges, give a closer --init or let the global search find one "
                      "(--search)")
+    if a.moved_deg is not None and a.moved_deg > trust.max_move_deg:
+        steps.append(f"the solve ran {a.moved_deg:.0f} deg from its start: look at the 'before' overlays; if the edge "
+                     "dots already sat near the image's edges, the scenes hold another alignment as strong (add "
+                     "pairs with buildings, poles or doorways); if not, give a closer --init or use --search")
     weak_t = [ax for ax in TRANSLATION if ax in v.weak_axes]
     weak_r = [ax for ax in ROTATION if ax in v.weak_axes]
     steps.append(_translation(weak_t, facts))

@@ -198,7 +198,7 @@ def assessment_yaml(a: Assessment, steps: tuple[str, ...] = ()) -> dict[str, Any
                           "delta_nll": r.delta_nll} for r in a.restarts],
         },
         "verdict": {"status": v.status.value, "weak_axes": list(v.weak_axes), "reasons": list(v.reasons),
-                    "next_steps": list(steps)},
+                    "next_steps": list(steps), "moved_from_start_deg": a.moved_deg},
     }
 
 

@@ -153,6 +153,35 @@ def test_verdict_trusted_weak_and_failed():
     assert _verdict(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], loose).status is Status.TRUSTED
 
 
+def test_a_solution_far_from_every_start_fails_however_well_determined_it_looks():
+    """Sigmas and restarts are local: a solve that ran 45 deg to another alignment of the edges can have both
+    looking fine (measured: ours_1+2 with a 1 cm lever-arm prior, yaw 45.5 deg off, yaw sigma 0.05 deg)."""
+    trust = TrustOptions()
+    sharp = _unc([0.05] * 3 + [0.5] * 3)
+    assert _verdict(sharp, [], trust, moved_deg=19.0).status is Status.TRUSTED
+    far = _verdict(sharp, [], trust, moved_deg=45.5)
+    assert far.status is Status.FAILED and far.weak_axes == ("roll", "pitch", "yaw", "x", "y", "z")
+    assert "45.5 deg from its start" in far.reasons[0]
+    assert _verdict(sharp, [], TrustOptions(max_move_deg=60.0), moved_deg=45.5).status is Status.TRUSTED
+
+
+def test_assessment_measures_the_rotation_from_the_nearest_start(pairs):
+    start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.5, -1.0, 1.0], TRUTH.translation_m + [0.04, -0.03, 0.03])
+    opts = OptimOptions()
+    result = optimise(pairs, start.tau, opts, FIELD)
+    trust = TrustOptions(restarts=0)
+    near = assess(pairs, result, opts, FIELD, None, trust, starts=(start.tau,))
+    moved = np.degrees(np.linalg.norm(xi_of(start.tau, near.tau)[:3]))
+    assert near.moved_deg == pytest.approx(moved, rel=1e-6) and 1.0 < near.moved_deg < 3.0
+    assert near.verdict.status is Status.TRUSTED
+    elsewhere = Transform.from_rpy_xyz(TRUTH.rpy_deg + [0.0, 0.0, 40.0], TRUTH.translation_m)
+    both = assess(pairs, result, opts, FIELD, None, trust, starts=(elsewhere.tau, start.tau))
+    assert both.moved_deg == pytest.approx(near.moved_deg)  # the nearest start counts
+    only_far = assess(pairs, result, opts, FIELD, None, trust, starts=(elsewhere.tau,))
+    assert only_far.moved_deg == pytest.approx(40.0, abs=2.0) and only_far.verdict.status is Status.FAILED
+    assert assess(pairs, result, opts, FIELD, None, trust).moved_deg is None
+
+
 def test_assessment_of_a_clean_synthetic_solve_is_trusted_and_covers_the_truth(pairs):
     start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.5, -1.0, 1.0], TRUTH.translation_m + [0.04, -0.03, 0.03])
     opts = OptimOptions()

@@ -9,10 +9,10 @@ TRUST = TrustOptions()  # 0.2 deg / 2 cm, 2.5 sigma
 FAR = SceneFacts(pairs=12, typical_range_m=16.0, pixels_per_radian=1000.0, translation_prior=False)
 
 
-def assessment(sigma, status, weak, restarts=(), is_minimum=True):
+def assessment(sigma, status, weak, restarts=(), is_minimum=True, moved_deg=None):
     sigma = np.asarray(sigma, dtype=float)
     unc = Uncertainty(np.eye(6), sigma, sigma, None, 0, "", is_minimum, 1.0, 0.9)
-    return Assessment(np.zeros(6), None, unc, tuple(restarts), Verdict(status, tuple(weak), ("r",)))
+    return Assessment(np.zeros(6), None, unc, tuple(restarts), Verdict(status, tuple(weak), ("r",)), moved_deg)
 
 
 def test_trusted_needs_nothing():
@@ -65,3 +65,12 @@ def test_most_restarts_at_other_minima_point_at_the_edges_and_one_stuck_restart_
     assert any(s.startswith("restarts near the solution ended at other minima") for s in rugged)
     one = next_steps(assessment(sigma, Status.WEAK, ("roll",), [away, back, back, back]), FAR, TRUST)
     assert not any("other minima" in s for s in one)
+
+
+def test_a_solve_that_ran_far_from_its_start_points_at_the_overlays_and_the_guess():
+    sharp = [0.05] * 3 + [0.3] * 3
+    steps = next_steps(assessment(sharp, Status.FAILED, ("yaw",), moved_deg=45.5), FAR, TRUST)
+    assert steps[0].startswith("the solve ran 46 deg from its start") and "--search" in steps[0]
+    assert steps[-1].startswith("do not use this result")
+    near = next_steps(assessment(sharp, Status.FAILED, ("yaw",), moved_deg=3.0), FAR, TRUST)
+    assert not any("ran" in s and "from its start" in s for s in near)
