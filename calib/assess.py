@@ -145,9 +145,14 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
     solution itself unless a restart ended lower) and every restart. With ``executor``, the second half of
     the restarts runs there, in one worker, while this process runs the first half with the field bands the
     main solve built here (the worker has only the bands its own solves built, if the application's pool kept
-    them; a worker per restart would compete with this process for the cores of a small rig computer)."""
+    them; a worker per restart would compete with this process for the cores of a small rig computer).
+    Each level weighs the prior as the solution's did: the restarts minimise the objective the solution
+    minimised, so their final costs compare with its."""
     rng = np.random.default_rng(trust.seed)
     tail = tail_options(opts, min(trust.restart_levels, len(opts.sigmas_deg)))
+    # By level width: the solution may come from a shorter schedule than the tail (the alternative one).
+    solved = {round(t.sigma_in_deg, 9): t.kappa for t in best.levels}
+    kappas = tuple(solved.get(round(s, 9)) for s in tail.sigmas_deg)
     fixed_t = prior is not None and prior.fix_translation
     starts = []
     for _ in range(trust.restarts):
@@ -156,17 +161,17 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
         starts.append(tau_at(best.tau, offset))
     here = len(starts) if executor is None else (len(starts) + 1) // 2
     pending = None if executor is None or here == len(starts) else \
-        executor.submit(_restart_solves, feats, starts[here:], tail, gmm, prior)
-    runs = _restart_solves(feats, starts[:here], tail, gmm, prior)
+        executor.submit(_restart_solves, feats, starts[here:], tail, gmm, prior, kappas)
+    runs = _restart_solves(feats, starts[:here], tail, gmm, prior, kappas)
     runs += [] if pending is None else pending.result()
     winner = min([best, *runs], key=lambda r: r.final_cost)
     return winner, runs
 
 
 def _restart_solves(feats: list[PairFeatures], starts: list[F64], tail: OptimOptions, gmm: GmmOptions,
-                    prior: Prior | None) -> list[OptimResult]:
+                    prior: Prior | None, kappas: tuple[float | None, ...]) -> list[OptimResult]:
     """The restarts from ``starts`` one after the other (in one worker they share the bands it builds)."""
-    return [optimise(feats, s, tail, gmm, None, prior) for s in starts]
+    return [optimise(feats, s, tail, gmm, None, prior, kappas=kappas) for s in starts]
 
 
 def _groups(clusters: Clusters, n_pairs: int, trust: TrustOptions) -> tuple[NDArray[np.int64], int]:

@@ -63,6 +63,7 @@ class LevelTrace:
     converged: bool
     costs: tuple[float, ...]
     tau: F64
+    kappa: float = 1.0  # the weight of the prior's NLL in this level's cost (its scale in NLL units)
 
 
 @dataclass(frozen=True)
@@ -258,8 +259,10 @@ def tail_options(opts: OptimOptions, k: int) -> OptimOptions:
 def _coarse_to_fine(
     feats: list[PairFeatures], tau0: F64, opts: OptimOptions, gmm: GmmOptions,
     on_iter: Callable[[int, int, float], None] | None, prior: Prior | None = None,
+    kappas: tuple[float | None, ...] | None = None,
 ) -> OptimResult:
-    """Algorithm 1: coarse-to-fine over ``opts.sigmas_deg`` (with the prior's MAP term if given)."""
+    """Algorithm 1: coarse-to-fine over ``opts.sigmas_deg`` (with the prior's MAP term if given, weighted per
+    level by ``kappas`` if given, else by the level cost's scale estimated where the level starts)."""
     tau = np.asarray(tau0, dtype=np.float64).copy()
     range_m = typical_range_m(feats)
     r_typ = range_m if opts.precondition else 1.0
@@ -270,13 +273,17 @@ def _coarse_to_fine(
     for level, sigma_deg in enumerate(opts.sigmas_deg):
         sigma_rad = float(np.radians(sigma_deg))
         model = level_model(feats, opts, gmm, level)
-        kappa = estimate_kappa(model, tau, steps, opts.cluster_cell_deg) if steps is not None else 1.0
+        given = None if kappas is None else kappas[level]
+        if given is not None:
+            kappa = given
+        else:
+            kappa = estimate_kappa(model, tau, steps, opts.cluster_cell_deg) if steps is not None else 1.0
         prob = _Problem(feats, model.gmm, list(model.sigma_in_px), opts.numerical_gradient, prior, kappa)
         cb = (lambda i, c, lv=level: on_iter(lv, i, c)) if on_iter else None
         moves_t = not fixed_t and level >= opts.rotation_only_levels
         level_scale = scale * ([1.0] * 3 + [1.0 if moves_t else 0.0] * 3)
         tau, trace = _run_level(prob, tau, opts, level_scale, sigma_rad, range_m, cb)
-        levels.append(trace)
+        levels.append(replace(trace, kappa=kappa))
     return OptimResult(tau, tuple(levels), all(t.converged for t in levels), levels[-1].costs[-1])
 
 
@@ -288,9 +295,12 @@ def optimise(
     on_iter: Callable[[int, int, float], None] | None = None,
     prior: Prior | None = None,
     executor: Executor | None = None,
+    kappas: tuple[float | None, ...] | None = None,
 ) -> OptimResult:
     """Coarse-to-fine from ``tau0``, also run with the first ``opts.alternative_schedules`` levels left out;
-    the run ending at the lowest finest-level cost wins. ``on_iter(level, iteration, cost)``.
+    the run ending at the lowest finest-level cost wins. ``on_iter(level, iteration, cost)``. ``kappas``
+    (one per level, None to estimate): the prior's weight per level, to minimise the objective an earlier
+    solve minimised (restarts); by default each level estimates it where it starts.
 
     A wide first level widens the basin on a 12-pair set (outdoor: 5/8 -> 10/10 converged from +-5 deg /
     +-10 cm) but on a small set (2 pairs) it can also pull a good start into a far minimum; every schedule
@@ -302,11 +312,13 @@ def optimise(
     """
     shorter = [replace(opts, sigmas_deg=opts.sigmas_deg[k:], rotation_only_levels=0)
                for k in range(1, min(opts.alternative_schedules, len(opts.sigmas_deg) - 1) + 1)]
-    pending = [executor.submit(_coarse_to_fine, feats, tau0, s, gmm, None, prior) for s in shorter] \
+    cut = [None if kappas is None else kappas[len(opts.sigmas_deg) - len(s.sigmas_deg):] for s in shorter]
+    runs = list(zip(shorter, cut, strict=True))
+    pending = [executor.submit(_coarse_to_fine, feats, tau0, s, gmm, None, prior, k) for s, k in runs] \
         if executor is not None else []
-    best = _coarse_to_fine(feats, tau0, opts, gmm, on_iter, prior)
+    best = _coarse_to_fine(feats, tau0, opts, gmm, on_iter, prior, kappas)
     others = [f.result() for f in pending] if executor is not None \
-        else (_coarse_to_fine(feats, tau0, s, gmm, None, prior) for s in shorter)
+        else (_coarse_to_fine(feats, tau0, s, gmm, None, prior, k) for s, k in runs)
     for other in others:
         if other.final_cost < best.final_cost:
             best = other

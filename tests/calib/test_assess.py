@@ -11,6 +11,7 @@ from calib.assess import (
     TrustOptions,
     Uncertainty,
     _jackknife,
+    _run_restarts,
     _verdict,
     assess,
     trust_region_step,
@@ -180,6 +181,27 @@ def test_assessment_measures_the_rotation_from_the_nearest_start(pairs):
     only_far = assess(pairs, result, opts, FIELD, None, trust, starts=(elsewhere.tau,))
     assert only_far.moved_deg == pytest.approx(40.0, abs=2.0) and only_far.verdict.status is Status.FAILED
     assert assess(pairs, result, opts, FIELD, None, trust).moved_deg is None
+
+
+def test_restarts_weigh_the_prior_as_the_solution_did(pairs):
+    """The prior's weight kappa is the level cost's scale where a level starts; restarts reuse the solution's
+    per level instead of estimating their own, so they minimise the same objective (and skip 13 gradient
+    evaluations a level)."""
+    opts = dataclasses.replace(OptimOptions(), alternative_schedules=0)
+    prior = Prior(TRUTH.translation_m + [0.02, -0.01, 0.0], np.full(3, 0.1))
+    start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.5, -1.0, 1.0], TRUTH.translation_m + [0.04, -0.03, 0.03])
+    result = optimise(pairs, start.tau, opts, FIELD, prior=prior)
+    kappas = tuple(t.kappa for t in result.levels)
+    assert len(set(kappas)) == len(kappas) and all(k > 0 for k in kappas)  # estimated per level
+    again = optimise(pairs, start.tau, opts, FIELD, prior=prior, kappas=kappas)
+    assert np.array_equal(again.tau, result.tau) and again.final_cost == result.final_cost
+    _, runs = _run_restarts(pairs, result, opts, FIELD, prior, TrustOptions(restarts=2), None)
+    for run in runs:
+        assert tuple(t.kappa for t in run.levels) == kappas[-2:]
+    # A solution from a shorter schedule (the alternative one) lacks a level of the tail: estimated there.
+    short = optimise(pairs, result.tau, dataclasses.replace(opts, sigmas_deg=opts.sigmas_deg[-1:]), FIELD, prior=prior)
+    _, runs = _run_restarts(pairs, short, opts, FIELD, prior, TrustOptions(restarts=1), None)
+    assert runs[0].levels[1].kappa == short.levels[0].kappa and runs[0].levels[0].kappa > 0
 
 
 def test_assessment_of_a_clean_synthetic_solve_is_trusted_and_covers_the_truth(pairs):
