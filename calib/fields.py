@@ -296,25 +296,26 @@ class EdgeFields:
         return sample_fields([self], [len(uv)], uv, sigma)
 
 
-def _corners(ladder: EdgeFields, kk: I64, uv: F64) -> tuple[list[F64], list[I64], list[I64], list[Mask]]:
-    """The 4 bilinear corners of each centre on each of its rungs ``kk`` (N,2): weights (zero outside the
-    image), pooled columns (clipped, wrapped if panorama) and rows, and whether the corner is inside."""
+def _corners(ladder: EdgeFields, kk: I64, uv: F64) -> tuple[F64, I64, I64, Mask]:
+    """The 4 bilinear corners of each centre on each of its rungs ``kk`` (N,2), as (4, N, 2) arrays: weights
+    (zero outside the image), pooled columns (clipped, wrapped if panorama) and rows, and whether the corner
+    is inside."""
     f, hf, wf = ladder.factor[kk], ladder.hf[kk], ladder.wf[kk]
     x = (uv[:, 0, None] - (f - 1) / 2.0) / f
     y = (uv[:, 1, None] - (f - 1) / 2.0) / f
     x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
     ax, ay = x - x0, y - y0
-    weights, xs, ys, oks = [], [], [], []
-    for dx, dy, wgt in ((0, 0, (1 - ax) * (1 - ay)), (1, 0, ax * (1 - ay)), (0, 1, (1 - ax) * ay), (1, 1, ax * ay)):
-        xi, yi = x0 + dx, y0 + dy
-        if ladder.wrap_u:
-            xi = np.mod(xi, wf)
-        ok = (xi >= 0) & (xi < wf) & (yi >= 0) & (yi < hf)
-        weights.append(np.where(ok, wgt, 0.0))
-        xs.append(np.clip(xi, 0, wf - 1))
-        ys.append(yi)
-        oks.append(ok)
-    return weights, xs, ys, oks
+    xi = x0 + _CORNER_DX  # corners (0, 0), (1, 0), (0, 1), (1, 1)
+    yi = y0 + _CORNER_DY
+    if ladder.wrap_u:
+        xi = np.mod(xi, wf)
+    ok = (xi >= 0) & (xi < wf) & (yi >= 0) & (yi < hf)
+    wx, wy = np.stack([1 - ax, ax, 1 - ax, ax]), np.stack([1 - ay, 1 - ay, ay, ay])
+    return np.where(ok, wx * wy, 0.0), np.minimum(np.maximum(xi, 0), wf - 1), yi, ok
+
+
+_CORNER_DX = np.array([0, 1, 0, 1])[:, None, None]
+_CORNER_DY = np.array([0, 0, 1, 1])[:, None, None]
 
 
 def sample_fields(fields: list[EdgeFields], sizes: list[int], uv: F64, sigma: F64) -> F64:
@@ -331,14 +332,40 @@ def sample_fields(fields: list[EdgeFields], sizes: list[int], uv: F64, sigma: F6
     k0 = np.floor(pos).astype(np.int64)
     t = pos - k0
     kk = np.stack([k0, np.minimum(k0 + 1, n_rungs - 1)], axis=1)  # (N, 2): the rungs below and above
-    weights, xs, ys, oks = _corners(ladder, kk, uv)
+    weights, x_all, y_all, ok_all = _corners(ladder, kk, uv)  # (4, N, 2)
     owner = np.repeat(np.arange(len(fields)), sizes)
-    ok_all, y_all, x_all = np.stack(oks), np.stack(ys), np.stack(xs)  # (4, N, 2)
     block = x_all // ladder.cb[kk]
-    key = (owner[:, None] * n_rungs + kk) * n_blocks + block
-    cells_per_image = n_rungs * n_blocks
-    need_lo = np.full(len(fields) * cells_per_image, np.iinfo(np.int64).max)
-    need_hi = np.full(len(fields) * cells_per_image, -1)
+    key = (owner[:, None] * n_rungs + kk) * n_blocks + block  # (4, N, 2): image, rung, column block
+    row0, rows = _built_rows(fields, key)
+    if np.any(ok_all & ((rows == 0) | (y_all < row0) | (y_all >= row0 + rows))):
+        _grow(fields, key, y_all, ok_all)
+        row0, rows = _built_rows(fields, key)
+    offset = np.concatenate([f.offset.ravel() for f in fields])[key]
+    bw = ladder.bw.ravel()[kk * n_blocks + block]
+    row_in_block = np.minimum(np.maximum(y_all - row0, 0), np.maximum(rows - 1, 0))  # np.clip, faster on ints
+    cells = offset + row_in_block * bw + x_all - block * ladder.cb[kk]
+    vals = np.zeros((4, len(uv), 2, 9), np.float32)
+    ends = np.cumsum(sizes)
+    for f, end, n in zip(fields, ends, sizes, strict=True):
+        if n and len(f.flat):
+            np.take(f.flat, cells[:, end - n:end], axis=0, out=vals[:, end - n:end], mode="clip")
+    both = np.zeros((len(uv), 2, 9))  # bilinear on the rung below and the one above
+    for c in range(4):
+        both += weights[c][:, :, None] * vals[c]
+    return np.asarray((1.0 - t[:, None]) * both[:, 0] + t[:, None] * both[:, 1], dtype=np.float64)
+
+
+def _built_rows(fields: list[EdgeFields], key: I64) -> tuple[I64, I64]:
+    """First built pooled row and number of built rows of the block each corner ``key`` falls in."""
+    return (np.concatenate([f.row0.ravel() for f in fields])[key],
+            np.concatenate([f.rows.ravel() for f in fields])[key])
+
+
+def _grow(fields: list[EdgeFields], key: I64, y_all: I64, ok_all: Mask) -> None:
+    """Build the rows the inside corners (pooled rows ``y_all``, blocks ``key``) need and no block has."""
+    n_rungs, n_blocks = fields[0].rows.shape
+    need_lo = np.full(len(fields) * n_rungs * n_blocks, np.iinfo(np.int64).max)
+    need_hi = np.full(len(fields) * n_rungs * n_blocks, -1)
     np.minimum.at(need_lo, key[ok_all], y_all[ok_all])
     np.maximum.at(need_hi, key[ok_all], y_all[ok_all] + 1)
     shape = (len(fields), n_rungs, n_blocks)
@@ -347,17 +374,3 @@ def sample_fields(fields: list[EdgeFields], sizes: list[int], uv: F64, sigma: F6
     short = (hi_p > lo_p) & ((built == 0) | (lo_p < built0) | (hi_p > built0 + built))
     for p in np.flatnonzero(short.any(axis=(1, 2))):
         fields[p].grow(lo_p[p], hi_p[p])
-    at = (owner[:, None], kk, block)
-    row0, rows, offset = (np.stack([getattr(f, a) for f in fields])[at] for a in ("row0", "rows", "offset"))
-    bw = ladder.bw[kk, block]
-    cells = offset + np.clip(y_all - row0, 0, np.maximum(rows - 1, 0)) * bw + x_all - block * ladder.cb[kk]
-    vals = np.zeros((4, len(uv), 2, 9), np.float32)
-    ends = np.cumsum(sizes)
-    for f, end, n in zip(fields, ends, sizes, strict=True):
-        if n and len(f.flat):
-            vals[:, end - n:end] = f.flat[np.clip(cells[:, end - n:end], 0, len(f.flat) - 1)]
-    lo, hi = np.zeros((len(uv), 9)), np.zeros((len(uv), 9))
-    for c in range(4):
-        lo += weights[c][:, 0, None] * vals[c, :, 0]
-        hi += weights[c][:, 1, None] * vals[c, :, 1]
-    return np.asarray((1.0 - t[:, None]) * lo + t[:, None] * hi, dtype=np.float64)
