@@ -28,6 +28,16 @@ def skew(v: F64) -> F64:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
+def cross_rows(a: F64, b: F64) -> F64:
+    """Row-wise cross product of (N,3) arrays: np.cross's arithmetic, without its general axis handling,
+    which costs more than the products on the few hundred rows of one pair."""
+    out = np.empty((len(a), 3))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def so3_exp(omega: F64) -> F64:
     """Rotation matrix ``exp(omega^)`` (paper eq. 4), Rodrigues' formula; ``omega`` (3,) rad."""
     omega = np.asarray(omega, dtype=np.float64)

@@ -35,7 +35,7 @@ from calib.camera import CameraModel, Equirectangular
 from calib.edges_image import EdgePixels
 from calib.edges_points import FOLD, EdgePoints
 from calib.fields import SOFT_REACH, EdgeFields, gaussian_kernel, sample_fields, soft_disk
-from calib.geometry import left_jacobian, so3_exp
+from calib.geometry import cross_rows, left_jacobian, so3_exp
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -166,14 +166,17 @@ def _pairs_within(feat: PairFeatures, uv: F64, radius: F64) -> tuple[I64, I64]:
     for q, c in zip(queries, centres, strict=True):
         if not len(q):
             continue
-        lists = tree.query_ball_point(c, radius[q], return_sorted=False)
+        lists = tree.query_ball_point(c, radius[q], return_sorted=True)
         counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
         rows.append(np.repeat(q, counts))
         cols.append(np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum())))
     if not rows:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i_idx, j_idx = np.concatenate(rows), np.concatenate(cols)
-    key = np.unique(i_idx * n_pix + j_idx)  # a pixel found twice through the seam counts once
+    key = np.concatenate(rows) * n_pix + np.concatenate(cols)  # the first part sorted by (point, pixel)
+    if len(rows) > 1:  # pixels found across the seam: merge them in
+        # Found twice only if a disk reaches round the whole panorama; else a (stable) merge of sorted runs.
+        twice = 2.0 * float(radius.max()) >= float(feat.camera.width)
+        key = np.unique(key) if twice else np.sort(key, kind="stable")
     return key // n_pix, key % n_pix
 
 
@@ -329,5 +332,5 @@ def cost_and_gradient(
         # eq. 30: d p_cam / d omega = -(R p)^ J (left Jacobian, eq. 31);  d p_cam / d t = I.
         # a^T (-(Rp)^) = (Rp x a)^T.
         grad[3:] += terms.d_pcam.sum(axis=0)
-        grad[:3] += np.cross(terms.rotated, terms.d_pcam).sum(axis=0) @ jac_l
+        grad[:3] += cross_rows(terms.rotated, terms.d_pcam).sum(axis=0) @ jac_l
     return CostGrad(total, grad, n_active)

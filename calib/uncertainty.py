@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.geometry import so3_exp, so3_log
+from calib.geometry import cross_rows, so3_exp, so3_log
 from calib.gmm import Frozen, GmmOptions, PairFeatures, freeze_all, pair_terms, transform_points
 
 F64 = NDArray[np.float64]
@@ -103,7 +103,7 @@ def local_gradient(model: LevelModel, frozen: list[Frozen], tau_hat: F64, xi: F6
         if terms.index.size == 0:
             continue
         # d p_cam / d delta = -R_at (p^) for R = R_at exp(delta^): a^T(-R_at p^) = (p x R_at^T a)^T.
-        g = np.concatenate([np.cross(terms.rotated, terms.d_pcam) @ r_at, terms.d_pcam], axis=1)
+        g = np.concatenate([cross_rows(terms.rotated, terms.d_pcam) @ r_at, terms.d_pcam], axis=1)
         lab = labels[terms.index]
         for k in range(6):
             out[:, k] += np.bincount(lab, weights=g[:, k], minlength=clusters.count)

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from calib.errors import GeometryError
 from calib.geometry import (
     Transform,
+    cross_rows,
     left_jacobian,
     matrix_to_quaternion_xyzw,
     matrix_to_rpy_deg,
@@ -256,3 +257,11 @@ def test_bad_inputs_raise_geometry_error() -> None:
         Transform(np.diag([1.0, 1.0, -1.0]), np.zeros(3))  # a reflection is not a rotation
     with pytest.raises(GeometryError):
         Transform(np.eye(3), np.array([0.0, np.nan, 0.0]))
+
+
+@pytest.mark.parametrize("n", [0, 1, 5, 400])
+def test_cross_rows_is_np_cross_to_the_last_bit(n):
+    rng = np.random.default_rng(n)
+    a, b = rng.normal(size=(n, 3)) * 10.0, rng.normal(size=(n, 3))
+    assert np.array_equal(cross_rows(a, b), np.cross(a, b).reshape(n, 3))
+    assert np.array_equal(cross_rows(a, a), np.zeros((n, 3)))
