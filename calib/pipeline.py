@@ -151,15 +151,12 @@ def solve_prior(prior: Prior | None, guess: Transform, params: CalibParams) -> P
     return replace(prior, xyz_m=guess.translation_m, sigma_xyz_m=sigma)
 
 
-def _alternatives(feats: list[PairFeatures], found: SearchResult | None, optim: OptimOptions, gmm: GmmOptions,
-                  prior: Prior | None, runners_up: int, executor: Executor | None) -> Callable[[], list[OptimResult]]:
-    """Full solves from the global search's next-best distinct starts (the assessment weighs them): started
-    in ``executor`` now if given, so they run while this process solves from the best start; call the result
-    to collect them."""
-    if found is None:
-        return list
+def _alternatives(feats: list[PairFeatures], starts: list[F64], optim: OptimOptions, gmm: GmmOptions,
+                  prior: Prior | None, executor: Executor | None) -> Callable[[], list[OptimResult]]:
+    """Full solves from ``starts``, the global search's next-best distinct starts (the assessment weighs
+    them): started in ``executor`` now if given, so they run while this process solves from the best start;
+    call the result to collect them."""
     single = replace(optim, alternative_schedules=0)
-    starts = [c.tau for c in found.candidates[1:1 + runners_up]]
     if executor is None:
         return lambda: [optimise(feats, s, single, gmm, None, prior) for s in starts]
     pending = [executor.submit(optimise, feats, s, single, gmm, None, prior) for s in starts]
@@ -201,15 +198,15 @@ def calibrate(
             f"(more than {params.max_translation_m} m): not a rig")
     check_initial_guess(feats, tau0)
     optim = schedule(feats, params)
-    others = _alternatives(feats, found, optim, params.gmm, prior, 0 if trust is None else trust.search_runners_up,
-                           executor)
+    runners_up = 0 if trust is None or found is None else trust.search_runners_up
+    runner_starts = [] if found is None else [c.tau for c in found.candidates[1:1 + runners_up]]
+    others = _alternatives(feats, runner_starts, optim, params.gmm, prior, executor)
     solving = prior if found is not None else solve_prior(prior, initial, params)
     guess_sigma = params.guess_sigma_m if solving is not prior else None
     result = optimise(feats, tau0, optim, params.gmm, on_iter, solving, executor)
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
     if trust is None:
         return CalibResult(Transform.from_tau(result.tau), result, stats, search=found, guess_sigma_m=guess_sigma)
-    runner_starts = [] if found is None else [c.tau for c in found.candidates[1:1 + trust.search_runners_up]]
     assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()), solving, executor,
                         (tau0, *runner_starts))
     return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found, guess_sigma)
