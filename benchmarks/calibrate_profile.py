@@ -115,12 +115,15 @@ def install() -> None:
     else:
         instrument(calib.fields.EdgeFields, "grow", "field maps (rung bands built on demand)")
         instrument(calib.fields.EdgeFields, "_maps", _band_label)
-    instrument(calib.gmm, "_sums_exact", "exact sums (k-d tree enumeration)")
+    instrument(calib.gmm, "_sums_exact", "exact sums (pixel enumeration)")
     if hasattr(calib.gmm, "sample_fields"):
         instrument(calib.gmm, "sample_fields", "field sampling (incl. bands built)")
     else:
         instrument(calib.gmm.EdgeFields, "sample", "field sampling (incl. bands built)")
-    instrument(calib.pipeline, "cKDTree", "k-d tree of edge pixels")
+    if hasattr(calib.pipeline, "cKDTree"):  # before the compiled exact sums (calib.pixel_grid)
+        instrument(calib.pipeline, "cKDTree", "k-d tree of edge pixels")
+    else:
+        instrument(calib.pipeline.PixelGrid, "build", "pixel grid of edge pixels")
     instrument(calib.optimize, "_run_level", _level_label)
     instrument(calib.optimize, "_coarse_to_fine", _schedule_label)
     instrument(calib.assess, "_uncertainty", "assess: uncertainty (sandwich + jackknife)")

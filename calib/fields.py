@@ -28,6 +28,7 @@ import scipy.fft
 from numpy.typing import NDArray
 
 from calib.errors import CalibError
+from calib.field_gather import gather
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -322,13 +323,30 @@ def sample_fields(fields: list[EdgeFields], sizes: list[int], uv: F64, sigma: F6
     """(N, 9) samples of several images' fields at once: the first ``sizes[0]`` centres ``uv`` (N,2) px with
     widths ``sigma`` (N,) px on ``fields[0]``, the next ``sizes[1]`` on ``fields[1]``, ... Bilinear in space
     (zero outside the image, wrapping u if panorama), linear in log sigma between the two nearest rungs.
-    The images must share one ladder (size, sigmas, wrap): one camera and one set of options."""
+    The images must share one ladder (size, sigmas, wrap): one camera and one set of options.
+
+    Compiled (:mod:`calib.field_gather`) while every corner falls on built rows; else the bands grow first."""
     ladder = fields[0]
     if any(f.width != ladder.width or f.height != ladder.height or f.wrap_u != ladder.wrap_u
            or not np.array_equal(f.sigmas_px, ladder.sigmas_px) for f in fields):
         raise CalibError("sample_fields needs images with one ladder of rungs (same camera and options)")
-    n_rungs, n_blocks = ladder.rows.shape
+    n_rungs = ladder.rows.shape[0]
     pos = np.clip(np.log2(sigma / ladder.sigmas_px[0]) * RUNGS_PER_OCTAVE, 0.0, n_rungs - 1.000001)
+    uv = np.ascontiguousarray(uv, dtype=np.float64)
+    out = np.zeros((len(uv), 9))
+    for f, end, n in zip(fields, np.cumsum(sizes), sizes, strict=True):
+        part = slice(int(end) - n, int(end))
+        if n and not gather(uv[part], pos[part], ladder.factor, ladder.hf, ladder.wf, ladder.cb, ladder.bw,
+                            f.row0, f.rows, f.offset, f.flat, f.wrap_u, out[part]):
+            return _sample_growing(fields, sizes, uv, pos)
+    return out
+
+
+def _sample_growing(fields: list[EdgeFields], sizes: list[int], uv: F64, pos: F64) -> F64:
+    """:func:`sample_fields` at rung positions ``pos`` (N,), growing the bands its corners need first (numpy:
+    the same arithmetic as :mod:`calib.field_gather`)."""
+    ladder = fields[0]
+    n_rungs, n_blocks = ladder.rows.shape
     k0 = np.floor(pos).astype(np.int64)
     t = pos - k0
     kk = np.stack([k0, np.minimum(k0 + 1, n_rungs - 1)], axis=1)  # (N, 2): the rungs below and above

@@ -16,26 +16,26 @@ kernel height is a constant per level (``KernelNorm.LEVEL``) instead of the pape
 the cost by pushing points away; ``KernelNorm.PAPER`` keeps eq. 9 for the ablation.
 
 Two evaluators give the same model: ``Evaluator.EXACT`` enumerates every (point, pixel) pair within 3 sigma
-(the paper's Algorithm 2, a k-d tree makes it fast enough for tests and checks), and ``Evaluator.FIELD``
-precomputes, per image, the sums over pixels as Gaussian-filtered maps at a ladder of sigmas and samples them
-at the projected points (see :mod:`calib.fields`), which is what makes coarse levels with wide sigmas cheap.
+(the paper's Algorithm 2, over the pixels bucketed in a grid, in compiled code: :mod:`calib.pixel_grid`), and
+``Evaluator.FIELD`` precomputes, per image, the sums over pixels as Gaussian-filtered maps at a ladder of sigmas
+and samples them at the projected points (see :mod:`calib.fields`), which is what makes coarse levels with wide
+sigmas cheap.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
-from itertools import chain
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from calib.camera import CameraModel, Equirectangular
 from calib.edges_image import EdgePixels
 from calib.edges_points import FOLD, EdgePoints
-from calib.fields import SOFT_REACH, EdgeFields, gaussian_kernel, sample_fields, soft_disk
+from calib.fields import EdgeFields, sample_fields
 from calib.geometry import cross_rows, left_jacobian, so3_exp
+from calib.pixel_grid import PixelGrid
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -89,7 +89,14 @@ class PairFeatures:
     pixels: EdgePixels
     points: EdgePoints
     fields: EdgeFields | None = None
-    pixel_tree: cKDTree | None = None
+    pixel_grid: PixelGrid | None = None
+
+    def grid(self) -> PixelGrid:
+        """The edge pixels bucketed for the exact evaluator (built here if the features came without it)."""
+        if self.pixel_grid is not None:
+            return self.pixel_grid
+        return PixelGrid.build(self.pixels.uv, self.pixels.score, self.camera.width, self.camera.height,
+                               isinstance(self.camera, Equirectangular))
 
 
 @dataclass(frozen=True)
@@ -150,36 +157,6 @@ def _kernel_height(sigma: F64, sigma_in_px: F64, opts: GmmOptions) -> F64:
     return np.asarray(1.0 / (_SQRT_2PI * sigma_in_px), dtype=np.float64)
 
 
-def _pairs_within(feat: PairFeatures, uv: F64, radius: F64) -> tuple[I64, I64]:
-    """(point index, pixel index) of every edge pixel within ``radius`` of each centre (k-d tree)."""
-    tree = feat.pixel_tree if feat.pixel_tree is not None else cKDTree(feat.pixels.uv)
-    n_pix = len(feat.pixels.uv)
-    queries = [np.arange(len(uv))]
-    centres = [uv]
-    if isinstance(feat.camera, Equirectangular):  # the seam: look for pixels across u = 0 / w too
-        w = float(feat.camera.width)
-        for shift, near in ((w, uv[:, 0] < radius), (-w, uv[:, 0] > w - radius)):
-            queries.append(np.flatnonzero(near))  # only centres within reach of the seam can find any
-            centres.append(uv[near] + [shift, 0.0])
-    rows: list[I64] = []
-    cols: list[I64] = []
-    for q, c in zip(queries, centres, strict=True):
-        if not len(q):
-            continue
-        lists = tree.query_ball_point(c, radius[q], return_sorted=True)
-        counts = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
-        rows.append(np.repeat(q, counts))
-        cols.append(np.fromiter(chain.from_iterable(lists), dtype=np.int64, count=int(counts.sum())))
-    if not rows:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    key = np.concatenate(rows) * n_pix + np.concatenate(cols)  # the first part sorted by (point, pixel)
-    if len(rows) > 1:  # pixels found across the seam: merge them in
-        # Found twice only if a disk reaches round the whole panorama; else a (stable) merge of sorted runs.
-        twice = 2.0 * float(radius.max()) >= float(feat.camera.width)
-        key = np.unique(key) if twice else np.sort(key, kind="stable")
-    return key // n_pix, key % n_pix
-
-
 def _camera_groups(feats: list[PairFeatures]) -> list[list[int]]:
     """Indices of the pairs, in runs that share one camera model object (a dataset's pairs all do), so
     projections and the per-point algebra run once per run instead of once per pair."""
@@ -213,23 +190,12 @@ def freeze(feat: PairFeatures, tau: F64, sigma_in_px: float, opts: GmmOptions) -
 
 def _sums_exact(feats: list[PairFeatures], parts: list[slice], uv: F64, sigma: F64) -> F64:
     """(N, 9) like :func:`calib.fields.sample_fields`, by enumerating the pixels near each centre: centres
-    ``uv[parts[k]]`` (px) with widths ``sigma[parts[k]]`` on the pixels of ``feats[k]``, all one camera."""
-    found = [(_pairs_within(f, uv[part], SOFT_REACH * sigma[part]), f, part.start)
-             for f, part in zip(feats, parts, strict=True) if part.stop > part.start]
-    i_idx = np.concatenate([np.zeros(0, np.int64), *(i + start for (i, _), _, start in found)])
-    q = np.concatenate([np.zeros((0, 2)), *(f.pixels.uv[j] for (_, j), f, _ in found)])
-    e = np.concatenate([np.zeros(0), *(f.pixels.score[j] for (_, j), f, _ in found)])
-    delta = feats[0].camera.displacement(q, uv[i_idx])  # d delta / d centre = -I
-    s_i = sigma[i_idx]
-    d2 = np.sum(delta**2, axis=1)
-    g = gaussian_kernel(d2, s_i)
-    g_full = np.where(d2 <= 9.0 * s_i**2, np.exp(-0.5 * d2 / s_i**2), 0.0)
-    dg = g_full[:, None] * delta / (s_i**2)[:, None]  # d G / d centre
-    d = np.sqrt(d2)
-    soft, dsoft = soft_disk(d, s_i)
-    dsoft_c = -(dsoft / np.maximum(d, 1e-12))[:, None] * delta  # d soft / d centre
-    cols = [e * g, e * dg[:, 0], e * dg[:, 1], g, dg[:, 0], dg[:, 1], soft, dsoft_c[:, 0], dsoft_c[:, 1]]
-    return np.stack([np.bincount(i_idx, weights=c, minlength=len(uv)) for c in cols], axis=1)
+    ``uv[parts[k]]`` (px) with widths ``sigma[parts[k]]`` on the pixels of ``feats[k]`` (:mod:`calib.pixel_grid`)."""
+    out = np.zeros((len(uv), 9))
+    for f, part in zip(feats, parts, strict=True):
+        if part.stop > part.start:
+            out[part] = f.grid().sums(uv[part], sigma[part])
+    return out
 
 
 def _point_terms(sums: F64, sigma: F64, sigma_in_px: F64, opts: GmmOptions, p_score: F64) -> tuple[F64, F64]:

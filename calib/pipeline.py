@@ -9,7 +9,6 @@ from enum import Enum
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from calib.assess import Assessment, TrustOptions, assess
 from calib.camera import CameraModel, Equirectangular
@@ -28,6 +27,7 @@ from calib.geometry import Transform
 from calib.gmm import Evaluator, GmmOptions, KernelNorm, PairFeatures, in_image, transform_points
 from calib.initial import SearchOptions, SearchResult, search_initial
 from calib.optimize import OptimOptions, OptimResult, optimise
+from calib.pixel_grid import PixelGrid
 from calib.prior import Prior
 
 F64 = NDArray[np.float64]
@@ -114,7 +114,8 @@ def extract_features(pair: PairInput, camera: CameraModel, params: CalibParams, 
         floor = max(params.gmm.sigma_floor_px, np.radians(params.gmm.sigma_floor_deg) * camera.pixels_per_radian)
         fields = EdgeFields.build(pixels.uv, pixels.score, camera.width, camera.height, wrap,
                                   floor, params.gmm.sigma_ceiling_px)
-    return PairFeatures(camera, pixels, points, fields, cKDTree(pixels.uv))
+    grid = PixelGrid.build(pixels.uv, pixels.score, camera.width, camera.height, wrap)
+    return PairFeatures(camera, pixels, points, fields, grid)
 
 
 def check_initial_guess(feats: list[PairFeatures], tau0: F64) -> int:

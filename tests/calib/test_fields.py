@@ -9,7 +9,8 @@ import pytest
 import scipy.fft
 
 from calib.edges_image import l0_smooth
-from calib.fields import EdgeFields, _kernels, _pool, sample_fields
+from calib.field_gather import gather
+from calib.fields import RUNGS_PER_OCTAVE, EdgeFields, _kernels, _pool, _sample_growing, sample_fields
 from calib.gmm import Evaluator, GmmOptions, freeze, pair_terms, point_terms
 from tests.calib.synthetic import TRUTH, make_pair
 
@@ -156,3 +157,30 @@ def test_samples_do_not_depend_on_what_was_sampled_before(pair):
     fresh, used = _fresh(pair), _fresh(pair)
     used.sample(*_centres(pair, (0.0, 120.0), 300, 7))
     assert np.array_equal(used.sample(uv, sigma), fresh.sample(uv, sigma))
+
+
+def test_compiled_gather_equals_the_numpy_path_bit_for_bit(pair):
+    """calib.field_gather samples built bands with the numpy path's arithmetic in its order: the same bits."""
+    fields = _fresh(pair)
+    uv, sigma = _centres(pair, (20.0, 230.0), 500, 11)
+    uv[:20, 0] = np.linspace(-3.0, 3.0, 20)  # across the seam
+    grown = fields.sample(uv, sigma)  # the numpy path: it grows the bands first
+    pos = np.clip(np.log2(sigma / fields.sigmas_px[0]) * RUNGS_PER_OCTAVE, 0.0, fields.rows.shape[0] - 1.000001)
+    out = np.zeros((len(uv), 9))
+    assert gather(uv, pos, fields.factor, fields.hf, fields.wf, fields.cb, fields.bw, fields.row0, fields.rows,
+                  fields.offset, fields.flat, fields.wrap_u, out)
+    np.testing.assert_array_equal(out, grown)
+    np.testing.assert_array_equal(_sample_growing([fields], [len(uv)], uv, pos), grown)
+
+
+def test_compiled_gather_asks_for_growth_on_an_unbuilt_row(pair):
+    fields = _fresh(pair)
+    fields.sample(*_centres(pair, (120.0, 130.0), 50, 12))
+    uv = np.array([[100.0, 10.0]])  # a row no sample has reached
+    out = np.zeros((1, 9))
+    pos = np.zeros(1)
+    assert not gather(uv, pos, fields.factor, fields.hf, fields.wf, fields.cb, fields.bw, fields.row0,
+                      fields.rows, fields.offset, fields.flat, fields.wrap_u, out)
+    fields.sample(uv, np.full(1, fields.sigmas_px[0]))  # grows that row's blocks, then samples
+    assert gather(uv, pos, fields.factor, fields.hf, fields.wf, fields.cb, fields.bw, fields.row0,
+                  fields.rows, fields.offset, fields.flat, fields.wrap_u, out)
