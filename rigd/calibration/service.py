@@ -115,12 +115,16 @@ def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress |
             if progress:
                 progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
             feats.append(_pair_features(dataset, params, i))
-        return feats
-    futures = [executor.submit(_pair_features, dataset, params, i) for i in range(len(dataset))]
-    for done, _ in enumerate(as_completed(futures)):
-        if progress:
-            progress(f"edges of {done + 1}/{len(dataset)} pairs", done / len(dataset))
-    return [f.result() for f in futures]
+    else:
+        futures = [executor.submit(_pair_features, dataset, params, i) for i in range(len(dataset))]
+        for done, _ in enumerate(as_completed(futures)):
+            if progress:
+                progress(f"edges of {done + 1}/{len(dataset)} pairs", done / len(dataset))
+        feats = [f.result() for f in futures]
+    # One camera object for all pairs (each pair's was made, or unpickled, on its own): the cost projects and
+    # sums the pairs that share one camera object together (calib.gmm.pair_terms), not one pair at a time.
+    camera = dataset.rig.camera.model()
+    return [dataclasses.replace(f, camera=camera) for f in feats]
 
 
 @contextmanager
