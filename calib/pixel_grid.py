@@ -78,15 +78,15 @@ class PixelGrid:
 
 def _route_py(du: float, dv_direct: float, vp: float, vc: float, width: float, height: float,
            wrap_u: bool) -> tuple[float, float]:
-    """The displacement (du, dv) px from a centre to a pixel: direct for a pinhole; for a panorama the
-    shortest of direct (across the seam if shorter) and over either pole (calib.camera.Equirectangular)."""
+    """The displacement (du, dv) px from a centre to a pixel, given ``du`` already the shorter way round a
+    panorama: direct for a pinhole; for a panorama the shorter of that and over either pole
+    (calib.camera.Equirectangular)."""
     if not wrap_u:
         return du, dv_direct
-    du_direct = du - width * np.round(du / width)
     du_pole = du - width / 2.0
     du_pole = du_pole - width * np.round(du_pole / width)
-    best_u, best_v = du_direct, dv_direct
-    best = du_direct * du_direct + dv_direct * dv_direct
+    best_u, best_v = du, dv_direct
+    best = du * du + dv_direct * dv_direct
     for dv in (-(vp + vc), 2.0 * height - vp - vc):  # over the north pole, over the south pole
         d2 = du_pole * du_pole + dv * dv
         if d2 < best:
@@ -143,7 +143,7 @@ def _sums_py(centres: F64, sigma: F64, q: F64, score: F64, starts: I64, rows: in
                     dv = q[j, 1] - cv
                     if du * du + dv * dv > reach * reach:  # the k-d tree's ball: within reach, across the seam
                         continue
-                    du, dv = _route(q[j, 0] - cu, dv, q[j, 1], cv, width, height, wrap_u)
+                    du, dv = _route(du, dv, q[j, 1], cv, width, height, wrap_u)
                     _accumulate(out, i, du, dv, score[j], s)
 
 
