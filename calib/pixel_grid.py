@@ -77,11 +77,11 @@ class PixelGrid:
 
 
 def _route_py(du: float, dv_direct: float, vp: float, vc: float, width: float, height: float,
-           wrap_u: bool) -> tuple[float, float]:
+              poles: bool) -> tuple[float, float]:
     """The displacement (du, dv) px from a centre to a pixel, given ``du`` already the shorter way round a
-    panorama: direct for a pinhole; for a panorama the shorter of that and over either pole
-    (calib.camera.Equirectangular)."""
-    if not wrap_u:
+    panorama: direct, or for a panorama centre near a pole (``poles``) the shorter of that and over either
+    pole (calib.camera.Equirectangular)."""
+    if not poles:
         return du, dv_direct
     du_pole = du - width / 2.0
     du_pole = du_pole - width * np.round(du_pole / width)
@@ -122,9 +122,14 @@ def _accumulate_py(out: F64, i: int, du: float, dv: float, e: float, s: float) -
 def _sums_py(centres: F64, sigma: F64, q: F64, score: F64, starts: I64, rows: int, cols: int, cell_w: float,
              cell_h: float, width: float, height: float, wrap_u: bool, out: F64) -> None:
     """:meth:`PixelGrid.sums` written into ``out`` (N, 9); compiled as ``_sums_kernel``."""
+    half = width / 2.0
+    v_lo, v_hi = q[:, 1].min(), q[:, 1].max()
     for i in range(centres.shape[0]):
         cu, cv, s = centres[i, 0], centres[i, 1], sigma[i]
         reach = SOFT_REACH * s
+        reach2 = reach * reach
+        # A route over a pole beats a direct one within reach only if it is itself within reach.
+        poles = wrap_u and (cv + v_lo < reach or 2.0 * height - v_hi - cv < reach)
         r_lo = max(int(math.floor((cv - reach) / cell_h)), 0)
         r_hi = min(int(math.floor((cv + reach) / cell_h)), rows - 1)
         c_lo = int(math.floor((cu - reach) / cell_w))
@@ -138,12 +143,15 @@ def _sums_py(centres: F64, sigma: F64, q: F64, score: F64, starts: I64, rows: in
                 cell = r * cols + (c % cols if wrap_u else c)
                 for j in range(starts[cell], starts[cell + 1]):
                     du = q[j, 0] - cu
-                    if wrap_u:
-                        du = du - width * np.round(du / width)
+                    if wrap_u:  # the shorter way round the seam
+                        if du > half:
+                            du -= width
+                        elif du < -half:
+                            du += width
                     dv = q[j, 1] - cv
-                    if du * du + dv * dv > reach * reach:  # the k-d tree's ball: within reach, across the seam
+                    if du * du + dv * dv > reach2:  # the k-d tree's ball: within reach, across the seam
                         continue
-                    du, dv = _route(du, dv, q[j, 1], cv, width, height, wrap_u)
+                    du, dv = _route(du, dv, q[j, 1], cv, width, height, poles)
                     _accumulate(out, i, du, dv, score[j], s)
 
 
