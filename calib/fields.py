@@ -39,6 +39,7 @@ RUNGS_PER_OCTAVE = 3
 BAND_BLOCK = 16  # bands grow by whole blocks of this many image rows, so they are extended rarely
 ROW_CHUNK = 32  # pooled rows computed together (fixed windows: history-independent values; 32: docs/performance.md)
 COLUMN_BLOCK = 128  # image columns that share one row band (a tilted LiDAR band moves ~60 rows across one)
+POOL_FROM_PX = 4.0  # rungs this wide are built on pooled maps; narrower ones at full resolution
 
 
 TRUNCATION = float(np.exp(-4.5))  # G at 3 sigma: subtracted so the truncated kernel is continuous
@@ -82,7 +83,7 @@ def _window(image: F64, r0: int, r1: int, c0: int, c1: int, wrap_u: bool) -> F64
 
 
 def _factor(sigma: float, width: int, wrap_u: bool) -> int:
-    f = int(2 ** max(0, int(np.floor(np.log2(sigma / 2.0))))) if sigma >= 4.0 else 1
+    f = int(2 ** max(0, int(np.floor(np.log2(sigma / 2.0))))) if sigma >= POOL_FROM_PX else 1
     return 1 if wrap_u and width % f else f
 
 
@@ -184,6 +185,13 @@ class EdgeFields:
         n = int(np.ceil(np.log2(sigma_max / sigma_min) * RUNGS_PER_OCTAVE)) + 1
         sigmas = sigma_min * 2.0 ** (np.arange(n) / RUNGS_PER_OCTAVE)
         return cls(np.asarray(uv, np.float64), np.asarray(score, np.float64), width, height, wrap_u, sigmas)
+
+    @property
+    def pooled_from_px(self) -> float:
+        """The narrowest centre width (px) whose samples read only rungs at least ``POOL_FROM_PX`` wide (the
+        next rung below is full resolution); inf if no rung is that wide."""
+        wide = self.sigmas_px[self.sigmas_px >= POOL_FROM_PX]
+        return float(wide[0]) if len(wide) else float("inf")
 
     @property
     def nbytes(self) -> int:

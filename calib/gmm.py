@@ -19,7 +19,9 @@ Two evaluators give the same model: ``Evaluator.EXACT`` enumerates every (point,
 (the paper's Algorithm 2, over the pixels bucketed in a grid, in compiled code: :mod:`calib.pixel_grid`), and
 ``Evaluator.FIELD`` precomputes, per image, the sums over pixels as Gaussian-filtered maps at a ladder of sigmas
 and samples them at the projected points (see :mod:`calib.fields`), which is what makes coarse levels with wide
-sigmas cheap.
+sigmas cheap. The fields serve only the centres wide enough for pooled rungs (sigma >= 4 px): a narrower
+centre reaches few pixels, whose exact sums cost less than building and holding a full-resolution rung
+(docs/performance.md).
 """
 
 from __future__ import annotations
@@ -198,6 +200,22 @@ def _sums_exact(feats: list[PairFeatures], parts: list[slice], uv: F64, sigma: F
     return out
 
 
+def _sums_field(feats: list[PairFeatures], fields: list[EdgeFields], parts: list[slice], uv: F64, sigma: F64) -> F64:
+    """(N, 9) sums for ``Evaluator.FIELD``: sampled from the fields where a centre is wide enough to read only
+    pooled rungs, exact (:func:`_sums_exact`) where it is narrower."""
+    narrow = sigma < fields[0].pooled_from_px
+    out = np.zeros((len(uv), 9))
+    for mask, by_fields in ((~narrow, True), (narrow, False)):
+        counts = [int(np.count_nonzero(mask[p])) for p in parts]
+        if not sum(counts):
+            continue
+        if by_fields:
+            out[mask] = sample_fields(fields, counts, uv[mask], sigma[mask])
+        else:
+            out[mask] = _sums_exact(feats, _slices(counts), uv[mask], sigma[mask])
+    return out
+
+
 def _point_terms(sums: F64, sigma: F64, sigma_in_px: F64, opts: GmmOptions, p_score: F64) -> tuple[F64, F64]:
     """Per point: V_i = sum_j w_ij G_ij (eqs. 8-10) and dV_i / d centre (N,2), from the (N, 9) sums over the
     pixels near each centre (:meth:`EdgeFields.sample` or :func:`_sums_exact`).
@@ -258,7 +276,7 @@ def pair_terms(
         uv_g, sigma = uv[glob], np.concatenate([frozen[i].sigma_px for i in group])[glob]
         fields = [feats[i].fields for i in group]
         if opts.evaluator is Evaluator.FIELD and all(f is not None for f in fields):
-            sums = sample_fields([f for f in fields if f is not None], [len(x) for x in sel], uv_g, sigma)
+            sums = _sums_field([feats[i] for i in group], [f for f in fields if f is not None], parts, uv_g, sigma)
         else:
             sums = _sums_exact([feats[i] for i in group], parts, uv_g, sigma)
         s_in = np.repeat(np.array([sigma_in_px[i] for i in group], dtype=np.float64), [len(x) for x in sel])

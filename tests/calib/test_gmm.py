@@ -44,7 +44,7 @@ def test_analytic_gradient_matches_finite_differences_of_the_frozen_model(pairs,
 
 def test_field_evaluator_agrees_with_exact_enumeration(pairs):
     tau = TRUTH.tau + np.array([0.01, 0.0, -0.01, 0.02, 0.0, 0.0])
-    for deg in (1.0, 3.0, 5.0):
+    for deg in (10.0, 20.0, 40.0):  # wide enough for the pooled rungs (narrower centres are summed exactly)
         s = _sigma_px(pairs, deg)
         exact = _frozen_cost(pairs, tau, s, EXACT)[1]
         field = _frozen_cost(pairs, tau, s, FIELD)[1]
@@ -70,3 +70,18 @@ def test_optimiser_recovers_truth_from_a_perturbed_start(pairs):
     assert np.linalg.norm(found.translation_m - TRUTH.translation_m) < 0.02
     for level in result.levels:  # the cost never rises across accepted iterations by more than refreezing noise
         assert level.costs[-1] <= level.costs[0] + 1e-9
+
+
+def test_field_evaluator_sums_narrow_centres_exactly_and_builds_no_full_resolution_rung():
+    feats = [make_pair(1)]  # its own fields: nothing built yet
+    ladder = feats[0].fields
+    narrow_share = {}
+    for deg in (3.0, 10.0, 20.0):
+        s = _sigma_px(feats, deg)
+        frozen, field = _frozen_cost(feats, TRUTH.tau, s, FIELD)
+        narrow_share[deg] = float(np.mean(frozen[0].sigma_px < ladder.pooled_from_px))
+        if narrow_share[deg] == 1.0:
+            assert field.cost == _frozen_cost(feats, TRUTH.tau, s, EXACT)[1].cost
+    assert narrow_share[3.0] == 1.0 and 0.0 < narrow_share[10.0] < 1.0 and narrow_share[20.0] == 0.0
+    assert ladder.rows[ladder.factor == 1].sum() == 0  # the memory a full-resolution band would take
+    assert ladder.rows[ladder.factor > 1].sum() > 0
