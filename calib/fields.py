@@ -186,12 +186,20 @@ class EdgeFields:
         sigmas = sigma_min * 2.0 ** (np.arange(n) / RUNGS_PER_OCTAVE)
         return cls(np.asarray(uv, np.float64), np.asarray(score, np.float64), width, height, wrap_u, sigmas)
 
-    @property
-    def pooled_from_px(self) -> float:
-        """The narrowest centre width (px) whose samples read only rungs at least ``POOL_FROM_PX`` wide (the
-        next rung below is full resolution); inf if no rung is that wide."""
-        wide = self.sigmas_px[self.sigmas_px >= POOL_FROM_PX]
-        return float(wide[0]) if len(wide) else float("inf")
+    def rung_position(self, sigma: F64) -> F64:
+        """Where widths ``sigma`` (N,) px fall on the ladder (N,): rung floor(pos) and the next, mixed by the
+        fraction (clipped to the ladder's ends)."""
+        n_rungs = len(self.sigmas_px)
+        return np.asarray(np.clip(np.log2(sigma / self.sigmas_px[0]) * RUNGS_PER_OCTAVE, 0.0, n_rungs - 1.000001),
+                          dtype=np.float64)
+
+    def reads_pooled(self, sigma: F64) -> Mask:
+        """(N,) whether a centre of width ``sigma`` px samples only rungs at least ``POOL_FROM_PX`` wide (those
+        built on pooled maps; narrower rungs are full resolution)."""
+        wide = np.flatnonzero(self.sigmas_px >= POOL_FROM_PX)
+        if not len(wide):
+            return np.zeros(len(sigma), dtype=bool)
+        return np.asarray(np.floor(self.rung_position(sigma)) >= wide[0], dtype=bool)
 
     @property
     def nbytes(self) -> int:
@@ -338,8 +346,7 @@ def sample_fields(fields: list[EdgeFields], sizes: list[int], uv: F64, sigma: F6
     if any(f.width != ladder.width or f.height != ladder.height or f.wrap_u != ladder.wrap_u
            or not np.array_equal(f.sigmas_px, ladder.sigmas_px) for f in fields):
         raise CalibError("sample_fields needs images with one ladder of rungs (same camera and options)")
-    n_rungs = ladder.rows.shape[0]
-    pos = np.clip(np.log2(sigma / ladder.sigmas_px[0]) * RUNGS_PER_OCTAVE, 0.0, n_rungs - 1.000001)
+    pos = ladder.rung_position(sigma)
     uv = np.ascontiguousarray(uv, dtype=np.float64)
     out = np.zeros((len(uv), 9))
     for f, end, n in zip(fields, np.cumsum(sizes), sizes, strict=True):

@@ -203,7 +203,7 @@ def _sums_exact(feats: list[PairFeatures], parts: list[slice], uv: F64, sigma: F
 def _sums_field(feats: list[PairFeatures], fields: list[EdgeFields], parts: list[slice], uv: F64, sigma: F64) -> F64:
     """(N, 9) sums for ``Evaluator.FIELD``: sampled from the fields where a centre is wide enough to read only
     pooled rungs, exact (:func:`_sums_exact`) where it is narrower."""
-    narrow = sigma < fields[0].pooled_from_px
+    narrow = ~fields[0].reads_pooled(sigma)
     out = np.zeros((len(uv), 9))
     for mask, by_fields in ((~narrow, True), (narrow, False)):
         counts = [int(np.count_nonzero(mask[p])) for p in parts]

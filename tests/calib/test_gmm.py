@@ -79,7 +79,7 @@ def test_field_evaluator_sums_narrow_centres_exactly_and_builds_no_full_resoluti
     for deg in (3.0, 10.0, 20.0):
         s = _sigma_px(feats, deg)
         frozen, field = _frozen_cost(feats, TRUTH.tau, s, FIELD)
-        narrow_share[deg] = float(np.mean(frozen[0].sigma_px < ladder.pooled_from_px))
+        narrow_share[deg] = float(np.mean(~ladder.reads_pooled(frozen[0].sigma_px)))
         if narrow_share[deg] == 1.0:
             assert field.cost == _frozen_cost(feats, TRUTH.tau, s, EXACT)[1].cost
     assert narrow_share[3.0] == 1.0 and 0.0 < narrow_share[10.0] < 1.0 and narrow_share[20.0] == 0.0
