@@ -353,6 +353,9 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, mov
         reasons.append("the pose is not determined: several axes are off by more than "
                        f"{trust.failed_tolerances:g} tolerances")
         return Verdict(Status.FAILED, tuple(a for a in AXES if a in weak), tuple(reasons))
+    if len(weak) == len(AXES):  # `weak` vouches for the axes it does not name; here it would name none
+        reasons.append("no axis is known to its tolerance: no part of this result can be used")
+        return Verdict(Status.FAILED, AXES, tuple(reasons))
     if weak:
         return Verdict(Status.WEAK, tuple(a for a in AXES if a in weak), tuple(reasons))
     return Verdict(Status.TRUSTED, (), (f"every axis within tolerance at {trust.sigma_factor:g} sigma; "

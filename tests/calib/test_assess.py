@@ -150,6 +150,13 @@ def test_verdict_trusted_weak_and_failed():
     assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [far_tie], trust).status is Status.FAILED
     assert _verdict(_unc([0.05] * 6, is_min=False), [], trust).status is Status.FAILED
     assert _verdict(_unc([2.0] * 3 + [30.0] * 3), [], trust).status is Status.FAILED
+    # Every axis over its tolerance, two of them far (measured: ours_1+2 with a 1 cm lever-arm prior, 8.3 deg
+    # off, roll and pitch sigma 1.6 and 0.65 deg, yaw 0.16 deg, the prior's 1 cm): nothing is vouched for.
+    none_known = _verdict(_unc([1.56, 0.65, 0.16, 1.0, 1.0, 1.0]), [], trust)
+    assert none_known.status is Status.FAILED and none_known.weak_axes == ("roll", "pitch", "yaw", "x", "y", "z")
+    assert "no axis is known" in none_known.reasons[-1]
+    five = _verdict(_unc([1.56, 0.65, 0.05, 1.0, 1.0, 1.0]), [], trust)  # yaw known: the rest is named
+    assert five.status is Status.WEAK and "yaw" not in five.weak_axes
     loose = TrustOptions(tolerance_trans_cm=10.0)  # the rig file's tolerance decides
     assert _verdict(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], loose).status is Status.TRUSTED
 
