@@ -13,16 +13,19 @@ from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, write_groun
 from rigd.errors import DatasetError, RigdError
 
 JPEG_QUALITY = 85  # a moderate Ladybug5 stream setting: blocking and ringing at edges
+DETECT_RANGE_M = 60.0  # with dropouts: a 10 % target's detection range (an assumption, drivers.sim.LidarConfig)
 
 
 def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, width: int = 1024,
                             height: int = 512, range_noise_m: float = 0.02, progress: bool = True,
-                            sensor_effects: bool = False) -> Path:
+                            sensor_effects: bool = False, dropouts: bool = False) -> Path:
     """Simulate ``pairs`` pairs (pair i = location i of dataset ``seed``) into the new dataset ``out_dir``.
 
     Writes rig.yaml (equirectangular ``width`` x ``height``, VLP-16), ground_truth.yaml (the simulator's
     T_camera_lidar) and pairs/NNNN. Refuses an existing non-empty directory. ``sensor_effects``: the
-    stitched Ladybug5 sensors, JPEG images and the VLP-16's beam footprint (docs/simulator.md).
+    stitched Ladybug5 sensors, JPEG images and the VLP-16's beam footprint (docs/simulator.md). ``dropouts``:
+    energy-limited returns (dark ground at grazing incidence drops out; the same seed's other returns are
+    unchanged).
     """
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -32,7 +35,8 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
         raise RigdError(f"--pairs must be at least 1, got {pairs}")
     sim_kind = scene_kind(kind)
     footprint = Footprint() if sensor_effects else None
-    lidar = LidarConfig(range_noise_m=range_noise_m, footprint=footprint)
+    lidar = LidarConfig(range_noise_m=range_noise_m, footprint=footprint,
+                        detect_range_m=DETECT_RANGE_M if dropouts else None)
     rig = SimRig(SimConfig(width=width, height=height, lidar=lidar,
                            stitch=StitchConfig() if sensor_effects else None,
                            jpeg_quality=JPEG_QUALITY if sensor_effects else None))

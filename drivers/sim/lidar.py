@@ -69,18 +69,28 @@ class Footprint:
 
 @dataclass(frozen=True)
 class LidarConfig:
-    """Noise and limits: range noise sigma (m), usable range (m), reflectivity noise sigma (counts), and the
-    beam ``footprint`` (None: an ideal thin beam, no mixed returns)."""
+    """Noise and limits: range noise sigma (m), usable range (m), reflectivity noise sigma (counts), the beam
+    ``footprint`` (None: an ideal thin beam, no mixed returns), and energy-limited detection.
+
+    ``detect_range_m``: a return needs the echo energy ``albedo * cos(incidence) / r^2`` of a 10 % diffuse
+    target at normal incidence at this range, varied from pulse to pulse by a log-normal factor of sigma
+    ``energy_noise`` (None: every hit within range returns). Dark asphalt seen at grazing incidence then drops
+    out some tens of metres ahead, at random near the limit, as real returns do. 60 m for a 10 % target is an
+    assumption in the VLP-16's range ("up to 100 m"), not a datasheet figure."""
 
     range_noise_m: float = 0.02
     min_range_m: float = 0.5
     max_range_m: float = 100.0
     reflectivity_noise: float = 1.0
     footprint: Footprint | None = None
+    detect_range_m: float | None = None
+    energy_noise: float = 0.3
 
     def __post_init__(self) -> None:
-        if self.range_noise_m < 0 or self.reflectivity_noise < 0:
+        if self.range_noise_m < 0 or self.reflectivity_noise < 0 or self.energy_noise < 0:
             raise SimError("LiDAR noise figures must be >= 0")
+        if self.detect_range_m is not None and not self.detect_range_m > 0:
+            raise SimError(f"LiDAR detection range must be > 0 m, got {self.detect_range_m}")
         if not 0 <= self.min_range_m < self.max_range_m:
             raise SimError(f"LiDAR range limits must satisfy 0 <= min < max, got {self.min_range_m}, "
                            f"{self.max_range_m}")
@@ -141,8 +151,10 @@ def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config:
     noisy = depth_m + rng.normal(0.0, cfg.range_noise_m, size=len(beams))
     ranges = np.round(noisy / RANGE_RESOLUTION_M) * RANGE_RESOLUTION_M
     valid = np.isfinite(depth_m) & (ranges >= cfg.min_range_m) & (ranges <= cfg.max_range_m)
-    ranges = np.where(valid, ranges, 0.0)
     counts = 100.0 * bright + rng.normal(0.0, cfg.reflectivity_noise, size=len(beams))
+    if cfg.detect_range_m is not None:  # drawn last: the same seed gives the same ranges with or without it
+        valid &= _detected(depth_m, bright, cfg.detect_range_m, cfg.energy_noise, rng)
+    ranges = np.where(valid, ranges, 0.0)
     reflectivity = np.where(valid, np.clip(np.rint(counts), 0, 255), 0).astype(np.uint8)
     laser = np.tile(np.arange(N_LASERS, dtype=np.int16), FIRINGS_PER_TURN)
     keep = np.flatnonzero(valid)
@@ -156,6 +168,16 @@ def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config:
         ranges_m=ranges.reshape(FIRINGS_PER_TURN, N_LASERS),
         reflectivity=reflectivity.reshape(FIRINGS_PER_TURN, N_LASERS),
     )
+
+
+def _detected(depth_m: F64, bright: F64, detect_range_m: float, energy_noise: float,
+              rng: np.random.Generator) -> NDArray[np.bool_]:
+    """(M,) whether each beam's echo (range ``depth_m``, ``albedo * cos(incidence)`` ``bright``) is strong
+    enough to be detected (:class:`LidarConfig`)."""
+    energy = np.where(np.isfinite(depth_m), bright / np.maximum(np.where(np.isfinite(depth_m), depth_m, 1.0), 0.5) ** 2,
+                      0.0)
+    pulse = np.exp(rng.normal(0.0, energy_noise, size=len(depth_m)))
+    return np.asarray(energy * pulse >= 0.1 / detect_range_m**2, dtype=bool)
 
 
 def _footprint_returns(scene: Scene, pose_world_lidar: Pose, origins: F64, beams: F64,

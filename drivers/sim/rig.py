@@ -159,6 +159,9 @@ class SimRig:
             meta["jpeg_quality"] = int(cfg.jpeg_quality)
         if cfg.lidar.footprint is not None:
             meta["beam_footprint"] = dataclasses.asdict(cfg.lidar.footprint)
+        if cfg.lidar.detect_range_m is not None:
+            meta["lidar_detection"] = {"detect_range_m": float(cfg.lidar.detect_range_m),
+                                       "energy_noise": float(cfg.lidar.energy_noise)}
         return SimCapture(image, sweep, meta, scene, pose_cam, pose_lidar)
 
 

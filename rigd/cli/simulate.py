@@ -43,13 +43,17 @@ def register(subparsers: Any) -> None:
                         help="what a real rig adds (docs/simulator.md): the Ladybug5's separate sensors stitched "
                         "(parallax of near objects, blended seams, per-sensor gain and falloff), JPEG images, "
                         "and the VLP-16's beam footprint (mixed returns at depth edges)")
+    parser.add_argument("--dropouts", action="store_true",
+                        help="energy-limited LiDAR returns: dark ground at grazing incidence drops out some tens "
+                        "of metres ahead, at random near the limit (docs/simulator.md)")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     height = args.height if args.height is not None else max(1, args.width // 2)
     out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, args.width, height, args.noise_m,
-                                  sensor_effects=args.sensor_effects)
-    extra = " with sensor effects" if args.sensor_effects else ""
+                                  sensor_effects=args.sensor_effects, dropouts=args.dropouts)
+    extra = "".join(text for on, text in ((args.sensor_effects, " with sensor effects"),
+                                          (args.dropouts, " with LiDAR dropouts")) if on)
     print(f"wrote {args.pairs} simulated {args.scene} pairs ({args.width}x{height}){extra} to {out}")
     return 0

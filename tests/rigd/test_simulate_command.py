@@ -74,12 +74,18 @@ def test_simulate_rejects_bad_arguments(tmp_path):
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
+def _without_and_with(tmp_path, scene, flag):
+    """Pair 0 of seed 3 simulated without and with ``flag``."""
+    common = ["--scene", scene, "--pairs", "1", "--seed", "3", "--width", "256"]
+    out = []
+    for name, extra in (("plain", []), ("flagged", [flag])):
+        assert main(["simulate", str(tmp_path / name), *common, *extra]) == 0
+        out.append(open_dataset(tmp_path / name).load_pair(0))
+    return out
+
+
 def test_simulate_sensor_effects_are_recorded_and_change_the_data(tmp_path):
-    plain, real = tmp_path / "plain", tmp_path / "effects"
-    common = ["--scene", "indoor", "--pairs", "1", "--seed", "3", "--width", "256"]
-    assert main(["simulate", str(plain), *common]) == 0
-    assert main(["simulate", str(real), *common, "--sensor-effects"]) == 0
-    a, b = open_dataset(plain).load_pair(0), open_dataset(real).load_pair(0)
+    a, b = _without_and_with(tmp_path, "indoor", "--sensor-effects")
     assert "stitched_sensors" not in a.meta and "beam_footprint" not in a.meta
     assert b.meta["stitched_sensors"]["sphere_radius_m"] == 20.0 and b.meta["jpeg_quality"] == 85
     assert b.meta["beam_footprint"]["divergence_mrad"] == 3.0
@@ -87,3 +93,14 @@ def test_simulate_sensor_effects_are_recorded_and_change_the_data(tmp_path):
     moved = np.linalg.norm(a.cloud.points_lidar - b.cloud.points_lidar, axis=1) > 0.05
     assert 0 < np.count_nonzero(moved) < 0.05 * len(moved)
     assert np.abs(a.image.astype(int) - b.image.astype(int)).mean() > 1.0
+
+
+def test_simulate_dropouts_are_recorded_and_only_remove_returns(tmp_path):
+    a, b = _without_and_with(tmp_path, "outdoor", "--dropouts")
+    assert "lidar_detection" not in a.meta and b.meta["lidar_detection"]["detect_range_m"] == 60.0
+    # The same draws otherwise: every return with dropouts is one without them; the far road lost some.
+    kept = {tuple(p) for p in np.round(a.cloud.points_lidar, 6)}
+    assert all(tuple(p) in kept for p in np.round(b.cloud.points_lidar, 6))
+    lost = len(a.cloud.points_lidar) - len(b.cloud.points_lidar)
+    assert 0.01 * len(a.cloud.points_lidar) < lost
+    np.testing.assert_array_equal(a.image, b.image)

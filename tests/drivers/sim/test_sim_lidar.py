@@ -99,6 +99,33 @@ def test_reflectivity_is_albedo_times_cosine_of_incidence():
     assert sweep.intensity.dtype == np.float32 and sweep.reflectivity.dtype == np.uint8
 
 
+def test_energy_limited_detection_drops_a_dark_floor_at_grazing_incidence_first():
+    """Echo energy albedo * cos(incidence) / r^2 against a 10 % target at normal incidence at detect_range_m.
+    On a floor of albedo 0.12 from 1.7 m, cos(incidence) = sin(-w): each laser's share of returns follows
+    the chance that the log-normal pulse factor lifts its energy over the limit."""
+    from scipy.stats import norm
+
+    albedo, detect_m, noise = 0.12, 60.0, 0.3
+    cfg = LidarConfig(range_noise_m=0.0, detect_range_m=detect_m, energy_noise=noise)
+    sweep = scan(_floor_scene(albedo), _level_pose(), np.random.default_rng(5), cfg)
+    w = np.radians(LASER_ELEVATIONS_DEG)
+    down = w < 0
+    r = (HEIGHT_M + OFFSET_M) / np.sin(np.maximum(-w, 1e-9))
+    energy = albedo * np.sin(np.maximum(-w, 1e-9)) / r**2
+    expected = norm.sf(np.log(0.1 / detect_m**2 / energy) / noise)  # P(energy * pulse >= limit)
+    share = (sweep.ranges_m > 0).mean(axis=0)
+    # 1800 firings per laser: a binomial share's sigma is at most 1.2 %
+    np.testing.assert_allclose(share[down & (r <= 100.0)], expected[down & (r <= 100.0)], atol=0.05)
+    assert share[np.argmin(np.where(down, -w, np.inf))] < 0.05  # -1 deg, 97 m: almost nothing
+    assert share[np.argmin(w)] == 1.0  # -15 deg, 6.6 m: every pulse
+    assert np.any((share > 0.2) & (share < 0.8))  # a patchy ring in between (-5 deg, 19 m: about half)
+    same = scan(_floor_scene(albedo), _level_pose(), np.random.default_rng(5), LidarConfig(range_noise_m=0.0))
+    kept = sweep.ranges_m > 0
+    np.testing.assert_array_equal(sweep.ranges_m[kept], same.ranges_m[kept])  # the same draws otherwise
+    with pytest.raises(SimError, match="detection range"):
+        LidarConfig(detect_range_m=0.0)
+
+
 def _pole_scene(gap_m: float):
     """A floor, a 0.2 m wide pole 4 m ahead along +x and a wall ``gap_m`` behind it."""
     b = SceneBuilder()
