@@ -174,8 +174,8 @@ def _detected(depth_m: F64, bright: F64, detect_range_m: float, energy_noise: fl
               rng: np.random.Generator) -> NDArray[np.bool_]:
     """(M,) whether each beam's echo (range ``depth_m``, ``albedo * cos(incidence)`` ``bright``) is strong
     enough to be detected (:class:`LidarConfig`)."""
-    energy = np.where(np.isfinite(depth_m), bright / np.maximum(np.where(np.isfinite(depth_m), depth_m, 1.0), 0.5) ** 2,
-                      0.0)
+    hit = np.isfinite(depth_m)
+    energy = np.where(hit, bright / np.maximum(np.where(hit, depth_m, 1.0), 0.5) ** 2, 0.0)
     pulse = np.exp(rng.normal(0.0, energy_noise, size=len(depth_m)))
     return np.asarray(energy * pulse >= 0.1 / detect_range_m**2, dtype=bool)
 
