@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     height = args.height if args.height is not None else max(1, args.width // 2)
     out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, args.width, height, args.noise_m,
                                   sensor_effects=args.sensor_effects, dropouts=args.dropouts)
-    extra = "".join(text for on, text in ((args.sensor_effects, " with sensor effects"),
-                                          (args.dropouts, " with LiDAR dropouts")) if on)
+    effects = [text for on, text in ((args.sensor_effects, "sensor effects"), (args.dropouts, "LiDAR dropouts")) if on]
+    extra = f" with {' and '.join(effects)}" if effects else ""
     print(f"wrote {args.pairs} simulated {args.scene} pairs ({args.width}x{height}){extra} to {out}")
     return 0
