@@ -42,9 +42,10 @@ from calib.evaluate import (
 from calib.geometry import Transform
 from calib.gmm import PairFeatures
 from calib.pipeline import CalibParams, calibrate
+from calib.prior import Prior
 from rigd.calibration.service import dataset_features
 from rigd.dataset import Dataset, open_dataset
-from rigd.dataset.records import transform_to_yaml
+from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 from rigd.evaluate_plots import plot_convergence, plot_precision
@@ -141,12 +142,14 @@ class _Task:
 
 @dataclass(frozen=True)
 class WorkerState:
-    """What a worker keeps for all its trials: one dataset's features and the settings they were made with."""
+    """What a worker keeps for all its trials: one dataset's features, the settings they were made with, and
+    the rig file's prior, which every trial's solve uses as `rigd calibrate` does."""
 
     feats: tuple[PairFeatures, ...]
     params: CalibParams
     trust: TrustOptions | None
     error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
+    prior: Prior | None = None
 
     def checked(self) -> WorkerState:
         """``self``, or the feature extraction's error raised."""
@@ -159,10 +162,11 @@ def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None) -
     """``root``'s features, or the reason there are none (raised later by the trial that needs them)."""
     cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
     try:
-        feats = tuple(dataset_features(open_dataset(root), params, None))
+        dataset = open_dataset(root)
+        feats = tuple(dataset_features(dataset, params, None))
     except (RigdError, CalibError) as exc:
         return WorkerState((), params, trust, f"{root}: {exc}")
-    return WorkerState(feats, params, trust, None)
+    return WorkerState(feats, params, trust, None, dataset.rig.prior)
 
 
 _STATE: WorkerState | None = None  # one per local pool process, set by _init_worker
@@ -182,7 +186,8 @@ def _in_pool(fn: Callable[[WorkerState, T], R], task: T) -> R:
 def _run_task(state: WorkerState, task: _Task) -> Run:
     started = time.monotonic()
     try:
-        result = calibrate([state.feats[i] for i in task.pairs], task.start, state.params, trust=state.trust)
+        result = calibrate([state.feats[i] for i in task.pairs], task.start, state.params, prior=state.prior,
+                           trust=state.trust)
     except CalibError as exc:  # a start that sees nothing: a failed run, counted as not converged
         return Run(task.index, task.pairs, task.start, None, str(exc), None, 0, time.monotonic() - started)
     iterations = sum(level.iterations for level in result.optim.levels)
@@ -428,6 +433,8 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
         "plot": plot_path.name,
         "runs": _runs_yaml(runs, stats, protocol),
     }
+    if dataset.rig.prior is not None:  # every run's solve used it, as `rigd calibrate` does
+        report["settings"]["prior"] = prior_to_yaml(dataset.rig.prior)
     if s.trust is not None:
         sigmas = [None if r.sigma is None else np.array(r.sigma) for r in runs]
         check = coverage(reference, [r.result for r in runs], sigmas, [r.verdict for r in runs],

@@ -163,7 +163,7 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
     times = report["summary"]["calibration_time_s"]
     lines = [
         f"{report['protocol']} on {report['dataset']} ({report['pairs_in_dataset']} pairs): {what}, "
-        f"{_where(s)}, seed {s['seed']}",
+        f"{_where(s)}, seed {s['seed']}" + (", with rig.yaml's prior" if "prior" in s else ""),
         f"converged: {stats.converged_count}/{stats.runs} ({stats.converged_percent:.1f} %), "
         f"{stats.runs - stats.finished} failed to run; rule {stats.rule.value} "
         f"({stats.rot_tol_deg} deg / {stats.trans_tol_m * 100:g} cm from the median)",

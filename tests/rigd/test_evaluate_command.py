@@ -123,3 +123,18 @@ def test_initial_guess_evaluation_remounts_and_counts(small_dataset, tmp_path, c
     assert report["success"] == sum(t["success"] for t in report["trials"])
     assert report["trusted_but_wrong"] == sum(not t["success"] and t["verdict"] == "trusted" for t in report["trials"])
     assert f"{report['success']}/2" in captured.out
+
+
+def test_the_runs_use_the_rig_file_prior_as_calibrate_does(small_dataset, tmp_path, capsys):
+    root = tmp_path / "with_prior"
+    shutil.copytree(small_dataset, root)
+    truth = open_dataset(small_dataset).ground_truth
+    lever_arm = truth.translation_m + [0.05, -0.04, 0.03]  # a drawing 7 cm off, held to 1 mm
+    rig = yaml.safe_load((root / "rig.yaml").read_text())
+    rig["prior"] = {"xyz_m": [float(v) for v in lever_arm], "sigma_cm": 0.1}
+    (root / "rig.yaml").write_text(yaml.safe_dump(rig))
+    report, printed = _convergence(root, tmp_path / "out", 1, capsys)
+    assert report["settings"]["prior"]["xyz_m"] == pytest.approx(list(lever_arm))
+    assert "with rig.yaml's prior" in printed
+    for run in report["runs"]:
+        assert np.linalg.norm(np.array(run["result"]["xyz_m"]) - lever_arm) < 0.005
