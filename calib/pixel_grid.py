@@ -36,7 +36,8 @@ CELL_PX = 16.0  # grid cell side: about the finest levels' reach on a 1024-wide 
 class PixelGrid:
     """One image's edge pixels bucketed by cell: ``uv`` (M,2) float64 px and ``score`` (M,) in cell order,
     ``starts`` (rows * cols + 1,) int64 CSR offsets of each cell's pixels, cells ``cell_w`` x ``cell_h`` px
-    (the image width and height divided evenly), ``wrap_u``: a panorama (u wraps at ``width``)."""
+    (the image width and height divided evenly), ``wrap_u``: a panorama (u wraps at ``width``), ``v_lo`` and
+    ``v_hi`` the pixels' least and greatest v (px; which centres can reach a pole)."""
 
     uv: F64
     score: F64
@@ -48,6 +49,8 @@ class PixelGrid:
     width: float
     height: float
     wrap_u: bool
+    v_lo: float
+    v_hi: float
 
     @classmethod
     def build(cls, uv: F64, score: F64, width: int, height: int, wrap_u: bool) -> PixelGrid:
@@ -63,8 +66,9 @@ class PixelGrid:
         cell = row * cols + col
         order = np.argsort(cell, kind="stable")
         starts = np.searchsorted(cell[order], np.arange(rows * cols + 1)).astype(np.int64)
+        v_lo, v_hi = (float(uv[:, 1].min()), float(uv[:, 1].max())) if len(uv) else (0.0, 0.0)
         return cls(np.ascontiguousarray(uv[order]), np.ascontiguousarray(np.asarray(score, np.float64)[order]),
-                   starts, rows, cols, cell_w, cell_h, float(width), float(height), wrap_u)
+                   starts, rows, cols, cell_w, cell_h, float(width), float(height), wrap_u, v_lo, v_hi)
 
     def sums(self, uv: F64, sigma: F64) -> F64:
         """(N, 9) sums at centres ``uv`` (N,2) px with widths ``sigma`` (N,) px (module docstring)."""
@@ -72,7 +76,7 @@ class PixelGrid:
         if len(uv) and len(self.uv):
             _sums_kernel(np.ascontiguousarray(uv, dtype=np.float64), np.ascontiguousarray(sigma, dtype=np.float64),
                          self.uv, self.score, self.starts, self.rows, self.cols, self.cell_w, self.cell_h,
-                         self.width, self.height, self.wrap_u, out)
+                         self.width, self.height, self.wrap_u, self.v_lo, self.v_hi, out)
         return out
 
 
@@ -120,10 +124,9 @@ def _accumulate_py(out: F64, i: int, du: float, dv: float, e: float, s: float) -
 
 
 def _sums_py(centres: F64, sigma: F64, q: F64, score: F64, starts: I64, rows: int, cols: int, cell_w: float,
-             cell_h: float, width: float, height: float, wrap_u: bool, out: F64) -> None:
+             cell_h: float, width: float, height: float, wrap_u: bool, v_lo: float, v_hi: float, out: F64) -> None:
     """:meth:`PixelGrid.sums` written into ``out`` (N, 9); compiled as ``_sums_kernel``."""
     half = width / 2.0
-    v_lo, v_hi = q[:, 1].min(), q[:, 1].max()
     for i in range(centres.shape[0]):
         cu, cv, s = centres[i, 0], centres[i, 1], sigma[i]
         reach = SOFT_REACH * s
