@@ -15,6 +15,7 @@ from calib.edges_points import EdgePoints
 from calib.fields import EdgeFields
 from calib.geometry import Transform
 from calib.gmm import PairFeatures
+from calib.pixel_grid import PixelGrid
 
 TRUTH = Transform.from_rpy_xyz(np.array([-0.18, 15.47, -55.14]), np.array([0.0934, 0.0597, -0.1659]))
 
@@ -48,4 +49,5 @@ def make_pair(seed: int, width: int = 512, height: int = 256, evaluator_fields: 
     pixels = EdgePixels(pix.astype(np.float64), np.ones(len(pix)))
     points = EdgePoints(pts_lidar, np.ones(len(pts_lidar)), np.zeros(len(pts_lidar), np.int8))
     fields = EdgeFields.build(pixels.uv, pixels.score, width, height, True, 0.7, 48.0) if evaluator_fields else None
-    return PairFeatures(cam, pixels, points, fields)
+    grid = PixelGrid.build(pixels.uv, pixels.score, width, height, True)  # as calib.pipeline's features carry
+    return PairFeatures(cam, pixels, points, fields, grid)
