@@ -47,6 +47,7 @@ from rigd.calibration.service import dataset_features
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.store import write_yaml
+from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 from rigd.evaluate_plots import plot_convergence, plot_precision
 
@@ -162,7 +163,7 @@ def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None) -
     """``root``'s features, or the reason there are none (raised later by the trial that needs them)."""
     cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
     try:
-        dataset = open_dataset(root)
+        dataset = open_dataset(root, WORKING_WIDTH_PX)
         feats = tuple(dataset_features(dataset, params, None))
     except (RigdError, CalibError) as exc:
         return WorkerState((), params, trust, f"{root}: {exc}")
@@ -210,7 +211,7 @@ def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
 def open_for(settings: EvaluationSettings) -> Dataset:
     if settings.workers < 1:
         raise RigdError(f"--workers must be at least 1, got {settings.workers}")
-    dataset = open_dataset(settings.dataset)
+    dataset = open_dataset(settings.dataset, WORKING_WIDTH_PX)
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
     return dataset

@@ -36,6 +36,7 @@ from rigd.calibration.service import dataset_features, dataset_photo_pairs
 from rigd.dataset import open_dataset
 from rigd.dataset.records import transform_to_yaml
 from rigd.dataset.store import write_yaml
+from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 from rigd.evaluate import (
     Run,
@@ -97,7 +98,7 @@ def _init_worker(root: Path, method: Method) -> None:
     global _STATE
     cv2.setNumThreads(1)
     try:
-        dataset = open_dataset(root)
+        dataset = open_dataset(root, WORKING_WIDTH_PX)
         gmm, photo = gmm_params(method), photo_params(method)
         feats = tuple(dataset_features(dataset, gmm, None)) if gmm is not None else None
         pairs = tuple(dataset_photo_pairs(dataset, photo, None)) if photo is not None else None
@@ -289,7 +290,7 @@ def run_compare(req: CompareRequest) -> CompareOutcome:
     started = time.monotonic()
     if req.workers < 1:
         raise RigdError(f"--workers must be at least 1, got {req.workers}")
-    dataset = open_dataset(req.dataset)
+    dataset = open_dataset(req.dataset, WORKING_WIDTH_PX)
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
     reference = dataset.ground_truth or dataset.rig.initial_guess

@@ -15,6 +15,7 @@ from rigd.calibration.service import Progress, dataset_features
 from rigd.dataset import open_dataset
 from rigd.dataset.records import transform_from_yaml, transform_to_yaml
 from rigd.dataset.store import read_yaml_mapping
+from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 from rigd.store import Database, VersionStore
 
@@ -49,7 +50,7 @@ def extrinsics_from_store(data_dir: Path, number: int) -> Transform:
 def run_check(dataset_dir: Path, checked: Transform, opts: DriftOptions,
               progress: Progress | None = None) -> CheckOutcome:
     started = time.monotonic()
-    dataset = open_dataset(dataset_dir)
+    dataset = open_dataset(dataset_dir, WORKING_WIDTH_PX)
     params = CalibParams()
     feats = dataset_features(dataset, params, progress)
     if progress:

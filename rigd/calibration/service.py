@@ -32,6 +32,7 @@ from rigd.calibration.visuals import CLOUD_STAGE, OVERLAY_STAGES, cloud_top_view
 from rigd.dataset import Dataset, Pair, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.store import write_yaml
+from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 
 # Paper defaults: sigma_in = 15, 10, 5 px of a 1024-wide panorama, as angles at 1 m.
@@ -52,6 +53,7 @@ class CalibrationRequest:
     tolerance: TrustOptions | None = None  # None: rig.yaml's tolerance, else 0.2 deg / 2 cm
     search: bool = False  # True: the global search even if a guess exists (it runs anyway without one)
     workers: int = 2  # processes for the pairs' edges and the independent solves (the rig computer's 2+ cores)
+    max_width: int | None = WORKING_WIDTH_PX  # px: wider images are halved on load (rigd.dataset.working); None: as is
 
 
 @dataclass(frozen=True)
@@ -225,6 +227,9 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
             # the initial guess's lever arm as a weak prior of the solve (docs/method.md), not of the uncertainty
             "guess_prior_sigma_cm": None if result.guess_sigma_m is None else result.guess_sigma_m * 100.0,
             "wall_time_s": round(wall_s, 3),
+            # the images as solved on (rigd.dataset.working) and as on disk
+            "image_size_px": [dataset.rig.camera.width, dataset.rig.camera.height],
+            "source_image_size_px": [dataset.source_camera.width, dataset.source_camera.height],
         },
         "change_from_initial": {
             "rotation_deg": rotation_angle_deg(initial.rotation, T.rotation),
@@ -268,7 +273,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
                     on_iter: Callable[[int, int, float], None] | None = None) -> CalibrationOutcome:
     """Calibrate ``request.dataset``; writes ``extrinsics.yaml``, overlays/ and clouds/ into ``out_dir``."""
     started = time.monotonic()
-    dataset = open_dataset(request.dataset)
+    dataset = open_dataset(request.dataset, request.max_width)
     initial = _initial(request, dataset)
     params = gmm_params(request.method) or CalibParams()
     if request.sigmas_deg is not None:

@@ -16,6 +16,7 @@ from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.prior import Prior
 from rigd.calibration import CalibrationRequest, run_calibration
 from rigd.calibration.service import DEFAULT_SIGMAS_DEG, PAPER_SIGMAS_DEG, Method
+from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 
 
@@ -118,6 +119,9 @@ def register(subparsers: Any) -> None:
                         help="hold the translation at the prior's lever arm (or the initial guess's)")
     parser.add_argument("--tolerance", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
                         help="field tolerance of the verdict (default: rig.yaml tolerance, else 0.2,2)")
+    parser.add_argument("--max-width", type=_max_width, default=WORKING_WIDTH_PX, metavar="PX",
+                        help=f"working resolution: wider images are halved until at most PX wide (default "
+                        f"{WORKING_WIDTH_PX}; 0: full resolution, slower and no more accurate; docs/performance.md)")
     parser.set_defaults(func=run)
 
 
@@ -132,6 +136,16 @@ def _workers(text: str) -> int:
         raise argparse.ArgumentTypeError(f"--workers needs a whole number, got {text!r}") from None
     if not 1 <= n <= 64:
         raise argparse.ArgumentTypeError(f"--workers must be 1 to 64, got {n}")
+    return n
+
+
+def _max_width(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--max-width needs a whole number of pixels, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"--max-width must be 0 (full resolution) or positive, got {n}")
     return n
 
 
@@ -152,6 +166,7 @@ def run(args: argparse.Namespace) -> int:
         tolerance=parse_tolerance(args.tolerance) if args.tolerance else None,
         search=args.search,
         workers=args.workers,
+        max_width=args.max_width or None,
     )
     outcome = run_calibration(request, _progress, _on_iter)
     verdict = outcome.report["verdict"]

@@ -6,6 +6,7 @@ so a reader never sees half a pair and an interrupted writer loses nothing alrea
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 from collections.abc import Iterator
@@ -20,7 +21,8 @@ from numpy.typing import NDArray
 
 from calib.geometry import Transform
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
-from rigd.dataset.records import RigConfig, transform_from_yaml, transform_to_yaml
+from rigd.dataset.records import CameraConfig, RigConfig, transform_from_yaml, transform_to_yaml
+from rigd.dataset.working import halvings, working_camera, working_image
 from rigd.errors import DatasetError
 
 IMAGE_NAMES = ("image.png", "image.jpg", "image.jpeg")
@@ -79,12 +81,17 @@ def read_image(path: Path) -> NDArray[np.uint8]:
 
 @dataclass(frozen=True)
 class Dataset:
-    """An opened dataset; pairs are loaded lazily (a 12-pair set does not have to fit in memory)."""
+    """An opened dataset; pairs are loaded lazily (a 12-pair set does not have to fit in memory).
+
+    ``rig.camera`` is the camera at the working resolution (rigd.dataset.working): the images are halved
+    ``halvings`` times on load from ``source_camera``'s size, the one on disk and in rig.yaml."""
 
     root: Path
     rig: RigConfig
     pair_dirs: tuple[Path, ...]
     ground_truth: Transform | None
+    source_camera: CameraConfig
+    halvings: int = 0
 
     def __len__(self) -> int:
         return len(self.pair_dirs)
@@ -94,10 +101,11 @@ class Dataset:
         found = (folder / n for n in IMAGE_NAMES if (folder / n).is_file())
         image_path = next(found, folder / IMAGE_NAMES[0])
         image = read_image(image_path)
-        expected = (self.rig.camera.height, self.rig.camera.width)
+        expected = (self.source_camera.height, self.source_camera.width)
         if image.shape[:2] != expected:
             raise DatasetError(f"{image_path}: image is {image.shape[1]}x{image.shape[0]}, rig.yaml says "
                                f"{expected[1]}x{expected[0]}")
+        image = working_image(image, self.source_camera, self.halvings)
         cloud = read_pcd(folder / "cloud.pcd")
         meta_path = folder / "meta.yaml"
         meta = read_yaml_mapping(meta_path) if meta_path.is_file() else {}
@@ -108,8 +116,9 @@ class Dataset:
             yield self.load_pair(i)
 
 
-def open_dataset(root: Path) -> Dataset:
-    """Open ``root``; raises :class:`DatasetError` naming the missing or corrupt file."""
+def open_dataset(root: Path, max_width: int | None = None) -> Dataset:
+    """Open ``root``; raises :class:`DatasetError` naming the missing or corrupt file. ``max_width``: the
+    working resolution, px (images wider are halved on load, rigd.dataset.working); None: as on disk."""
     root = Path(root)
     if not root.is_dir():
         raise DatasetError(f"{root}: dataset directory does not exist")
@@ -121,7 +130,9 @@ def open_dataset(root: Path) -> Dataset:
     gt = None
     if gt_path.is_file():
         gt = transform_from_yaml(read_yaml_mapping(gt_path).get("T_camera_lidar", {}), str(gt_path))
-    return Dataset(root, rig, tuple(dirs), gt)
+    n = halvings(rig.camera, max_width)
+    working = dataclasses.replace(rig, camera=working_camera(rig.camera, n))
+    return Dataset(root, working, tuple(dirs), gt, rig.camera, n)
 
 
 def write_rig(root: Path, rig: RigConfig) -> None:

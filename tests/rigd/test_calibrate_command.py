@@ -38,6 +38,7 @@ def test_calibrate_json_prints_one_object_and_writes_outputs(small_dataset, tmp_
     assert np.array(unc["covariance"], dtype=float).shape == (6, 6)
     assert set(report["T_camera_lidar"]) == {"matrix", "quaternion_xyzw", "rpy_deg", "xyz_m"}
     assert len(report["quality"]["pairs"]) == 2
+    assert report["quality"]["image_size_px"] == report["quality"]["source_image_size_px"] == [512, 256]
     written = yaml.safe_load((out / "extrinsics.yaml").read_text())
     assert np.allclose(written["T_camera_lidar"]["matrix"], report["T_camera_lidar"]["matrix"])
     assert (out / "overlays" / "0000_before.png").is_file() and (out / "overlays" / "0001_after.png").is_file()
@@ -77,23 +78,26 @@ def test_missing_dataset_names_the_path(tmp_path, capsys):
 
 
 def test_fixed_translation_holds_the_prior_lever_arm_and_reports_no_translation_sigma(small_dataset, tmp_path, capsys):
+    """Also solved at half the images' width (--max-width): the report names both sizes."""
     truth = open_dataset(small_dataset).ground_truth
     init = np.r_[truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m]
     lever = truth.translation_m + [0.01, 0.0, -0.01]
     code = main(["calibrate", str(small_dataset), f"--init={','.join(map(str, init))}", "--no-visuals", "--json",
                  "--prior", ",".join(map(str, lever)) + ",1.0", "--fix", "translation", "--tolerance", "0.5,5",
-                 "--out", str(tmp_path)])
+                 "--out", str(tmp_path), "--max-width", "256"])
     report = json.loads(capsys.readouterr().out)
     assert code == {"trusted": 0, "weak": 3, "failed": 4}[report["verdict"]["status"]]
     assert np.allclose(report["T_camera_lidar"]["xyz_m"], lever, atol=1e-12)
     assert report["uncertainty"]["xyz_cm"] == [0.0, 0.0, 0.0] and all(s > 0 for s in report["uncertainty"]["rpy_deg"])
     assert report["tolerance"] == {"rotation_deg": 0.5, "translation_cm": 5.0} and report["prior"]["fix_translation"]
+    assert report["quality"]["image_size_px"] == [256, 128] and report["quality"]["source_image_size_px"] == [512, 256]
 
 
 @pytest.mark.parametrize("args, words", [(["--prior", "0,0,0"], "--prior"), (["--prior", "0,0,0,-1"], "positive"),
                                          (["--tolerance", "0.2"], "--tolerance"), (["--tolerance", "0,2"], "positive"),
-                                         (["--workers", "0"], "--workers"), (["--workers", "two"], "whole number")])
-def test_bad_prior_tolerance_or_workers_is_refused(small_dataset, args, words, capsys):
+                                         (["--workers", "0"], "--workers"), (["--workers", "two"], "whole number"),
+                                         (["--max-width", "-5"], "--max-width"), (["--max-width", "wide"], "pixels")])
+def test_bad_prior_tolerance_workers_or_width_is_refused(small_dataset, args, words, capsys):
     try:
         code = main(["calibrate", str(small_dataset), "--init", "0,0,0,0,0,0", "--no-visuals", *args])
     except SystemExit as exc:  # argparse's own refusal (a bad --workers)
