@@ -8,7 +8,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from calib.geometry import Transform
-from drivers.sim import Footprint, LidarConfig, SimConfig, SimRig, StitchConfig, scene_kind
+from drivers.sim import Footprint, LidarConfig, SceneKind, SimConfig, SimRig, StitchConfig, scene_kind
 from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, write_ground_truth, write_pair, write_rig
 from rigd.errors import DatasetError, RigdError
 
@@ -18,14 +18,14 @@ DETECT_RANGE_M = 60.0  # with dropouts: a 10 % target's detection range (an assu
 
 def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, width: int = 1024,
                             height: int = 512, range_noise_m: float = 0.02, progress: bool = True,
-                            sensor_effects: bool = False, dropouts: bool = False) -> Path:
+                            sensor_effects: bool = False, dropouts: bool = False, trees: bool = False) -> Path:
     """Simulate ``pairs`` pairs (pair i = location i of dataset ``seed``) into the new dataset ``out_dir``.
 
     Writes rig.yaml (equirectangular ``width`` x ``height``, VLP-16), ground_truth.yaml (the simulator's
     T_camera_lidar) and pairs/NNNN. Refuses an existing non-empty directory. ``sensor_effects``: the
     stitched Ladybug5 sensors, JPEG images and the VLP-16's beam footprint (docs/simulator.md). ``dropouts``:
     energy-limited returns (dark ground at grazing incidence drops out; the same seed's other returns are
-    unchanged).
+    unchanged). ``trees``: rows of street trees in outdoor scenes (the rest of each scene unchanged).
     """
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -34,12 +34,14 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
     if pairs < 1:
         raise RigdError(f"--pairs must be at least 1, got {pairs}")
     sim_kind = scene_kind(kind)
+    if trees and sim_kind is not SceneKind.OUTDOOR:
+        raise RigdError("--trees needs --scene outdoor: street trees line a street")
     footprint = Footprint() if sensor_effects else None
     lidar = LidarConfig(range_noise_m=range_noise_m, footprint=footprint,
                         detect_range_m=DETECT_RANGE_M if dropouts else None)
     rig = SimRig(SimConfig(width=width, height=height, lidar=lidar,
                            stitch=StitchConfig() if sensor_effects else None,
-                           jpeg_quality=JPEG_QUALITY if sensor_effects else None))
+                           jpeg_quality=JPEG_QUALITY if sensor_effects else None, trees=trees))
     write_rig(out, RigConfig(CameraConfig(CameraKind.EQUIRECTANGULAR, width, height), "VLP-16"))
     write_ground_truth(out, Transform.from_matrix(rig.T_camera_lidar.matrix))
     for index in tqdm(range(pairs), desc=f"simulate {sim_kind.value}", unit="pair", file=sys.stderr,

@@ -11,12 +11,15 @@ import numpy as np
 
 from drivers.sim.layout import contrasting
 from drivers.sim.scene import Face, Lighting, Scene, SceneBuilder, SceneKind
+from drivers.sim.vegetation import street_trees
 
 GROUND_HALF_M = 150.0
 FREE_X_M = 10.0  # the rig stands within +-FREE_X_M of the origin along the street
 
 
-def outdoor_scene(rng: np.random.Generator) -> Scene:
+def outdoor_scene(rng: np.random.Generator, trees_rng: np.random.Generator | None = None) -> Scene:
+    """A street from ``rng``; with ``trees_rng``, rows of street trees on both pavements too (drawn from that
+    generator alone and added last, so the rest of the scene is the same with or without them)."""
     b = SceneBuilder()
     ground_grey = float(rng.uniform(0.2, 0.35))
     ground = b.box((-GROUND_HALF_M, -GROUND_HALF_M, -0.5), (GROUND_HALF_M, GROUND_HALF_M, 0.0), ground_grey,
@@ -32,6 +35,10 @@ def outdoor_scene(rng: np.random.Generator) -> Scene:
         _buildings(b, rng, side, edge)
         _cars(b, rng, side, road_half)
     _background(b, rng)
+    if trees_rng is not None:
+        for side in (-1, 1):
+            y = road_half + 0.15 + pavement * float(trees_rng.uniform(0.3, 0.7))
+            street_trees(b, trees_rng, side, y, kerb_h - 0.01)
     elevation, azimuth = np.radians(rng.uniform(20, 65)), rng.uniform(0, 2 * np.pi)
     sun_dir = np.array([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
     lighting = Lighting(sun_dir_world=sun_dir, ambient=float(rng.uniform(0.25, 0.35)), sun=0.75, shadows=True,

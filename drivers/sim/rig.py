@@ -31,7 +31,7 @@ RIG_HALF_WIDTH_M = 0.35  # footprint of the tripod and sensor head
 SENSOR_CLEARANCE_M = 0.8  # nearest surface allowed around either sensor when the rig is placed
 MAX_TILT_DEG = 3.0
 _PLACEMENT_TRIES = 500
-_STREAMS = {"scene": 0, "pose": 1, "camera": 2, "lidar": 3}
+_STREAMS = {"scene": 0, "pose": 1, "camera": 2, "lidar": 3, "vegetation": 4}
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,7 @@ class SimConfig:
     color: bool = False
     stitch: StitchConfig | None = None  # None: one projection centre; else the stitched sensors' effects
     jpeg_quality: int | None = None  # None: the image as rendered; else JPEG-compressed at this quality
+    trees: bool = False  # outdoor scenes get rows of street trees (drivers.sim.vegetation)
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0 or self.supersample <= 0:
@@ -89,10 +90,15 @@ def rng_for(kind: SceneKind, seed: int, index: int, stream: str) -> np.random.Ge
     return np.random.default_rng([seed, index, kind_code, _STREAMS[stream]])
 
 
-def make_scene(kind: SceneKind | str, seed: int, index: int) -> Scene:
+def make_scene(kind: SceneKind | str, seed: int, index: int, trees: bool = False) -> Scene:
+    """The scene of pair ``index`` of dataset ``seed``; ``trees``: with street trees (outdoor scenes only)."""
     k = scene_kind(kind)
     rng = rng_for(k, seed, index, "scene")
-    return indoor_scene(rng) if k is SceneKind.INDOOR else outdoor_scene(rng)
+    if k is SceneKind.INDOOR:
+        if trees:
+            raise SimError("street trees are for outdoor scenes; indoor scenes have none")
+        return indoor_scene(rng)
+    return outdoor_scene(rng, rng_for(k, seed, index, "vegetation") if trees else None)
 
 
 def place_rig(scene: Scene, rng: np.random.Generator, T_camera_lidar: Pose) -> Pose:
@@ -136,7 +142,7 @@ class SimRig:
         """Pair ``index`` of the dataset ``seed``: a new scene, a rig pose in it, an image and a sweep."""
         k = scene_kind(kind)
         cfg = self.config
-        scene = make_scene(k, seed, index)
+        scene = make_scene(k, seed, index, cfg.trees)
         pose_cam = place_rig(scene, rng_for(k, seed, index, "pose"), cfg.T_camera_lidar)
         pose_lidar = pose_cam.compose(cfg.T_camera_lidar)
         image = render_panorama(scene, pose_cam, cfg.width, cfg.height, rng_for(k, seed, index, "camera"),
@@ -159,6 +165,8 @@ class SimRig:
             meta["jpeg_quality"] = int(cfg.jpeg_quality)
         if cfg.lidar.footprint is not None:
             meta["beam_footprint"] = dataclasses.asdict(cfg.lidar.footprint)
+        if cfg.trees:
+            meta["trees"] = True
         if cfg.lidar.detect_range_m is not None:
             meta["lidar_detection"] = {"detect_range_m": float(cfg.lidar.detect_range_m),
                                        "energy_noise": float(cfg.lidar.energy_noise)}

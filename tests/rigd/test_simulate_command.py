@@ -104,3 +104,16 @@ def test_simulate_dropouts_are_recorded_and_only_remove_returns(tmp_path):
     lost = len(a.cloud.points_lidar) - len(b.cloud.points_lidar)
     assert 0.01 * len(a.cloud.points_lidar) < lost
     np.testing.assert_array_equal(a.image, b.image)
+
+
+def test_simulate_trees_are_recorded_and_add_to_the_same_place(tmp_path):
+    a, b = _without_and_with(tmp_path, "outdoor", "--trees")
+    assert "trees" not in a.meta and b.meta["trees"] is True
+    # The rig stands where it stood without them; the trees only add returns and shade.
+    assert a.meta["T_world_camera"] == b.meta["T_world_camera"]
+    assert not np.array_equal(a.image, b.image)
+
+
+def test_simulate_trees_indoors_is_refused(tmp_path, capsys):
+    assert main(["simulate", str(tmp_path / "d"), "--scene", "indoor", "--trees", "--pairs", "1"]) == 2
+    assert "--trees needs --scene outdoor" in capsys.readouterr().err
