@@ -10,6 +10,7 @@ from drivers.sim.pose import Pose
 from drivers.sim.raycast import Hits, cast
 from drivers.sim.rig import (
     PAPER_T_CAMERA_LIDAR,
+    PinholeSpec,
     SimCapture,
     SimConfig,
     SimRig,
@@ -29,6 +30,7 @@ __all__ = [
     "Hits",
     "LidarConfig",
     "Lighting",
+    "PinholeSpec",
     "Pose",
     "Scene",
     "SceneBuilder",

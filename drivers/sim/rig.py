@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.sim.camera import render_panorama
+from drivers.sim.camera import ROTATION_PANORAMA_OPTICAL, jpeg_round_trip, render_panorama, render_pinhole
 from drivers.sim.errors import SimError
 from drivers.sim.indoor import indoor_scene
 from drivers.sim.lidar import LidarConfig, Sweep, scan
@@ -31,7 +31,18 @@ RIG_HALF_WIDTH_M = 0.35  # footprint of the tripod and sensor head
 SENSOR_CLEARANCE_M = 0.8  # nearest surface allowed around either sensor when the rig is placed
 MAX_TILT_DEG = 3.0
 _PLACEMENT_TRIES = 500
+F64 = NDArray[np.float64]
 _STREAMS = {"scene": 0, "pose": 1, "camera": 2, "lidar": 3, "vegetation": 4}
+
+
+@dataclass(frozen=True)
+class PinholeSpec:
+    """A pinhole camera in place of the panorama, looking along the panorama's forward axis (x): ``K`` (3,3)
+    px, image ``width`` x ``height`` px, no distortion. Its frame is the OpenCV optical frame."""
+
+    K: F64
+    width: int
+    height: int
 
 
 @dataclass(frozen=True)
@@ -48,6 +59,7 @@ class SimConfig:
     stitch: StitchConfig | None = None  # None: one projection centre; else the stitched sensors' effects
     jpeg_quality: int | None = None  # None: the image as rendered; else JPEG-compressed at this quality
     trees: bool = False  # outdoor scenes get rows of street trees (drivers.sim.vegetation)
+    pinhole: PinholeSpec | None = None  # None: the panorama; else this pinhole camera (width/height unused)
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0 or self.supersample <= 0:
@@ -55,6 +67,15 @@ class SimConfig:
                            f" x{self.supersample}")
         if self.image_noise_grey < 0:
             raise SimError(f"image noise must be >= 0 grey levels, got {self.image_noise_grey}")
+        if self.pinhole is not None and self.stitch is not None:
+            raise SimError("stitched sensors are the panorama's; a pinhole camera has none")
+
+    @property
+    def T_image_lidar(self) -> Pose:
+        """Ground truth in the frame of the image's camera: the panorama's, or the pinhole's optical frame."""
+        if self.pinhole is None:
+            return self.T_camera_lidar
+        return Pose(ROTATION_PANORAMA_OPTICAL.T, np.zeros(3)).compose(self.T_camera_lidar)
 
 
 @dataclass(frozen=True)
@@ -145,8 +166,7 @@ class SimRig:
         scene = make_scene(k, seed, index, cfg.trees)
         pose_cam = place_rig(scene, rng_for(k, seed, index, "pose"), cfg.T_camera_lidar)
         pose_lidar = pose_cam.compose(cfg.T_camera_lidar)
-        image = render_panorama(scene, pose_cam, cfg.width, cfg.height, rng_for(k, seed, index, "camera"),
-                                cfg.image_noise_grey, cfg.supersample, cfg.color, cfg.stitch, cfg.jpeg_quality)
+        image = self._render(scene, pose_cam, rng_for(k, seed, index, "camera"))
         sweep = scan(scene, pose_lidar, rng_for(k, seed, index, "lidar"), cfg.lidar)
         meta = {
             "source": "simulated",
@@ -171,6 +191,18 @@ class SimRig:
             meta["lidar_detection"] = {"detect_range_m": float(cfg.lidar.detect_range_m),
                                        "energy_noise": float(cfg.lidar.energy_noise)}
         return SimCapture(image, sweep, meta, scene, pose_cam, pose_lidar)
+
+
+    def _render(self, scene: Scene, pose_cam: Pose, rng: np.random.Generator) -> NDArray[np.uint8]:
+        cfg = self.config
+        if cfg.pinhole is None:
+            return render_panorama(scene, pose_cam, cfg.width, cfg.height, rng, cfg.image_noise_grey,
+                                   cfg.supersample, cfg.color, cfg.stitch, cfg.jpeg_quality)
+        p = cfg.pinhole
+        image = render_pinhole(scene, pose_cam.translation_m, pose_cam.rotation @ ROTATION_PANORAMA_OPTICAL, p.K,
+                               p.width, p.height, rng, noise_grey=cfg.image_noise_grey, supersample=cfg.supersample,
+                               color=cfg.color)
+        return image if cfg.jpeg_quality is None else jpeg_round_trip(image, cfg.jpeg_quality)
 
 
 def simulate_pair(kind: SceneKind | str, seed: int, index: int, width: int = 1024, height: int = 512,

@@ -49,15 +49,20 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--trees", action="store_true",
                         help="outdoor scenes get rows of street trees: porous crowns of leaf clumps, which "
                         "crowd the LiDAR's rings with range jumps and the image with texture (docs/simulator.md)")
+    parser.add_argument("--camera", choices=["panorama", "pinhole"], default="panorama",
+                        help="pinhole: a forward 1920x1200 camera (48 x 31 deg) below a level LiDAR, as on a car, "
+                        "instead of the Ladybug5 panorama (docs/simulator.md)")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     height = args.height if args.height is not None else max(1, args.width // 2)
     out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, args.width, height, args.noise_m,
-                                  sensor_effects=args.sensor_effects, dropouts=args.dropouts, trees=args.trees)
+                                  sensor_effects=args.sensor_effects, dropouts=args.dropouts, trees=args.trees,
+                                  pinhole=args.camera == "pinhole")
     effects = [text for on, text in ((args.sensor_effects, "sensor effects"), (args.dropouts, "LiDAR dropouts"),
                                      (args.trees, "street trees")) if on]
     extra = f" with {' and '.join(effects)}" if effects else ""
-    print(f"wrote {args.pairs} simulated {args.scene} pairs ({args.width}x{height}){extra} to {out}")
+    size = "1920x1200 pinhole" if args.camera == "pinhole" else f"{args.width}x{height}"
+    print(f"wrote {args.pairs} simulated {args.scene} pairs ({size}){extra} to {out}")
     return 0

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drivers.sim import SimConfig, simulate_pair
+import rigd.simulate
+from drivers.sim import PinholeSpec, SimConfig, simulate_pair
 from rigd.cli import main
 from rigd.dataset import CameraKind, open_dataset
 
@@ -117,3 +118,16 @@ def test_simulate_trees_are_recorded_and_add_to_the_same_place(tmp_path):
 def test_simulate_trees_indoors_is_refused(tmp_path, capsys):
     assert main(["simulate", str(tmp_path / "d"), "--scene", "indoor", "--trees", "--pairs", "1"]) == 2
     assert "--trees needs --scene outdoor" in capsys.readouterr().err
+
+
+def test_simulate_a_pinhole_rig_writes_a_pinhole_dataset(tmp_path, monkeypatch):
+    small = PinholeSpec(np.array([[150.0, 0.0, 95.5], [0.0, 150.0, 59.5], [0.0, 0.0, 1.0]]), 192, 120)
+    monkeypatch.setattr(rigd.simulate, "PINHOLE", small)
+    assert main(["simulate", str(tmp_path / "p"), "--scene", "indoor", "--pairs", "1", "--camera", "pinhole"]) == 0
+    dataset = open_dataset(tmp_path / "p")
+    assert dataset.rig.camera.kind is CameraKind.PINHOLE and dataset.load_pair(0).image.shape[:2] == (120, 192)
+    np.testing.assert_allclose(dataset.rig.camera.K, small.K)
+    # The LiDAR stands level above the camera: its forward axis is the optical z, its up the optical -y.
+    R = dataset.ground_truth.rotation
+    assert R[2, 0] > 0.99 and R[1, 2] < -0.99
+    assert dataset.ground_truth.translation_m[1] < -0.3  # 0.35 m up is optical -y

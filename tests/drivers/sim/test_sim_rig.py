@@ -8,7 +8,18 @@ import pytest
 
 from calib.camera import Equirectangular
 from calib.geometry import Transform, so3_exp
-from drivers.sim import PAPER_T_CAMERA_LIDAR, SimConfig, SimError, SimRig, make_scene, simulate_pair
+from drivers.sim import (
+    PAPER_T_CAMERA_LIDAR,
+    ROTATION_PANORAMA_OPTICAL,
+    PinholeSpec,
+    Pose,
+    SimConfig,
+    SimError,
+    SimRig,
+    StitchConfig,
+    make_scene,
+    simulate_pair,
+)
 
 
 def test_same_seed_same_pair_and_new_index_new_place():
@@ -105,3 +116,23 @@ def test_lidar_range_jumps_land_on_image_edges_only_with_the_ground_truth():
     median_true, median_wrong = np.median(np.concatenate(true_d)), np.median(np.concatenate(wrong_d))
     assert median_true < 1.0
     assert median_wrong > max(2.0 * median_true, 1.0)
+
+
+def test_a_pinhole_rig_images_the_world_as_its_ground_truth_says():
+    """With a pinhole camera the ground truth is in its optical frame: a LiDAR point mapped by T_image_lidar
+    is where the camera pose (its optical axis along the panorama's x) sees that point in the world."""
+    K = np.array([[120.0, 0.0, 79.5], [0.0, 120.0, 49.5], [0.0, 0.0, 1.0]])
+    config = SimConfig(pinhole=PinholeSpec(K, 160, 100))
+    cap = SimRig(config).capture("indoor", 4, 0)
+    assert cap.image.shape[:2] == (100, 160)
+    points_lidar = cap.sweep.points_lidar[:500]
+    T = config.T_image_lidar
+    via_truth = points_lidar @ T.rotation.T + T.translation_m
+    world = cap.pose_world_lidar.apply(points_lidar)
+    optical = Pose(cap.pose_world_camera.rotation @ ROTATION_PANORAMA_OPTICAL, cap.pose_world_camera.translation_m)
+    np.testing.assert_allclose(via_truth, optical.inverse().apply(world), atol=1e-9)
+
+
+def test_a_pinhole_camera_has_no_stitched_sensors():
+    with pytest.raises(SimError, match="pinhole"):
+        SimConfig(pinhole=PinholeSpec(np.eye(3), 10, 10), stitch=StitchConfig())
