@@ -10,6 +10,7 @@ from tqdm import tqdm
 
 from calib.geometry import Transform
 from drivers.sim import (
+    RINGS64_ELEVATIONS_DEG,
     Footprint,
     LidarConfig,
     PinholeSpec,
@@ -34,7 +35,7 @@ DETECT_RANGE_M = 60.0  # with dropouts: a 10 % target's detection range (an assu
 def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, width: int = 1024,
                             height: int = 512, range_noise_m: float = 0.02, progress: bool = True,
                             sensor_effects: bool = False, dropouts: bool = False, trees: bool = False,
-                            pinhole: bool = False) -> Path:
+                            pinhole: bool = False, rings64: bool = False) -> Path:
     """Simulate ``pairs`` pairs (pair i = location i of dataset ``seed``) into the new dataset ``out_dir``.
 
     Writes rig.yaml (equirectangular ``width`` x ``height``, VLP-16), ground_truth.yaml (the simulator's
@@ -43,7 +44,8 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
     energy-limited returns (dark ground at grazing incidence drops out; the same seed's other returns are
     unchanged). ``trees``: rows of street trees in outdoor scenes (the rest of each scene unchanged).
     ``pinhole``: a forward pinhole camera (:data:`PINHOLE`) below a level LiDAR instead of the panorama rig
-    (``width`` and ``height`` are then unused; sensor effects are JPEG and the beam footprint).
+    (``width`` and ``height`` are then unused; sensor effects are JPEG and the beam footprint). ``rings64``:
+    a 64-ring street LiDAR (drivers.sim.RINGS64_ELEVATIONS_DEG) in place of the VLP-16.
     """
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -56,7 +58,8 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
         raise RigdError("--trees needs --scene outdoor: street trees line a street")
     footprint = Footprint() if sensor_effects else None
     lidar = LidarConfig(range_noise_m=range_noise_m, footprint=footprint,
-                        detect_range_m=DETECT_RANGE_M if dropouts else None)
+                        detect_range_m=DETECT_RANGE_M if dropouts else None,
+                        elevations_deg=RINGS64_ELEVATIONS_DEG if rings64 else None)
     if pinhole:
         config = SimConfig(T_camera_lidar=PINHOLE_T_CAMERA_LIDAR, lidar=lidar, pinhole=PINHOLE, trees=trees,
                            jpeg_quality=JPEG_QUALITY if sensor_effects else None)
@@ -66,7 +69,7 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
                            jpeg_quality=JPEG_QUALITY if sensor_effects else None, trees=trees)
         camera = CameraConfig(CameraKind.EQUIRECTANGULAR, width, height)
     rig = SimRig(config)
-    write_rig(out, RigConfig(camera, "VLP-16"))
+    write_rig(out, RigConfig(camera, "64-ring" if rings64 else "VLP-16"))
     write_ground_truth(out, Transform.from_matrix(config.T_image_lidar.matrix))
     for index in tqdm(range(pairs), desc=f"simulate {sim_kind.value}", unit="pair", file=sys.stderr,
                       disable=not progress):

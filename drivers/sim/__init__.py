@@ -5,7 +5,7 @@ Everything here is numpy arrays; writing datasets is rigd's job (rigd/simulate.p
 
 from drivers.sim.camera import ROTATION_PANORAMA_OPTICAL, render_panorama, render_pinhole, render_rays
 from drivers.sim.errors import SimError
-from drivers.sim.lidar import LASER_ELEVATIONS_DEG, Footprint, LidarConfig, Sweep, scan
+from drivers.sim.lidar import LASER_ELEVATIONS_DEG, RINGS64_ELEVATIONS_DEG, Footprint, LidarConfig, Sweep, scan
 from drivers.sim.pose import Pose
 from drivers.sim.raycast import Hits, cast
 from drivers.sim.rig import (
@@ -24,6 +24,7 @@ from drivers.sim.stitched import StitchConfig
 __all__ = [
     "LASER_ELEVATIONS_DEG",
     "PAPER_T_CAMERA_LIDAR",
+    "RINGS64_ELEVATIONS_DEG",
     "ROTATION_PANORAMA_OPTICAL",
     "Face",
     "Footprint",

@@ -45,6 +45,11 @@ DEG_PER_S = 360.0 * ROTATION_HZ
 RANGE_RESOLUTION_M = 0.002
 # ring = position in elevation order, 0 = lowest (-15 deg) .. 15 = highest (+15 deg)
 RING_OF_LASER = np.argsort(np.argsort(LASER_ELEVATIONS_DEG)).astype(np.int16)
+# A 64-ring street LiDAR like the pinhole sample's (Hesai Pandar64-like, approximate): a few wide rings up to
+# +15 deg, a dense band of 49 rings 0.167 deg apart from +2 to -6 deg, then 1 deg steps to -14 deg and two
+# low rings. The firing order is the table's, all lasers of a firing at one azimuth.
+RINGS64_ELEVATIONS_DEG = tuple(float(e) for e in np.concatenate([
+    [15.0, 11.0, 8.0, 5.0, 3.0], np.linspace(2.0, -6.0, 49), np.arange(-7.0, -14.5, -1.0), [-19.0, -25.0]]))
 
 
 @dataclass(frozen=True)
@@ -85,12 +90,16 @@ class LidarConfig:
     footprint: Footprint | None = None
     detect_range_m: float | None = None
     energy_noise: float = 0.3
+    elevations_deg: tuple[float, ...] | None = None  # None: the VLP-16; else these lasers (deg), no offsets
 
     def __post_init__(self) -> None:
         if self.range_noise_m < 0 or self.reflectivity_noise < 0 or self.energy_noise < 0:
             raise SimError("LiDAR noise figures must be >= 0")
         if self.detect_range_m is not None and not self.detect_range_m > 0:
             raise SimError(f"LiDAR detection range must be > 0 m, got {self.detect_range_m}")
+        if self.elevations_deg is not None and not (
+                len(self.elevations_deg) >= 2 and all(-90 < e < 90 for e in self.elevations_deg)):
+            raise SimError(f"LiDAR elevations must be 2 or more angles within (-90, 90) deg, got {self.elevations_deg}")
         if not 0 <= self.min_range_m < self.max_range_m:
             raise SimError(f"LiDAR range limits must satisfy 0 <= min < max, got {self.min_range_m}, "
                            f"{self.max_range_m}")
@@ -98,7 +107,8 @@ class LidarConfig:
 
 @dataclass(frozen=True)
 class Sweep:
-    """One turn of the VLP-16, in the LiDAR frame, points in firing order (firing-major, then laser id).
+    """One turn of the VLP-16 (or of a multi-beam table, with L lasers for 16), in the LiDAR frame, points in
+    firing order (firing-major, then laser id).
 
     Per point (N returns): ``points_lidar`` (N,3) float64 m; ``intensity`` (N,) float32 calibrated
     reflectivity 0..255; ``ring`` (N,) int16 elevation order (0 = -15 deg); ``laser_id`` (N,) int16 firing
@@ -121,10 +131,21 @@ class Sweep:
         return len(self.points_lidar)
 
 
-def firing_grid() -> tuple[F64, F64]:
-    """``time_s`` and ``azimuth_deg`` of every (firing, laser id), each (1800,16)."""
-    time_s = (np.arange(FIRINGS_PER_TURN)[:, None] * FIRING_PERIOD_S + np.arange(N_LASERS)[None, :] * LASER_INTERVAL_S)
+def firing_grid(n_lasers: int = N_LASERS) -> tuple[F64, F64]:
+    """``time_s`` and ``azimuth_deg`` of every (firing, laser id), each (1800, n_lasers). Lasers beyond the
+    VLP-16's 16 fire at one time per firing (a multi-beam table, :class:`LidarConfig` ``elevations_deg``)."""
+    interval = LASER_INTERVAL_S if n_lasers == N_LASERS else 0.0
+    time_s = (np.arange(FIRINGS_PER_TURN)[:, None] * FIRING_PERIOD_S + np.arange(n_lasers)[None, :] * interval)
     return time_s, np.mod(DEG_PER_S * time_s, 360.0)
+
+
+def _lasers(cfg: LidarConfig) -> tuple[F64, F64, NDArray[np.int16]]:
+    """Elevation (deg), origin height (m) and ring of each laser id: the VLP-16's, or ``cfg``'s table."""
+    if cfg.elevations_deg is None:
+        return LASER_ELEVATIONS_DEG, LASER_OFFSETS_M, RING_OF_LASER
+    elevation = np.asarray(cfg.elevations_deg, dtype=np.float64)
+    ring = np.argsort(np.argsort(elevation, kind="stable"), kind="stable").astype(np.int16)
+    return elevation, np.zeros(len(elevation)), ring
 
 
 def beam_directions_lidar(azimuth_deg: F64, elevation_deg: F64) -> F64:
@@ -136,11 +157,13 @@ def beam_directions_lidar(azimuth_deg: F64, elevation_deg: F64) -> F64:
 def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config: LidarConfig | None = None) -> Sweep:
     """Simulate one sweep from ``pose_world_lidar`` (LiDAR frame -> world)."""
     cfg = config or LidarConfig()
-    time_s, azimuth_deg = firing_grid()
-    beams = beam_directions_lidar(azimuth_deg, np.broadcast_to(LASER_ELEVATIONS_DEG, azimuth_deg.shape))
+    elevation_deg, offsets_m, ring_of_laser = _lasers(cfg)
+    n_lasers = len(elevation_deg)
+    time_s, azimuth_deg = firing_grid(n_lasers)
+    beams = beam_directions_lidar(azimuth_deg, np.broadcast_to(elevation_deg, azimuth_deg.shape))
     beams = beams.reshape(-1, 3)
-    laser_origins = np.zeros_like(beams)  # (1800*16, 3) m in the LiDAR frame, firing-major like the beams
-    laser_origins[:, 2] = np.tile(LASER_OFFSETS_M, FIRINGS_PER_TURN)
+    laser_origins = np.zeros_like(beams)  # (1800*lasers, 3) m in the LiDAR frame, firing-major like the beams
+    laser_origins[:, 2] = np.tile(offsets_m, FIRINGS_PER_TURN)
     if cfg.footprint is None:
         beams_world = rotate(beams, pose_world_lidar.rotation)
         hits = cast(scene, pose_world_lidar.apply(laser_origins), beams_world)
@@ -156,17 +179,17 @@ def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config:
         valid &= _detected(depth_m, bright, cfg.detect_range_m, cfg.energy_noise, rng)
     ranges = np.where(valid, ranges, 0.0)
     reflectivity = np.where(valid, np.clip(np.rint(counts), 0, 255), 0).astype(np.uint8)
-    laser = np.tile(np.arange(N_LASERS, dtype=np.int16), FIRINGS_PER_TURN)
+    laser = np.tile(np.arange(n_lasers, dtype=np.int16), FIRINGS_PER_TURN)
     keep = np.flatnonzero(valid)
     return Sweep(
         points_lidar=ranges[keep, None] * beams[keep] + laser_origins[keep],
         intensity=reflectivity[keep].astype(np.float32),
-        ring=RING_OF_LASER[laser[keep]],
+        ring=ring_of_laser[laser[keep]],
         laser_id=laser[keep],
         azimuth_deg=azimuth_deg.reshape(-1)[keep],
         time_s=time_s.reshape(-1)[keep],
-        ranges_m=ranges.reshape(FIRINGS_PER_TURN, N_LASERS),
-        reflectivity=reflectivity.reshape(FIRINGS_PER_TURN, N_LASERS),
+        ranges_m=ranges.reshape(FIRINGS_PER_TURN, n_lasers),
+        reflectivity=reflectivity.reshape(FIRINGS_PER_TURN, n_lasers),
     )
 
 

@@ -187,6 +187,8 @@ class SimRig:
             meta["beam_footprint"] = dataclasses.asdict(cfg.lidar.footprint)
         if cfg.trees:
             meta["trees"] = True
+        if cfg.lidar.elevations_deg is not None:
+            meta["lidar_elevations_deg"] = [float(e) for e in cfg.lidar.elevations_deg]
         if cfg.lidar.detect_range_m is not None:
             meta["lidar_detection"] = {"detect_range_m": float(cfg.lidar.detect_range_m),
                                        "energy_noise": float(cfg.lidar.energy_noise)}

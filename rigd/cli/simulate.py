@@ -52,6 +52,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--camera", choices=["panorama", "pinhole"], default="panorama",
                         help="pinhole: a forward 1920x1200 camera (48 x 31 deg) below a level LiDAR, as on a car, "
                         "instead of the Ladybug5 panorama (docs/simulator.md)")
+    parser.add_argument("--lidar", choices=["vlp16", "64"], default="vlp16",
+                        help="64: a 64-ring street LiDAR (a dense band of 0.17 deg rings from +2 to -6 deg, like the "
+                        "pinhole sample's) in place of the VLP-16 (docs/simulator.md)")
     parser.set_defaults(func=run)
 
 
@@ -59,9 +62,9 @@ def run(args: argparse.Namespace) -> int:
     height = args.height if args.height is not None else max(1, args.width // 2)
     out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, args.width, height, args.noise_m,
                                   sensor_effects=args.sensor_effects, dropouts=args.dropouts, trees=args.trees,
-                                  pinhole=args.camera == "pinhole")
+                                  pinhole=args.camera == "pinhole", rings64=args.lidar == "64")
     effects = [text for on, text in ((args.sensor_effects, "sensor effects"), (args.dropouts, "LiDAR dropouts"),
-                                     (args.trees, "street trees")) if on]
+                                     (args.trees, "street trees"), (args.lidar == "64", "a 64-ring LiDAR")) if on]
     extra = f" with {' and '.join(effects)}" if effects else ""
     size = "1920x1200 pinhole" if args.camera == "pinhole" else f"{args.width}x{height}"
     print(f"wrote {args.pairs} simulated {args.scene} pairs ({size}){extra} to {out}")

@@ -131,3 +131,12 @@ def test_simulate_a_pinhole_rig_writes_a_pinhole_dataset(tmp_path, monkeypatch):
     R = dataset.ground_truth.rotation
     assert R[2, 0] > 0.99 and R[1, 2] < -0.99
     assert dataset.ground_truth.translation_m[1] < -0.3  # 0.35 m up is optical -y
+
+
+def test_simulate_a_64_ring_lidar_is_recorded(tmp_path):
+    assert main(["simulate", str(tmp_path / "d"), "--scene", "indoor", "--pairs", "1", "--width", "256",
+                 "--lidar", "64"]) == 0
+    dataset = open_dataset(tmp_path / "d")
+    pair = dataset.load_pair(0)
+    assert dataset.rig.lidar_model == "64-ring" and len(pair.meta["lidar_elevations_deg"]) == 64
+    assert pair.cloud.ring.max() > 16

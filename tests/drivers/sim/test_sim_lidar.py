@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from drivers.sim import Footprint, LidarConfig, Lighting, Pose, SceneBuilder, SceneKind, SimError, scan
-from drivers.sim.lidar import FIRINGS_PER_TURN, LASER_ELEVATIONS_DEG
+from drivers.sim.lidar import FIRINGS_PER_TURN, LASER_ELEVATIONS_DEG, RINGS64_ELEVATIONS_DEG
 
 # The VLP-16 manual: laser k's origin is 41.91 mm * tan(-elevation) above the sensor origin (11.2 mm at -15 deg).
 OFFSET_M = 0.04191 * np.tan(np.radians(-LASER_ELEVATIONS_DEG))
@@ -155,3 +155,23 @@ def test_beam_footprint_makes_veils_on_small_depth_gaps_and_widens_near_edges():
     thin, wide = _horizontal_ranges(3.0, None), _horizontal_ranges(3.0, Footprint(divergence_mrad=30.0))
     assert np.count_nonzero((wide > 4.2) & (wide < 7.0)) == 0
     assert np.count_nonzero(wide < 4.2) > np.count_nonzero(thin < 4.2)
+
+
+def test_a_64_ring_table_scans_each_ring_at_its_elevation_from_the_origin():
+    config = LidarConfig(range_noise_m=0.0, elevations_deg=RINGS64_ELEVATIONS_DEG)
+    sweep = scan(_floor_scene(), _level_pose(), np.random.default_rng(2), config)
+    p = sweep.points_lidar
+    elevation = np.degrees(np.arcsin(p[:, 2] / np.linalg.norm(p, axis=1)))
+    table = np.asarray(RINGS64_ELEVATIONS_DEG)
+    np.testing.assert_allclose(elevation, table[sweep.laser_id], atol=1e-3)  # 2 mm range steps
+    # ring = elevation order, 0 = lowest; only the rings below the horizon within 100 m reach the floor
+    np.testing.assert_array_equal(sweep.ring, np.argsort(np.argsort(table))[sweep.laser_id])
+    assert sweep.ranges_m.shape == (FIRINGS_PER_TURN, 64)
+    reach = (table < 0) & (HEIGHT_M / np.sin(np.radians(np.maximum(-table, 1e-9))) <= 100.0)
+    assert set(np.unique(sweep.laser_id)) == set(np.flatnonzero(reach))
+
+
+@pytest.mark.parametrize("table", [(5.0,), (0.0, 95.0)])
+def test_a_bad_elevation_table_is_refused(table):
+    with pytest.raises(SimError, match="elevations"):
+        LidarConfig(elevations_deg=table)
