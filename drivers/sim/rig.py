@@ -194,8 +194,8 @@ class SimRig:
                                        "energy_noise": float(cfg.lidar.energy_noise)}
         return SimCapture(image, sweep, meta, scene, pose_cam, pose_lidar)
 
-
     def _render(self, scene: Scene, pose_cam: Pose, rng: np.random.Generator) -> NDArray[np.uint8]:
+        """The panorama, or the pinhole image along the panorama's forward axis, from ``pose_cam``."""
         cfg = self.config
         if cfg.pinhole is None:
             return render_panorama(scene, pose_cam, cfg.width, cfg.height, rng, cfg.image_noise_grey,
