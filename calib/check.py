@@ -109,7 +109,7 @@ def check_drift(feats: list[PairFeatures], checked: Transform, params: CalibPara
                 prior: Prior | None = None) -> DriftResult:
     """Search the finest levels from ``checked`` on ``feats`` and judge the change (module docstring)."""
     check_initial_guess(feats, checked.tau)
-    full = schedule(feats, params)
+    full = schedule(feats, params, checked.tau)
     # A local question (is there a better pose near the checked one?): steepest descent, which stays in the
     # checked pose's basin; quasi-Newton steps along a direction few pairs pin can reach another one (measured:
     # 3 small pairs checked at their ground truth, 1.5 deg away and "drifted").
