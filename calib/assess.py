@@ -149,7 +149,10 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
     Each level weighs the prior as the solution's did: the restarts minimise the objective the solution
     minimised, so their final costs compare with its."""
     rng = np.random.default_rng(trust.seed)
-    tail = tail_options(opts, min(trust.restart_levels, len(opts.sigmas_deg)))
+    # Fold edges on the last levels (a pinhole's schedule, calib.pipeline.schedule) make the finest cost
+    # rugged within the restarts' 2 deg: one level more smooths it as the solve's own coarser level did.
+    levels = trust.restart_levels + (1 if opts.fold_levels >= len(opts.sigmas_deg) else 0)
+    tail = tail_options(opts, min(levels, len(opts.sigmas_deg)))
     # By level width: the solution may come from a shorter schedule than the tail (the alternative one).
     solved = {round(t.sigma_in_deg, 9): t.kappa for t in best.levels}
     kappas = tuple(solved.get(round(s, 9)) for s in tail.sigmas_deg)

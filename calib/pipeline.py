@@ -50,6 +50,7 @@ class CalibParams:
     min_edge_points: int = 30
     max_translation_m: float = 5.0  # camera and LiDAR share one rig: a longer baseline is a wrong guess
     min_boundary_points: int = 300  # fewer occlusion edge points in all pairs: folds stay in every level
+    dense_ring_deg: float = 0.5  # a pinhole's schedule keeps folds in every level with rings this dense
     # The initial guess's lever arm as a weak prior (sigma per axis, m; 0: none) when no translation prior is
     # given: where the images leave the translation undetermined it stays near the guess (docs/method.md).
     guess_sigma_m: float = 0.10
@@ -139,12 +140,34 @@ def schedule(feats: list[PairFeatures], params: CalibParams, tau0: F64) -> Optim
         points = f.points.points_lidar[f.points.kind == BOUNDARY]
         uv, valid = f.camera.project(transform_points(tau0, points)[0])
         boundaries += int(np.count_nonzero(in_image(f.camera, uv, valid)))
-    if boundaries < params.min_boundary_points:
+    narrow = not all(isinstance(f.camera, Equirectangular) for f in feats)
+    if boundaries < params.min_boundary_points or (narrow and _dense_rings(feats, params.dense_ring_deg)):
         # Too few occlusion edges to pin the finest levels alone (measured: 152 in 2 small pairs put the
         # finest cost's minimum 9.7 deg off; 108 in view in 3 simulated pinhole pairs 2.2 deg off, 0.57 deg
         # with the folds); fold edges are biased (~0.3 deg) but keep it anchored.
+        # A narrow view with dense rings keeps them too: the occlusion edges found along the rings lie on
+        # near-vertical image edges, which hold the image's horizontal only, so a rotation about the LiDAR's
+        # lateral axis slides them along those edges; folds where dense rings cross horizontal creases (wall
+        # bases, kerbs, sills) hold it. A panorama's vertical edges at its sides hold it through their tilt,
+        # and a VLP-16's 2 deg rings cross too few creases (docs/method.md, item 9).
         return replace(params.optim, fold_levels=len(params.optim.sigmas_deg))
     return params.optim
+
+
+def _dense_rings(feats: list[PairFeatures], max_deg: float) -> bool:
+    """Whether the clouds' rings are at most ``max_deg`` apart in elevation: the edge points' elevations,
+    split into rings where consecutive ones (sorted) differ by more than 0.1 deg (a VLP-16's laser offsets
+    spread one ring over some 0.3 deg near the sensor, its rings are 2 deg apart; a 64-ring LiDAR's dense
+    band is 0.17 deg apart), and the median spacing of neighbouring rings' median elevations."""
+    spacings = []
+    for f in feats:
+        p = f.points.points_lidar
+        elevation = np.sort(np.degrees(np.arctan2(p[:, 2], np.hypot(p[:, 0], p[:, 1]))))
+        cuts = np.flatnonzero(np.diff(elevation) > 0.1) + 1
+        rings = np.array([np.median(r) for r in np.split(elevation, cuts) if len(r)])
+        if len(rings) > 1:
+            spacings.append(np.diff(rings))
+    return bool(spacings) and float(np.median(np.concatenate(spacings))) <= max_deg
 
 
 def solve_prior(prior: Prior | None, guess: Transform, params: CalibParams) -> Prior | None:

@@ -308,3 +308,15 @@ def test_a_translation_the_images_cannot_see_stays_at_the_guess_and_is_reported_
     assert set(held.assessment.verdict.weak_axes) >= {"x", "y", "z"}
     assert np.linalg.norm(loose.T_camera_lidar.translation_m - guess.translation_m) > 1.0
     assert not loose.assessment.uncertainty.is_minimum
+
+
+def test_restarts_run_one_level_more_when_folds_are_on_every_level(pairs):
+    """Fold edges on the last levels make the finest cost rugged within the restarts' offsets: the restarts
+    then start one level wider, as the solve itself came down from a wider level."""
+    opts = dataclasses.replace(OptimOptions(), alternative_schedules=0)
+    result = optimise(pairs, TRUTH.tau, opts, FIELD)
+    widths = [[t.sigma_in_deg for t in run.levels]
+              for folds in (opts.fold_levels, len(opts.sigmas_deg))
+              for run in _run_restarts(pairs, result, dataclasses.replace(opts, fold_levels=folds), FIELD, None,
+                                       TrustOptions(restarts=1), None)[1]]
+    assert widths == [list(opts.sigmas_deg[-2:]), list(opts.sigmas_deg[-3:])]

@@ -1,20 +1,52 @@
-"""calib.pipeline: the schedule keeps fold edges on every level when the cameras see few occlusion edges."""
+"""calib.pipeline.schedule: when fold edges stay on every level."""
 
 import dataclasses
 
 import numpy as np
 
 from calib.camera import Pinhole
+from calib.edges_points import EdgePoints
+from calib.geometry import so3_log
+from calib.gmm import PairFeatures, in_image, transform_points
 from calib.pipeline import CalibParams, schedule
 from tests.calib.synthetic import TRUTH, make_pair
 
+PARAMS = CalibParams()
+ALL_LEVELS = len(PARAMS.optim.sigmas_deg)
 
-def test_occlusion_edges_are_counted_where_the_camera_sees_them():
-    params = CalibParams()
+
+def test_a_panorama_with_many_occlusion_edges_keeps_folds_on_the_coarse_levels_only():
     panorama = make_pair(0)  # 2400 occlusion edge points, every one in the panorama
-    assert len(panorama.points) >= 2 * params.min_boundary_points
-    assert schedule([panorama], params, TRUTH.tau).fold_levels == params.optim.fold_levels
-    # The same cloud before a narrow pinhole (100 px at f = 2000 px: 2.9 deg) sees almost none of them.
-    narrow = Pinhole(np.array([[2000.0, 0.0, 49.5], [0.0, 2000.0, 49.5], [0.0, 0.0, 1.0]]), np.zeros(5), 100, 100)
-    pinhole = dataclasses.replace(panorama, camera=narrow, fields=None, pixel_grid=None)
-    assert schedule([pinhole], params, TRUTH.tau).fold_levels == len(params.optim.sigmas_deg)
+    assert len(panorama.points) >= 2 * PARAMS.min_boundary_points
+    assert schedule([panorama], PARAMS, TRUTH.tau).fold_levels == PARAMS.optim.fold_levels < ALL_LEVELS
+
+
+def test_a_panorama_with_few_occlusion_edges_keeps_folds_on_every_level():
+    panorama = make_pair(0)
+    few = panorama.points.points_lidar[:: len(panorama.points) // 200]
+    sparse = dataclasses.replace(panorama, points=EdgePoints(few, np.ones(len(few)), np.zeros(len(few), np.int8)))
+    assert schedule([sparse], PARAMS, TRUTH.tau).fold_levels == ALL_LEVELS
+
+
+# A level LiDAR before a forward pinhole: optical z = LiDAR x, optical x = -LiDAR y, optical y = -LiDAR z.
+FORWARD = np.concatenate([so3_log(np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])), np.zeros(3)])
+PINHOLE = Pinhole(np.array([[1000.0, 0.0, 999.5], [0.0, 1000.0, 599.5], [0.0, 0.0, 1.0]]), np.zeros(5), 2000, 1200)
+
+
+def _ring_pair(ring_step_deg: float) -> PairFeatures:
+    """Occlusion edge points 10 m ahead on 16 rings ``ring_step_deg`` apart, 40 per ring across the view."""
+    elevation = np.radians(np.arange(-8, 8) * ring_step_deg)[:, None]
+    azimuth = np.radians(np.linspace(-30, 30, 40))[None, :]
+    e, a = np.broadcast_arrays(elevation, azimuth)
+    points = 10.0 * np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], axis=-1).reshape(-1, 3)
+    edges = EdgePoints(points, np.ones(len(points)), np.zeros(len(points), np.int8))
+    return PairFeatures(PINHOLE, make_pair(0).pixels, edges)
+
+
+def test_a_pinhole_with_dense_rings_keeps_folds_on_every_level():
+    dense, sparse = _ring_pair(0.17), _ring_pair(2.0)  # a 64-ring LiDAR's middle band; a VLP-16
+    for pair in (dense, sparse):
+        uv, valid = PINHOLE.project(transform_points(FORWARD, pair.points.points_lidar)[0])
+        assert np.count_nonzero(in_image(PINHOLE, uv, valid)) >= PARAMS.min_boundary_points  # plenty in view
+    assert schedule([dense], PARAMS, FORWARD).fold_levels == ALL_LEVELS
+    assert schedule([sparse], PARAMS, FORWARD).fold_levels == PARAMS.optim.fold_levels
