@@ -197,10 +197,15 @@ def _detected(depth_m: F64, bright: F64, detect_range_m: float, energy_noise: fl
               rng: np.random.Generator) -> NDArray[np.bool_]:
     """(M,) whether each beam's echo (range ``depth_m``, ``albedo * cos(incidence)`` ``bright``) is strong
     enough to be detected (:class:`LidarConfig`)."""
-    hit = np.isfinite(depth_m)
-    energy = np.where(hit, bright / np.maximum(np.where(hit, depth_m, 1.0), 0.5) ** 2, 0.0)
     pulse = np.exp(rng.normal(0.0, energy_noise, size=len(depth_m)))
-    return np.asarray(energy * pulse >= 0.1 / detect_range_m**2, dtype=bool)
+    return np.asarray(_echo_energy(depth_m, bright) * pulse >= 0.1 / detect_range_m**2, dtype=bool)
+
+
+def _echo_energy(depth_m: F64, bright: F64) -> F64:
+    """Echo energy ``albedo * cos(incidence) / r^2`` (same shape as ``depth_m``; 0 where inf: no hit), the range
+    floored at 0.5 m."""
+    hit = np.isfinite(depth_m)
+    return np.where(hit, bright / np.maximum(np.where(hit, depth_m, 1.0), 0.5) ** 2, 0.0)
 
 
 def _footprint_returns(scene: Scene, pose_world_lidar: Pose, origins: F64, beams: F64,
@@ -221,7 +226,7 @@ def _footprint_returns(scene: Scene, pose_world_lidar: Pose, origins: F64, beams
     bright = (hits.albedo * np.abs(np.sum(hits.normal * dirs_world, axis=1))).reshape(-1, k)
     hit = np.isfinite(depth)
     # (+ a tiny floor: a black surface still returns a range when nothing brighter shares the spot)
-    energy = np.where(hit, bright / np.maximum(np.where(hit, depth, 1.0), 0.5) ** 2, 0.0) + hit * 1e-12
+    energy = _echo_energy(depth, bright) + hit * 1e-12
     nearest = np.min(np.where(hit, depth, np.inf), axis=1, keepdims=True)
     near = hit & (depth <= nearest + footprint.merge_m)
     far = hit & ~near
