@@ -203,16 +203,14 @@ def _sums_exact(feats: list[PairFeatures], parts: list[slice], uv: F64, sigma: F
 def _sums_field(feats: list[PairFeatures], fields: list[EdgeFields], parts: list[slice], uv: F64, sigma: F64) -> F64:
     """(N, 9) sums for ``Evaluator.FIELD``: sampled from the fields where a centre is wide enough to read only
     pooled rungs, exact (:func:`_sums_exact`) where it is narrower."""
-    narrow = ~fields[0].reads_pooled(sigma)
+    wide = fields[0].reads_pooled(sigma)
     out = np.zeros((len(uv), 9))
-    for mask, by_fields in ((~narrow, True), (narrow, False)):
-        counts = [int(np.count_nonzero(mask[p])) for p in parts]
-        if not sum(counts):
-            continue
-        if by_fields:
-            out[mask] = sample_fields(fields, counts, uv[mask], sigma[mask])
-        else:
-            out[mask] = _sums_exact(feats, _slices(counts), uv[mask], sigma[mask])
+    if wide.any():
+        out[wide] = sample_fields(fields, [int(np.count_nonzero(wide[p])) for p in parts], uv[wide], sigma[wide])
+    if not wide.all():
+        narrow = ~wide
+        counts = [int(np.count_nonzero(narrow[p])) for p in parts]
+        out[narrow] = _sums_exact(feats, _slices(counts), uv[narrow], sigma[narrow])
     return out
 
 

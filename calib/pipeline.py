@@ -119,13 +119,15 @@ def extract_features(pair: PairInput, camera: CameraModel, params: CalibParams, 
     return PairFeatures(camera, pixels, points, fields, grid)
 
 
+def _in_view(feat: PairFeatures, points_lidar: F64, tau: F64) -> int:
+    """How many of ``points_lidar`` (N,3) m project into ``feat``'s image at the pose ``tau``."""
+    uv, valid = feat.camera.project(transform_points(tau, points_lidar)[0])
+    return int(np.count_nonzero(in_image(feat.camera, uv, valid)))
+
+
 def check_initial_guess(feats: list[PairFeatures], tau0: F64) -> int:
     """Number of edge points that project into their image at ``tau0``; raises if none does."""
-    total = 0
-    for f in feats:
-        p_cam, _ = transform_points(tau0, f.points.points_lidar)
-        uv, valid = f.camera.project(p_cam)
-        total += int(in_image(f.camera, uv, valid).sum())
+    total = sum(_in_view(f, f.points.points_lidar, tau0) for f in feats)
     if total == 0:
         raise InitialGuessError("no edge point projects into any image under the initial guess")
     return total
@@ -135,11 +137,7 @@ def schedule(feats: list[PairFeatures], params: CalibParams, tau0: F64) -> Optim
     """The optimiser's options for ``feats`` solved from ``tau0``: ``params.optim``, with fold edges kept on
     every level when the pairs hold too few occlusion edges in their cameras' view at ``tau0`` (a pinhole
     sees a fraction of the LiDAR's turn: points behind it pin nothing)."""
-    boundaries = 0
-    for f in feats:
-        points = f.points.points_lidar[f.points.kind == BOUNDARY]
-        uv, valid = f.camera.project(transform_points(tau0, points)[0])
-        boundaries += int(np.count_nonzero(in_image(f.camera, uv, valid)))
+    boundaries = sum(_in_view(f, f.points.points_lidar[f.points.kind == BOUNDARY], tau0) for f in feats)
     narrow = not all(isinstance(f.camera, Equirectangular) for f in feats)
     if boundaries < params.min_boundary_points or (narrow and _dense_rings(feats, params.dense_ring_deg)):
         # Too few occlusion edges to pin the finest levels alone (measured: 152 in 2 small pairs put the

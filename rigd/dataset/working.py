@@ -46,7 +46,6 @@ def halve_camera(camera: CameraConfig) -> CameraConfig:
         return dataclasses.replace(camera, **size)
     K_half = np.asarray(camera.K, dtype=np.float64).copy()
     K_half[:2, :] /= 2.0
-    K_half[2, :] = camera.K[2, :]
     return dataclasses.replace(camera, K=K_half, **size)
 
 
