@@ -47,6 +47,7 @@ from calib.uncertainty import (
     local_gradient,
     matched_points,
     nll_scale,
+    places,
     positive_part,
     sandwich,
     scatter,
@@ -178,8 +179,8 @@ def _restart_solves(feats: list[PairFeatures], starts: list[F64], tail: OptimOpt
 
 
 def _groups(clusters: Clusters, n_pairs: int, trust: TrustOptions) -> tuple[NDArray[np.int64], int]:
-    """Jackknife group (C,) of each cluster, and the number of groups: the pair, or (few pairs) a random
-    group of angular image cells."""
+    """Jackknife group (C,) of each cluster, and the number of groups: the place (``n_pairs`` places), or (few
+    places) a random group of angular image cells."""
     if n_pairs >= trust.jackknife_min_pairs:
         return clusters.pair, n_pairs
     rng = np.random.default_rng(trust.seed)
@@ -284,7 +285,7 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     cov_l = np.zeros((6, 6))
     cov_l[np.ix_(free, free)] = sandwich(h, b, prior_info, radius / scale[free]) if known \
         else np.diag(np.full(int(free.sum()), np.inf))
-    groups, n_groups = _groups(clusters, len(feats), trust)
+    groups, n_groups = _groups(clusters, int(places(feats).max()) + 1, trust)
     extra = np.zeros((6, 6))
     extra[np.ix_(free, free)] = kappa * solving_info
     jack = _jackknife(grads, hessians, extra, groups, n_groups, free, scale, radius)

@@ -230,3 +230,64 @@ class Pinhole:
         """
         rays = self.back_project(uv)
         return 1.0 / np.maximum(rays[:, 2], 0.2) ** 3
+
+
+@dataclass(frozen=True)
+class Mounted:
+    """One sensor of a multi-camera head (a Ladybug's five side cameras), as a camera of the head frame.
+
+    ``sensor`` projects points of its own frame (a :class:`Pinhole` in the OpenCV optical frame);
+    ``rotation`` (3,3) and ``translation_m`` (3,) map head points into it, ``p_sensor = R p_head + t`` (the
+    inverse of the factory pose ``T_head_sensor``). With such cameras the calibration's unknown is
+    ``T_head_lidar``: every sensor of every place aligns its edges under that one transform, and a point
+    seen by two sensors counts in both. ``name`` names the sensor in reports and files.
+    """
+
+    name: str
+    sensor: Pinhole
+    rotation: F64
+    translation_m: F64
+
+    def __post_init__(self) -> None:
+        r = np.asarray(self.rotation, dtype=np.float64)
+        t = np.asarray(self.translation_m, dtype=np.float64).reshape(-1)
+        if r.shape != (3, 3) or t.shape != (3,) or not (np.all(np.isfinite(r)) and np.all(np.isfinite(t))):
+            raise GeometryError(f"sensor {self.name}: its pose in the head needs a 3x3 rotation and 3 finite numbers")
+        object.__setattr__(self, "rotation", r)
+        object.__setattr__(self, "translation_m", t)
+
+    @property
+    def width(self) -> int:
+        return self.sensor.width
+
+    @property
+    def height(self) -> int:
+        return self.sensor.height
+
+    @property
+    def pixels_per_radian(self) -> float:
+        return self.sensor.pixels_per_radian
+
+    def to_sensor(self, points_head: F64) -> F64:
+        """Head points (N,3) m into the sensor's frame (N,3) m."""
+        out: F64 = np.asarray(points_head, dtype=np.float64) @ self.rotation.T + self.translation_m
+        return out
+
+    def project(self, points_head: F64) -> tuple[F64, Mask]:
+        return self.sensor.project(self.to_sensor(points_head))
+
+    def project_jacobian(self, points_head: F64) -> F64:
+        """d uv / d p_head (N,2,3) px/m: the sensor's Jacobian times R (the chain rule through the fixed pose)."""
+        jac: F64 = self.sensor.project_jacobian(self.to_sensor(points_head)) @ self.rotation
+        return jac
+
+    def back_project(self, uv: F64) -> F64:
+        """Unit rays (N,3) of the pixels, in the head frame."""
+        rays: F64 = self.sensor.back_project(uv) @ self.rotation
+        return rays
+
+    def displacement(self, uv_pixels: F64, uv_centres: F64) -> F64:
+        return self.sensor.displacement(uv_pixels, uv_centres)
+
+    def pixel_area_ratio(self, uv: F64) -> F64:
+        return self.sensor.pixel_area_ratio(uv)

@@ -35,7 +35,9 @@ class ImageEdgeParams:
     silencing the rest. ``clahe_clip``: contrast-limited adaptive histogram equalisation before smoothing
     (0 disables), so an edge's score follows local contrast rather than global exposure or haze.
     ``texture_radius_deg``, ``texture_min_radius_px``, ``texture_max_lines``: texture suppression (module
-    docstring; radius 0 disables, the paper has none)."""
+    docstring; radius 0 disables, the paper has none). ``mask_margin_px``: with a mask of the pixels that show
+    the scene, edge pixels closer than this to a masked pixel are dropped (the mask's own border, the rig's
+    body and a rectified image's black surround are edges of the image, not of the scene)."""
 
     clahe_clip: float = 0.0
     l0_lambda: float = 0.01
@@ -46,6 +48,7 @@ class ImageEdgeParams:
     texture_radius_deg: float = 0.3
     texture_min_radius_px: int = 3
     texture_max_lines: float = 2.0
+    mask_margin_px: int = 4
 
     def texture_radius_px(self, pixels_per_radian: float) -> int:
         """The texture disk's radius in pixels for a camera with ``pixels_per_radian`` (0: no suppression)."""
@@ -217,10 +220,25 @@ def edge_line_density(mask: NDArray[np.bool_], radius_px: int, wrap_u: bool) -> 
     return np.asarray(counts, dtype=np.float64) / (2 * r + 1)
 
 
+def scene_pixels(mask: NDArray[np.bool_], margin_px: int) -> NDArray[np.bool_]:
+    """(H,W) bool: the pixels of ``mask`` (True where the image shows the scene) at least ``margin_px`` from any
+    pixel outside it (and from the image border)."""
+    if margin_px <= 0:
+        return np.asarray(mask, dtype=bool)
+    kernel = np.ones((2 * margin_px + 1, 2 * margin_px + 1), np.uint8)
+    eroded = cv2.erode(np.asarray(mask, dtype=np.uint8), kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    return np.asarray(eroded > 0)
+
+
 def image_edge_pixels(image: NDArray[np.uint8], params: ImageEdgeParams, wrap_u: bool,
-                      pixels_per_radian: float) -> EdgePixels:
-    """Edge pixels above the threshold and not in texture, each moved to its sub-pixel peak across the edge."""
+                      pixels_per_radian: float, mask: NDArray[np.bool_] | None = None) -> EdgePixels:
+    """Edge pixels above the threshold and not in texture, each moved to its sub-pixel peak across the edge.
+    ``mask`` (H,W) bool, True where the image shows the scene: edge pixels near masked pixels are dropped."""
     magnitude, gx, gy, nms = _edge_maps(image, params, wrap_u)
+    if mask is not None:
+        if mask.shape != image.shape[:2]:
+            raise CalibError(f"mask is {mask.shape[1]}x{mask.shape[0]}, the image {image.shape[1]}x{image.shape[0]}")
+        nms = np.where(scene_pixels(mask, params.mask_margin_px), nms, 0.0)
     score = _normalise(nms, params.normalise_percentile)
     edges = score > params.threshold
     radius = params.texture_radius_px(pixels_per_radian)

@@ -56,14 +56,18 @@ class PaperEdgeParams:
 class ScanlineEdgeParams:
     """Scan-line edges. ``jump_m`` + ``jump_rel`` * range is the smallest range jump taken as an occlusion
     boundary; ``jump_contrast``: the jump must exceed this multiple of the neighbouring steps (rejects
-    surfaces seen at grazing incidence); ``max_gap_deg``: a larger azimuth gap (missing returns, e.g. sky)
-    also makes a boundary; ``fold_half_window_m``: each side of a fold is fitted over this arc length;
+    surfaces seen at grazing incidence); an azimuth gap larger than ``max_gap_steps`` times the ring's own
+    azimuth step and than ``max_gap_deg`` (missing returns, e.g. sky) also makes a boundary, unless its two
+    sides lie at one range and at most ``bridge_max_deg`` apart (a surface that returned nothing for a while);
+    ``fold_half_window_m``: each side of a fold is fitted over this arc length;
     ``fold_min_deg``: smallest direction change taken as a fold; ``min_range_m`` drops self-hits."""
 
     jump_m: float = 0.3
     jump_rel: float = 0.05
     jump_contrast: float = 3.0
     max_gap_deg: float = 0.5
+    max_gap_steps: float = 2.5
+    bridge_max_deg: float = 10.0
     fold_half_window_m: float = 0.25
     fold_min_points: int = 5
     fold_min_deg: float = 40.0
@@ -86,11 +90,26 @@ def _ring_order(points: F64, ring: I64) -> tuple[I64, I64]:
     return order.astype(np.int64), starts.astype(np.int64)
 
 
-def _boundary_points(pts: F64, rng: F64, params: ScanlineEdgeParams) -> tuple[F64, F64]:
-    """Foreground points of occlusion boundaries along one ring, moved half a step toward the gap.
+def azimuth_step(pts: F64) -> float:
+    """The ring's azimuth step, rad: the median gap between neighbouring returns of one ring, ``pts`` (N,3) m
+    sorted by azimuth. A VLP-16 at 600 rpm fires every 0.2 deg; an HDL-64E's lower block every 0.45 deg, its upper block
+    every 0.09 deg (0.18 deg typical with dropouts): a fixed gap threshold would read every step of the lower
+    block's 0.54 deg as missing returns and put boundary points all over the ground."""
+    if len(pts) < 2:
+        return float(np.radians(0.2))
+    az = np.arctan2(pts[:, 1], pts[:, 0])
+    return float(np.median(np.mod(np.roll(az, -1) - az, 2.0 * np.pi)))
+
+
+def _boundary_points(pts: F64, rng: F64, step: float, params: ScanlineEdgeParams) -> tuple[F64, F64]:
+    """Foreground points of occlusion boundaries along one ring (sorted by azimuth, ``step`` its azimuth step in
+    rad), moved half a step toward the gap.
 
     The silhouette lies somewhere between the last foreground sample and the next one; the midpoint is its
-    unbiased estimate (the last sample alone is biased inward by half the azimuth step, 0.1 deg).
+    unbiased estimate (the last sample alone is biased inward by half the azimuth step). Across a gap of
+    missing returns the silhouette can lie anywhere in the gap, so the foreground sample itself is taken.
+    A gap whose two sides lie at the same range (no jump) and at most ``bridge_max_deg`` apart is a surface
+    that returned nothing for a while (a dark window, black paint, the sweep's own cut), not a silhouette.
     """
     n = len(pts)
     if n < 3:
@@ -98,29 +117,32 @@ def _boundary_points(pts: F64, rng: F64, params: ScanlineEdgeParams) -> tuple[F6
     az = np.arctan2(pts[:, 1], pts[:, 0])
     nxt = np.r_[np.arange(1, n), 0]  # the ring is closed (full sweep)
     gap = np.mod(az[nxt] - az, 2.0 * np.pi)
+    missing = gap > max(float(np.radians(params.max_gap_deg)), params.max_gap_steps * step)
     dr = rng[nxt] - rng
-    step = np.abs(dr)
-    prev_step, next_step = np.roll(step, 1), np.roll(step, -1)
-    contrast = step > params.jump_contrast * np.maximum(np.maximum(prev_step, next_step), 1e-3)
-    jump = (step > params.jump_m + params.jump_rel * np.minimum(rng, rng[nxt])) & contrast
-    missing = gap > np.radians(params.max_gap_deg)
+    range_step = np.abs(dr)
+    prev_step, next_step = np.roll(range_step, 1), np.roll(range_step, -1)
+    contrast = range_step > params.jump_contrast * np.maximum(np.maximum(prev_step, next_step), 1e-3)
+    jump = range_step > params.jump_m + params.jump_rel * np.minimum(rng, rng[nxt])
+    bridged = missing & ~jump & (gap <= np.radians(params.bridge_max_deg))
+    jump &= contrast | missing
+    here, there = np.arange(n), nxt
+    near_is_left = dr > 0  # the nearer of the two samples is the foreground
     out_pts, out_score = [], []
-    # Jump: the nearer of the two samples is the foreground.
-    near_is_left = dr > 0
     for mask, fg, bg in (
-        (jump & near_is_left, np.arange(n), nxt),
-        (jump & ~near_is_left, nxt, np.arange(n)),
-        (missing & ~jump, np.arange(n), None),
-        (missing & ~jump, nxt, None),
+        (jump & ~missing & near_is_left, here, there),
+        (jump & ~missing & ~near_is_left, there, here),
+        (jump & missing & near_is_left, here, None),
+        (jump & missing & ~near_is_left, there, None),
+        (missing & ~jump & ~bridged, here, None),
+        (missing & ~jump & ~bridged, there, None),
     ):
         idx = np.flatnonzero(mask)
         if idx.size == 0:
             continue
         f = fg[idx]
+        direction = pts[f] / rng[f, None]
         if bg is not None:
-            direction = pts[f] / rng[f, None] + pts[bg[idx]] / rng[bg[idx], None]
-        else:  # no return on the other side: assume the nominal half step of 0.1 deg outward
-            direction = pts[f] / rng[f, None]
+            direction = direction + pts[bg[idx]] / rng[bg[idx], None]
         direction /= np.linalg.norm(direction, axis=1, keepdims=True)
         out_pts.append(direction * rng[f, None])
         out_score.append(np.ones(idx.size))
@@ -129,14 +151,14 @@ def _boundary_points(pts: F64, rng: F64, params: ScanlineEdgeParams) -> tuple[F6
     return np.concatenate(out_pts), np.concatenate(out_score)
 
 
-def _fold_points(pts: F64, rng: F64, params: ScanlineEdgeParams) -> tuple[F64, F64]:
+def _fold_points(pts: F64, rng: F64, step: float, params: ScanlineEdgeParams) -> tuple[F64, F64]:
     """Folds along one ring: the direction of the left and right halves of a metric window differ."""
     n = len(pts)
     k = params.fold_min_points
     if n < 2 * k + 1:
         return np.zeros((0, 3)), np.zeros(0)
     # Points per half window at each sample's range (arc length / spacing), capped for cost.
-    spacing = np.maximum(rng * np.radians(0.2), 1e-3)
+    spacing = np.maximum(rng * step, 1e-3)
     half = np.clip((params.fold_half_window_m / spacing).astype(np.int64), k, 40)
     idx = np.arange(n)
     # Cumulative sums give window means in O(1) per point; the ring is closed, so index modulo n.
@@ -177,10 +199,11 @@ def scanline_edge_points(points_lidar: F64, ring: NDArray[np.integer] | None, pa
     for s, e in zip(starts, ends, strict=True):
         sel = order[s:e]
         pts, rng = pts_all[sel], rng_all[sel]
-        bp, bs = _boundary_points(pts, rng, params)
+        step = azimuth_step(pts)
+        bp, bs = _boundary_points(pts, rng, step, params)
         chunks.append((bp, bs, np.full(len(bp), BOUNDARY, np.int8)))
         if params.use_folds:
-            fp, fs = _fold_points(pts, rng, params)
+            fp, fs = _fold_points(pts, rng, step, params)
             chunks.append((fp, fs, np.full(len(fp), FOLD, np.int8)))
     if not chunks:
         return EdgePoints(np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int8))

@@ -85,13 +85,16 @@ class GmmOptions:
 @dataclass(frozen=True)
 class PairFeatures:
     """What the cost needs of one image/cloud pair: the camera model, its edge pixels and edge points,
-    and (for ``Evaluator.FIELD``) the precomputed fields of the edge pixels."""
+    and (for ``Evaluator.FIELD``) the precomputed fields of the edge pixels. ``place``: the place the pair was
+    taken at, when several pairs share one (the sensors of a multi-camera head share one cloud); None: the
+    pair is a place of its own. The assessment's jackknife leaves out whole places."""
 
     camera: CameraModel
     pixels: EdgePixels
     points: EdgePoints
     fields: EdgeFields | None = None
     pixel_grid: PixelGrid | None = None
+    place: int | None = None
 
     def grid(self) -> PixelGrid:
         """The edge pixels bucketed for the exact evaluator (built here if the features came without it)."""

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.camera import CameraModel, Equirectangular, Pinhole
+from calib.camera import CameraModel, Equirectangular, Mounted, Pinhole
 from calib.errors import InitialGuessError
 from calib.geometry import rotation_angle_deg, rpy_deg_to_matrix, so3_exp, so3_log
 from calib.gmm import PairFeatures
@@ -78,8 +78,9 @@ class SearchResult:
 
 
 def base_rotation(camera: CameraModel) -> F64:
-    """R_base (3,3): the identity for panoramas, LiDAR axes to the optical frame for pinhole cameras."""
-    if isinstance(camera, Equirectangular):
+    """R_base (3,3): the identity for panoramas and multi-camera heads (their frames are x forward, z up as the
+    LiDAR's), LiDAR axes to the optical frame for pinhole cameras."""
+    if isinstance(camera, Equirectangular | Mounted):
         return np.eye(3)
     return OPTICAL_FROM_LIDAR_AXES.copy()
 

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.assess import Assessment, TrustOptions, assess
-from calib.camera import CameraModel, Equirectangular
+from calib.camera import CameraModel, Equirectangular, Mounted
 from calib.edges_image import ImageEdgeParams, image_edge_pixels
 from calib.edges_points import (
     BOUNDARY,
@@ -58,11 +58,13 @@ class CalibParams:
 
 @dataclass(frozen=True)
 class PairInput:
-    """One pair as arrays: ``image`` (H,W[,3]) uint8, ``points_lidar`` (N,3) float64 m, ``ring`` (N,) or None."""
+    """One pair as arrays: ``image`` (H,W[,3]) uint8, ``points_lidar`` (N,3) float64 m, ``ring`` (N,) or None,
+    ``mask`` (H,W) bool, True where the image shows the scene (None: everywhere)."""
 
     image: NDArray[np.uint8]
     points_lidar: F64
     ring: NDArray[np.int16] | None
+    mask: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True)
@@ -94,29 +96,57 @@ def paper_params() -> CalibParams:
     )
 
 
-def _edge_points(pair: PairInput, params: CalibParams) -> EdgePoints:
+def edge_points(points_lidar: F64, ring: NDArray[np.int16] | None, params: CalibParams) -> EdgePoints:
+    """The LiDAR edge points of one cloud (paper 4.2, or the scan-line edges of docs/method.md item 1)."""
     if params.point_method is PointEdgeMethod.PAPER:
-        return paper_edge_points(pair.points_lidar, pair.ring, params.paper_points)
-    return scanline_edge_points(pair.points_lidar, pair.ring, params.scanline)
+        return paper_edge_points(points_lidar, ring, params.paper_points)
+    return scanline_edge_points(points_lidar, ring, params.scanline)
 
 
-def extract_features(pair: PairInput, camera: CameraModel, params: CalibParams, index: int = 0) -> PairFeatures:
-    """Edge pixels and edge points of one pair (paper 4.3); raises FeaturelessError naming the pair."""
+def _features(pair: PairInput, camera: CameraModel, params: CalibParams, points: EdgePoints,
+              place: int | None) -> PairFeatures:
+    """The features of one image with the cloud's ``points``: edge pixels, their fields and pixel grid."""
     wrap = isinstance(camera, Equirectangular)
-    pixels = image_edge_pixels(pair.image, params.image_edges, wrap, camera.pixels_per_radian)
-    points = _edge_points(pair, params)
-    if len(pixels.uv) < params.min_edge_pixels or len(points) < params.min_edge_points:
-        raise FeaturelessError(
-            f"pair {index}: featureless scene ({len(pixels.uv)} edge pixels, need {params.min_edge_pixels}; "
-            f"{len(points)} edge points, need {params.min_edge_points})"
-        )
+    pixels = image_edge_pixels(pair.image, params.image_edges, wrap, camera.pixels_per_radian, pair.mask)
     fields = None
     if params.gmm.evaluator is not Evaluator.EXACT:
         floor = max(params.gmm.sigma_floor_px, np.radians(params.gmm.sigma_floor_deg) * camera.pixels_per_radian)
         fields = EdgeFields.build(pixels.uv, pixels.score, camera.width, camera.height, wrap,
                                   floor, params.gmm.sigma_ceiling_px)
     grid = PixelGrid.build(pixels.uv, pixels.score, camera.width, camera.height, wrap)
-    return PairFeatures(camera, pixels, points, fields, grid)
+    return PairFeatures(camera, pixels, points, fields, grid, place)
+
+
+def _featureless(index: int, n_pixels: int, n_points: int, params: CalibParams) -> FeaturelessError | None:
+    if n_pixels >= params.min_edge_pixels and n_points >= params.min_edge_points:
+        return None
+    return FeaturelessError(
+        f"pair {index}: featureless scene ({n_pixels} edge pixels, need {params.min_edge_pixels}; "
+        f"{n_points} edge points, need {params.min_edge_points})")
+
+
+def extract_features(pair: PairInput, camera: CameraModel, params: CalibParams, index: int = 0) -> PairFeatures:
+    """Edge pixels and edge points of one pair (paper 4.3); raises FeaturelessError naming the pair."""
+    feat = _features(pair, camera, params, edge_points(pair.points_lidar, pair.ring, params), None)
+    error = _featureless(index, len(feat.pixels.uv), len(feat.points), params)
+    if error is not None:
+        raise error
+    return feat
+
+
+def extract_place(images: list[PairInput], cameras: list[CameraModel], params: CalibParams,
+                  index: int) -> list[PairFeatures]:
+    """The features of one place of a multi-camera head: one per sensor (``images[k]`` seen by ``cameras[k]``,
+    every one with the same cloud), sharing the cloud's edge points, their ``place`` ``index``. A sensor that
+    sees only sky holds few edges; the place is featureless only when all its sensors together are."""
+    if not images or len(images) != len(cameras):
+        raise FeaturelessError(f"place {index}: {len(images)} images for {len(cameras)} sensors")
+    points = edge_points(images[0].points_lidar, images[0].ring, params)
+    feats = [_features(pair, camera, params, points, index) for pair, camera in zip(images, cameras, strict=True)]
+    error = _featureless(index, sum(len(f.pixels.uv) for f in feats), len(points), params)
+    if error is not None:
+        raise error
+    return feats
 
 
 def _in_view(feat: PairFeatures, points_lidar: F64, tau: F64) -> int:
@@ -138,7 +168,7 @@ def schedule(feats: list[PairFeatures], params: CalibParams, tau0: F64) -> Optim
     every level when the pairs hold too few occlusion edges in their cameras' view at ``tau0`` (a pinhole
     sees a fraction of the LiDAR's turn: points behind it pin nothing)."""
     boundaries = sum(_in_view(f, f.points.points_lidar[f.points.kind == BOUNDARY], tau0) for f in feats)
-    narrow = not all(isinstance(f.camera, Equirectangular) for f in feats)
+    narrow = not all(isinstance(f.camera, Equirectangular | Mounted) for f in feats)  # a head sees all round
     if boundaries < params.min_boundary_points or (narrow and _dense_rings(feats, params.dense_ring_deg)):
         # Too few occlusion edges to pin the finest levels alone (measured: 152 in 2 small pairs put the
         # finest cost's minimum 9.7 deg off; 108 in view in 3 simulated pinhole pairs 2.2 deg off, 0.57 deg

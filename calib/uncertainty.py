@@ -62,7 +62,7 @@ class LevelModel:
 class Clusters:
     """Edge points grouped into independent clusters: ``labels`` per pair, (N_i,) int64 cluster id of each
     edge point (the angular image cell it projects into at the solution, unique over all pairs), ``pair``
-    (C,) int64 the pair of each cluster."""
+    (C,) int64 the place of each cluster (:func:`places`)."""
 
     labels: tuple[I64, ...]
     pair: I64
@@ -72,11 +72,20 @@ class Clusters:
         return len(self.pair)
 
 
+def places(feats: tuple[PairFeatures, ...] | list[PairFeatures]) -> I64:
+    """(P,) int64: the place of each pair, numbered 0.. in order of first appearance (a pair without a
+    ``place`` is a place of its own)."""
+    keys = [("place", f.place) if f.place is not None else ("pair", i) for i, f in enumerate(feats)]
+    numbers: dict[tuple[str, int], int] = {}
+    return np.array([numbers.setdefault(k, len(numbers)) for k in keys], dtype=np.int64)
+
+
 def clusters_at(model: LevelModel, tau_hat: F64, cell_deg: float) -> Clusters:
     """Cluster each pair's edge points by the ``cell_deg`` angular cell of their projection at ``tau_hat``."""
     labels: list[I64] = []
     pairs: list[I64] = []
     first = 0
+    place = places(model.feats)
     for i, feat in enumerate(model.feats):
         uv, valid = feat.camera.project(transform_points(tau_hat, feat.points.points_lidar)[0])
         # Points the camera cannot see share one cluster: a pinhole's uv there is not finite or is far beyond
@@ -87,7 +96,7 @@ def clusters_at(model: LevelModel, tau_hat: F64, cell_deg: float) -> Clusters:
         inverse = np.asarray(inverse, dtype=np.int64).reshape(-1)
         n = int(inverse.max()) + 1 if inverse.size else 0
         labels.append(inverse + first)
-        pairs.append(np.full(n, i, dtype=np.int64))
+        pairs.append(np.full(n, place[i], dtype=np.int64))
         first += n
     return Clusters(tuple(labels), np.concatenate(pairs) if pairs else np.zeros(0, np.int64))
 

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib.camera import Equirectangular
+from calib.camera import Equirectangular, Mounted, Pinhole
 from calib.edges_image import EdgePixels
 from calib.edges_points import EdgePoints
 from calib.fields import EdgeFields
 from calib.geometry import Transform
-from calib.gmm import PairFeatures
+from calib.gmm import PairFeatures, in_image
 from calib.pixel_grid import PixelGrid
 
 TRUTH = Transform.from_rpy_xyz(np.array([-0.18, 15.47, -55.14]), np.array([0.0934, 0.0597, -0.1659]))
@@ -51,3 +51,38 @@ def make_pair(seed: int, width: int = 512, height: int = 256, evaluator_fields: 
     fields = EdgeFields.build(pixels.uv, pixels.score, width, height, True, 0.7, 48.0) if evaluator_fields else None
     grid = PixelGrid.build(pixels.uv, pixels.score, width, height, True)  # as calib.pipeline's features carry
     return PairFeatures(cam, pixels, points, fields, grid)
+
+
+def head_sensors(n: int = 5, width: int = 400, height: int = 300) -> list[Mounted]:
+    """A Ladybug-like head: ``n`` pinhole sensors looking out round the head's up axis, 4 cm off its centre
+    (optical frame: z out, x clockwise, y down), 80 deg of horizontal field each."""
+    f = (width / 2) / np.tan(np.radians(40.0))
+    pinhole = Pinhole(np.array([[f, 0.0, (width - 1) / 2], [0.0, f, (height - 1) / 2], [0.0, 0.0, 1.0]]),
+                      np.zeros(5), width, height)
+    out = []
+    for k in range(n):
+        yaw = 360.0 * k / n
+        T_head_sensor = Transform.from_rpy_xyz(np.array([-90.0, 0.0, yaw - 90.0]),
+                                               0.04 * np.array([np.cos(np.radians(yaw)), np.sin(np.radians(yaw)), 0]))
+        inverse = T_head_sensor.inverse()
+        out.append(Mounted(f"cam{k}", pinhole, inverse.rotation, inverse.translation_m))
+    return out
+
+
+def make_head_place(seed: int, sensors: list[Mounted]) -> list[PairFeatures]:
+    """One place of a head: the scene of :func:`segments` rasterised into every sensor under ``TRUTH`` (as
+    T_head_lidar), one :class:`PairFeatures` per sensor sharing the cloud's edge points, place ``seed``."""
+    segs = segments(seed)
+    pts_lidar = np.concatenate([a + np.linspace(0, 1, 60)[:, None] * (b - a) for a, b in segs])
+    dense = np.concatenate([a + np.linspace(0, 1, 2000)[:, None] * (b - a) for a, b in segs])
+    points = EdgePoints(pts_lidar, np.ones(len(pts_lidar)), np.zeros(len(pts_lidar), np.int8))
+    feats = []
+    for cam in sensors:
+        uv, valid = cam.project(TRUTH.apply(dense))
+        inside = in_image(cam, uv, valid)
+        pix = np.unique(np.rint(uv[inside]), axis=0)
+        pixels = EdgePixels(pix.astype(np.float64), np.ones(len(pix)))
+        fields = EdgeFields.build(pixels.uv, pixels.score, cam.width, cam.height, False, 0.7, 48.0)
+        grid = PixelGrid.build(pixels.uv, pixels.score, cam.width, cam.height, False)
+        feats.append(PairFeatures(cam, pixels, points, fields, grid, place=seed))
+    return feats

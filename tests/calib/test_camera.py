@@ -9,7 +9,8 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calib.camera import Equirectangular, Pinhole
+from calib.camera import Equirectangular, Mounted, Pinhole
+from calib.geometry import Transform
 from tests.testdata import PINHOLE_FRAME
 
 W, H = 2048, 1024
@@ -316,3 +317,50 @@ def test_pinhole_pixels_per_radian(pinhole: Pinhole) -> None:
     uv, _ = pinhole.project(np.array([[0.0, 0.0, 1.0], [np.tan(1e-3), 0.0, 1.0]]))
     assert uv[1, 0] - uv[0, 0] == pytest.approx(pinhole.K[0, 0] * 1e-3, rel=1e-3)
     assert pinhole.pixels_per_radian == pytest.approx(np.sqrt(2117.31 * 2113.29))
+
+
+# --- A sensor of a multi-camera head ---------------------------------------------------------------------
+
+
+def _mounted(pinhole: Pinhole) -> Mounted:
+    """The sample's camera as a head sensor turned 72 deg about the head's up axis, 4 cm off its centre
+    (a Ladybug side camera), its optical axis along head x rotated by that yaw."""
+    T_head_sensor = Transform.from_rpy_xyz(np.array([-90.0, 0.0, -90.0 + 72.0]), np.array([0.012, 0.038, 0.0]))
+    inverse = T_head_sensor.inverse()
+    return Mounted("cam1", pinhole, inverse.rotation, inverse.translation_m)
+
+
+def test_a_mounted_sensor_projects_head_points_as_the_sensor_does(pinhole: Pinhole) -> None:
+    mounted = _mounted(pinhole)
+    yaw = np.radians(72.0)
+    ahead = np.array([[10.0 * np.cos(yaw), 10.0 * np.sin(yaw), 0.0]])  # on the sensor's optical axis
+    uv, valid = mounted.project(ahead)
+    assert valid[0]
+    np.testing.assert_allclose(uv[0], pinhole.K[:2, 2], atol=3.0)  # 4 cm of lever arm at 10 m: ~0 px off axis
+    points = np.random.default_rng(1).normal(size=(50, 3)) * 5.0
+    expected, ok = pinhole.project(points @ mounted.rotation.T + mounted.translation_m)
+    got, ok2 = mounted.project(points)
+    np.testing.assert_array_equal(ok, ok2)
+    np.testing.assert_allclose(got[ok], expected[ok])
+
+
+@settings(max_examples=30)
+@given(st.floats(-0.4, 0.4), st.floats(-0.25, 0.25), st.floats(1.0, 40.0))
+def test_mounted_jacobian_matches_finite_differences(pinhole: Pinhole, x: float, y: float, z: float) -> None:
+    mounted = _mounted(pinhole)
+    in_sensor = np.array([x * z, y * z, z])
+    head = (in_sensor - mounted.translation_m) @ mounted.rotation  # the head point that lands there
+    numeric = finite_difference_jacobian(mounted.project, head, 1e-6 * z)
+    analytic = mounted.project_jacobian(head[None])[0]
+    np.testing.assert_allclose(analytic, numeric, rtol=1e-5, atol=1e-6 * np.abs(analytic).max())
+
+
+def test_mounted_back_project_gives_head_rays(pinhole: Pinhole) -> None:
+    mounted = _mounted(pinhole)
+    uv = np.array([[300.0, 200.0], [960.0, 600.0], [1700.0, 1100.0]])
+    rays = mounted.back_project(uv)
+    np.testing.assert_allclose(np.linalg.norm(rays, axis=1), 1.0)
+    origin = -mounted.rotation.T @ mounted.translation_m  # the sensor's centre in the head
+    back, valid = mounted.project(origin + 100.0 * rays)
+    assert valid.all()
+    np.testing.assert_allclose(back, uv, atol=1e-6)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from calib.edges_image import ImageEdgeParams, edge_line_density, image_edge_pixels
+from calib.errors import CalibError
 
 
 def test_the_texture_radius_is_an_angle_with_a_floor_in_pixels() -> None:
@@ -68,3 +69,24 @@ def test_texture_is_dropped_and_silhouettes_kept() -> None:
     assert inside_texture(plain.uv).sum() > 500  # without suppression the checkerboard is all edges
     assert inside_texture(kept.uv).sum() == 0
     assert on_box(kept.uv).sum() == on_box(plain.uv).sum() > 300  # the box's outline is untouched
+
+
+def test_edges_near_masked_pixels_are_dropped() -> None:
+    # A rectified image's black surround: its border is the strongest edge of the image and no edge of the
+    # scene. With the mask, only the scene's own edge (a bright bar) remains, and the bar sets the scale.
+    image = np.full((120, 160), 90, np.uint8)
+    image[:, :20] = 0  # outside the rectified region
+    image[40:80, 80:84] = 200  # the scene's edge
+    mask = np.ones(image.shape, bool)
+    mask[:, :20] = False
+    params = ImageEdgeParams(l0_lambda=0.0, texture_radius_deg=0.0)
+    unmasked = image_edge_pixels(image, params, False, 500.0)
+    masked = image_edge_pixels(image, params, False, 500.0, mask)
+    assert np.any(np.abs(unmasked.uv[:, 0] - 19.5) < 1.0)
+    assert masked.uv[:, 0].min() > 20 + params.mask_margin_px - 1
+    assert np.any(np.abs(masked.uv[:, 0] - 79.5) < 1.0) and masked.score.max() == 1.0
+
+
+def test_a_mask_of_another_size_is_an_error() -> None:
+    with pytest.raises(CalibError, match="mask is 10x10"):
+        image_edge_pixels(np.zeros((20, 30), np.uint8), ImageEdgeParams(), False, 500.0, np.ones((10, 10), bool))

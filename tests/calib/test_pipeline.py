@@ -1,15 +1,18 @@
-"""calib.pipeline.schedule: when fold edges stay on every level."""
+"""calib.pipeline: when fold edges stay on every level; a multi-camera head solved end to end."""
 
 import dataclasses
 
 import numpy as np
 
+from calib.assess import TrustOptions
 from calib.camera import Pinhole
 from calib.edges_points import EdgePoints
-from calib.geometry import so3_log
+from calib.geometry import Transform, rotation_angle_deg, so3_exp, so3_log
 from calib.gmm import PairFeatures, in_image, transform_points
-from calib.pipeline import CalibParams, schedule
-from tests.calib.synthetic import TRUTH, make_pair
+from calib.initial import OPTICAL_FROM_LIDAR_AXES, base_rotation
+from calib.pipeline import CalibParams, calibrate, schedule
+from calib.uncertainty import places
+from tests.calib.synthetic import TRUTH, head_sensors, make_head_place, make_pair
 
 PARAMS = CalibParams()
 ALL_LEVELS = len(PARAMS.optim.sigmas_deg)
@@ -50,3 +53,30 @@ def test_a_pinhole_with_dense_rings_keeps_folds_on_every_level():
         assert np.count_nonzero(in_image(PINHOLE, uv, valid)) >= PARAMS.min_boundary_points  # plenty in view
     assert schedule([dense], PARAMS, FORWARD).fold_levels == ALL_LEVELS
     assert schedule([sparse], PARAMS, FORWARD).fold_levels == PARAMS.optim.fold_levels
+
+
+# --- A multi-camera head -----------------------------------------------------------------------------------
+
+
+def test_a_head_of_five_pinholes_recovers_the_head_lidar_transform():
+    sensors = head_sensors()
+    # sensor-major, as rigd orders them: the pairs sharing one camera object are evaluated together
+    by_place = [make_head_place(seed, sensors) for seed in (0, 1, 2, 3)]
+    feats = [place[k] for k in range(len(sensors)) for place in by_place]
+    start = Transform(so3_exp(np.radians([1.5, -1.0, 2.0])) @ TRUTH.rotation, TRUTH.translation_m + [0.03, -0.02, 0.02])
+    result = calibrate(feats, start, PARAMS, trust=TrustOptions())
+    assert rotation_angle_deg(result.T_camera_lidar.rotation, TRUTH.rotation) < 0.05
+    assert np.linalg.norm(result.T_camera_lidar.translation_m - TRUTH.translation_m) < 0.005
+    assert result.assessment is not None and result.assessment.uncertainty.jackknife_groups == 4  # places, not sensors
+
+
+def test_places_number_pairs_by_their_place_and_pairs_without_one_alone():
+    sensors = head_sensors(2)
+    feats = make_head_place(7, sensors) + [make_pair(0)] + make_head_place(3, sensors)
+    np.testing.assert_array_equal(places(feats), [0, 0, 1, 2, 2])
+
+
+def test_a_head_search_starts_from_the_identity_not_the_optical_axes():
+    sensors = head_sensors(1)
+    np.testing.assert_array_equal(base_rotation(sensors[0]), np.eye(3))
+    np.testing.assert_array_equal(base_rotation(PINHOLE), OPTICAL_FROM_LIDAR_AXES)
