@@ -30,8 +30,11 @@ _MIN_DEPTH_M = 1e-6
 
 
 class CameraModel(Protocol):
-    width: int
-    height: int
+    @property
+    def width(self) -> int: ...
+
+    @property
+    def height(self) -> int: ...
 
     @property
     def pixels_per_radian(self) -> float: ...

@@ -109,12 +109,14 @@ class PhotoParams:
 @dataclass(frozen=True)
 class PhotoPair:
     """One pair for the photometric costs: ``grey`` (H,W) float32 in [0, 1] (equalised), ``points_lidar``
-    (N,3) float64 m, ``reflectivity`` (N,) float64 in [0, 1] (rank-normalised)."""
+    (N,3) float64 m, ``reflectivity`` (N,) float64 in [0, 1] (rank-normalised), ``mask`` (H,W) bool, True where
+    the image shows the scene (None: everywhere; points landing elsewhere are not compared)."""
 
     camera: CameraModel
     grey: F32
     points_lidar: F64
     reflectivity: F64
+    mask: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True)
@@ -163,9 +165,10 @@ def rank_normalise(values: F64, groups: NDArray[np.int16] | None = None) -> F64:
 
 
 def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[np.float32] | None,
-               ring: NDArray[np.int16] | None, camera: CameraModel, params: PhotoParams, index: int = 0) -> PhotoPair:
-    """The arrays the photometric costs need of one pair; raises FeaturelessError when the cloud has no
-    intensity (reflectivity) field."""
+               ring: NDArray[np.int16] | None, camera: CameraModel, params: PhotoParams, index: int = 0,
+               mask: NDArray[np.bool_] | None = None) -> PhotoPair:
+    """The arrays the photometric costs need of one pair (``mask``: see :class:`PhotoPair`); raises
+    FeaturelessError when the cloud has no intensity (reflectivity) field."""
     if intensity is None:
         raise FeaturelessError(f"pair {index}: the cloud has no intensity field; MI, NID and GOM compare LiDAR "
                                "reflectivity with the image")
@@ -175,7 +178,7 @@ def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[n
     grey = (cv2.equalizeHist(grey_u8).astype(np.float32) / np.float32(255.0))
     groups = ring if params.per_ring else None
     refl = rank_normalise(np.asarray(intensity, dtype=np.float64), groups)
-    return PhotoPair(camera, grey, np.asarray(points_lidar, dtype=np.float64), refl)
+    return PhotoPair(camera, grey, np.asarray(points_lidar, dtype=np.float64), refl, mask)
 
 
 def soft_joint_histogram(a: F64, b: F64, bins: int) -> F64:
@@ -245,6 +248,7 @@ class _LevelPair:
     reflectivity: F64
     fit: GradientFit | None = None
     lidar_grad: F64 | None = None
+    mask: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True)
@@ -291,7 +295,11 @@ def sample(image: F32, camera: CameraModel, uv: F64) -> F64:
 
 def _projected(lp: _LevelPair, tau: F64) -> tuple[F64, NDArray[np.bool_]]:
     uv, valid = lp.camera.project(transform_points(tau, lp.points_lidar)[0])
-    return uv, in_image(lp.camera, uv, valid)
+    inside = in_image(lp.camera, uv, valid)
+    if lp.mask is not None:
+        px = np.rint(uv[inside]).astype(np.int64)
+        inside[inside] = lp.mask[np.clip(px[:, 1], 0, lp.mask.shape[0] - 1), np.clip(px[:, 0], 0, lp.mask.shape[1] - 1)]
+    return uv, inside
 
 
 def gradient_fit(uv: F64, neighbours: int) -> GradientFit | None:
@@ -359,7 +367,7 @@ def level_pairs(pairs: list[PhotoPair], tau: F64, params: PhotoParams, level: in
     out = []
     for pair, (pts, refl) in zip(pairs, subsets, strict=True):
         grey = _blur(pair.grey, pair.camera, params.blur_deg[level])
-        lp = _LevelPair(pair.camera, grey, pts, refl)
+        lp = _LevelPair(pair.camera, grey, pts, refl, mask=pair.mask)
         if params.cost is PhotoCost.GOM:
             uv, valid = pair.camera.project(transform_points(tau, pts)[0])
             keep = np.flatnonzero(valid)  # points behind a pinhole have no image position to fit on

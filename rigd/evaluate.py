@@ -46,6 +46,7 @@ from calib.prior import Prior
 from rigd.calibration.service import dataset_features
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
+from rigd.dataset.reference import AXES, Reference, agreement
 from rigd.dataset.store import write_yaml
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
@@ -64,6 +65,7 @@ class Source(Enum):
     """Where a reference pose or a start came from."""
 
     GROUND_TRUTH = "ground_truth"  # the dataset's ground_truth.yaml
+    REFERENCE = "reference"  # the dataset's reference.yaml: a published calibration of real data
     CALIBRATION = "calibration"  # a calibration with all pairs from the initial guess
     INITIAL_GUESS = "initial_guess"  # --init or rig.yaml's initial_guess
 
@@ -307,6 +309,8 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
         where = where_run(s, workers)
         if dataset.ground_truth is not None:
             reference, source = dataset.ground_truth, Source.GROUND_TRUTH
+        elif dataset.reference is not None:
+            reference, source = dataset.reference.T_camera_lidar, Source.REFERENCE
         else:
             initial = _initial(s, dataset)
             if initial is None:
@@ -341,7 +345,8 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
         where = where_run(s, workers)
         runs = _run_all(workers, [_Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
     truth = dataset.ground_truth
-    reference, source = (truth, Source.GROUND_TRUTH) if truth is not None else (start, start_source)
+    reference, source = (truth, Source.GROUND_TRUTH) if truth is not None else \
+        (dataset.reference.T_camera_lidar, Source.REFERENCE) if dataset.reference is not None else (start, start_source)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
     setup = {"subsets": request.subsets, "size": request.size, "start": start_source.value,
              "start_T_camera_lidar": transform_to_yaml(start), **where}
@@ -379,6 +384,21 @@ def _summary_yaml(stats: RunStats, runs: Sequence[Run], with_error: bool) -> dic
             "run_median": None if med is None else dict(med._asdict()),
         }
     return out
+
+
+def _vs_reference(ref: Reference, runs: Sequence[Run]) -> dict[str, Any]:
+    """How the runs agree with a published reference (rigd.dataset.reference): the share of runs with every axis
+    within 2.5 of the reference's sigmas and the whole difference within 0.6 deg / 10 cm, and the median
+    difference per axis in those sigmas."""
+    done = [agreement(ref, r.result) for r in runs if r.result is not None]
+    if not done:
+        return {"runs": 0}
+    z = np.array([a.z for a in done])
+    return {"runs": len(done), "within": sum(a.within() for a in done),
+            "rule": "every axis within 2.5 sigma of the reference, and within 0.6 deg / 10 cm",
+            "median_z": dict(zip(AXES, np.median(z, axis=0).tolist(), strict=True)),
+            "median_rotation_deg": float(np.median([a.rotation_deg for a in done])),
+            "median_translation_cm": float(np.median([a.translation_cm for a in done]))}
 
 
 def _coverage_yaml(c: Coverage, source: Source) -> dict[str, Any]:
@@ -434,6 +454,8 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
         "plot": plot_path.name,
         "runs": _runs_yaml(runs, stats, protocol),
     }
+    if dataset.reference is not None:
+        report["summary"]["vs_reference"] = _vs_reference(dataset.reference, runs)
     if dataset.rig.prior is not None:  # every run's solve used it, as `rigd calibrate` does
         report["settings"]["prior"] = prior_to_yaml(dataset.rig.prior)
     if s.trust is not None:

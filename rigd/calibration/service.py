@@ -23,7 +23,7 @@ from calib.initial import SearchOptions, SearchResult, default_search
 from calib.methods import Method, calibrate_method, gmm_params, photo_params  # Method: also the CLI's
 from calib.optimize import typical_range_m
 from calib.photometric import PhotoPair, PhotoParams, photo_pair
-from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, paper_params
+from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, extract_place, paper_params
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.advice import SceneFacts, next_steps
@@ -31,6 +31,7 @@ from rigd.calibration.pool import FeaturePool
 from rigd.calibration.visuals import CLOUD_STAGE, OVERLAY_STAGES, cloud_top_view, edge_views, write_coloured_ply
 from rigd.dataset import Dataset, Pair, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
+from rigd.dataset.reference import agreement
 from rigd.dataset.store import write_yaml
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
@@ -99,34 +100,46 @@ def _prior(request: CalibrationRequest, dataset: Dataset) -> Prior | None:
     return dataclasses.replace(prior, fix_translation=True)
 
 
-def _pair_features(dataset: Dataset, params: CalibParams, i: int) -> PairFeatures:
+def _place_features(dataset: Dataset, params: CalibParams, i: int) -> list[PairFeatures]:
+    """The features of pair ``i``: one per view (one camera, or each sensor of a head)."""
     pair = dataset.load_pair(i)
-    return extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring),
-                            dataset.rig.camera.model(), params, index=i)
+    cameras = list(dataset.rig.camera.models())
+    if len(cameras) == 1:
+        return [extract_features(PairInput(pair.image, pair.cloud.points_lidar, pair.cloud.ring, dataset.masks[0]),
+                                 cameras[0], params, index=i)]
+    inputs = [PairInput(image, pair.cloud.points_lidar, pair.cloud.ring, mask)
+              for image, mask in zip(pair.images, dataset.masks, strict=True)]
+    return extract_place(inputs, cameras, params, index=i)
+
+
+def feature_at(feats: list[PairFeatures], dataset: Dataset, pair: int, view: int = 0) -> PairFeatures:
+    """The features of ``view`` of ``pair`` in :func:`dataset_features`' list (ordered view by view)."""
+    return feats[view * len(dataset) + pair]
 
 
 def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None,
                      executor: Executor | None = None) -> list[PairFeatures]:
-    """Edge features of every pair of ``dataset`` (FeaturelessError names a pair without enough edges), the
-    pairs extracted side by side in ``executor`` (a :func:`worker_pool`) if given."""
+    """Edge features of every pair of ``dataset``, one per view of a pair (FeaturelessError names a pair without
+    enough edges), the pairs extracted side by side in ``executor`` (a :func:`worker_pool`) if given. Ordered
+    view by view (:func:`feature_at`)."""
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
     if executor is None:
-        feats = []
+        per_pair = []
         for i in range(len(dataset)):
             if progress:
                 progress(f"edges of pair {i + 1}/{len(dataset)}", i / len(dataset))
-            feats.append(_pair_features(dataset, params, i))
+            per_pair.append(_place_features(dataset, params, i))
     else:
-        futures = [executor.submit(_pair_features, dataset, params, i) for i in range(len(dataset))]
+        futures = [executor.submit(_place_features, dataset, params, i) for i in range(len(dataset))]
         for done, _ in enumerate(as_completed(futures)):
             if progress:
                 progress(f"edges of {done + 1}/{len(dataset)} pairs", done / len(dataset))
-        feats = [f.result() for f in futures]
-    # One camera object for all pairs (each pair's was made, or unpickled, on its own): the cost projects and
-    # sums the pairs that share one camera object together (calib.gmm.pair_terms), not one pair at a time.
-    camera = dataset.rig.camera.model()
-    return [dataclasses.replace(f, camera=camera) for f in feats]
+        per_pair = [f.result() for f in futures]
+    # One camera object per view for all pairs (each pair's was made, or unpickled, on its own): the cost projects
+    # and sums the pairs that share one camera object together (calib.gmm.pair_terms), not one pair at a time.
+    cameras = dataset.rig.camera.models()
+    return [dataclasses.replace(place[v], camera=camera) for v, camera in enumerate(cameras) for place in per_pair]
 
 
 @contextmanager
@@ -161,10 +174,13 @@ def _per_pair(dataset: Dataset, what: str, progress: Progress | None, make: Call
 
 
 def dataset_photo_pairs(dataset: Dataset, params: PhotoParams, progress: Progress | None) -> list[PhotoPair]:
-    """The photometric costs' arrays of every pair (FeaturelessError names a pair whose cloud has no intensity)."""
-    camera = dataset.rig.camera.model()
-    return _per_pair(dataset, "reflectivity and image", progress, lambda pair, i: photo_pair(
-        pair.image, pair.cloud.points_lidar, pair.cloud.intensity, pair.cloud.ring, camera, params, index=i))
+    """The photometric costs' arrays of every pair, one per view (FeaturelessError names a pair whose cloud has
+    no intensity)."""
+    cameras = dataset.rig.camera.models()
+    per_pair = _per_pair(dataset, "reflectivity and image", progress, lambda pair, i: [photo_pair(
+        image, pair.cloud.points_lidar, pair.cloud.intensity, pair.cloud.ring, camera, params, index=i, mask=mask)
+        for image, camera, mask in zip(pair.images, cameras, dataset.masks, strict=True)])
+    return [p for views in per_pair for p in views]
 
 
 def not_assessed_yaml(method: Method) -> dict[str, Any]:
@@ -209,8 +225,20 @@ def assessment_yaml(a: Assessment, steps: tuple[str, ...] = ()) -> dict[str, Any
 
 
 def _scene_facts(dataset: Dataset, feats: list[PairFeatures], prior: Prior | None) -> SceneFacts:
-    return SceneFacts(len(dataset), typical_range_m(feats), dataset.rig.camera.model().pixels_per_radian,
+    return SceneFacts(len(dataset), typical_range_m(feats), dataset.rig.camera.models()[0].pixels_per_radian,
                       prior is not None and (prior.xyz_m is not None or prior.fix_translation))
+
+
+def _pairs_yaml(result: CalibResult, dataset: Dataset) -> list[dict[str, Any]]:
+    """Edge pixels and points per pair (a head's pixels summed over its sensors, and per sensor)."""
+    out = []
+    for i in range(len(dataset)):
+        stats = [result.pairs[v * len(dataset) + i] for v in range(len(dataset.views))]
+        entry: dict[str, Any] = {"edge_pixels": sum(p.edge_pixels for p in stats), "edge_points": stats[0].edge_points}
+        if len(stats) > 1:
+            entry["edge_pixels_per_sensor"] = dict(zip(dataset.views, [p.edge_pixels for p in stats], strict=True))
+        out.append(entry)
+    return out
 
 
 def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: float,
@@ -223,7 +251,7 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
             "converged": result.optim.converged,
             "levels": [{"sigma_in_deg": lv.sigma_in_deg, "iterations": lv.iterations, "converged": lv.converged,
                         "final_cost": lv.costs[-1]} for lv in result.optim.levels],
-            "pairs": [{"edge_pixels": p.edge_pixels, "edge_points": p.edge_points} for p in result.pairs],
+            "pairs": _pairs_yaml(result, dataset),
             # the initial guess's lever arm as a weak prior of the solve (docs/method.md), not of the uncertainty
             "guess_prior_sigma_cm": None if result.guess_sigma_m is None else result.guess_sigma_m * 100.0,
             "wall_time_s": round(wall_s, 3),
@@ -247,26 +275,36 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
             # the same error in the uncertainty's axes (rotation about the LiDAR's x, y, z: docs/trust.md)
             "local_deg_cm": (xi_of(gt.tau, T.tau) * TO_DISPLAY).tolist(),
         }
+    if dataset.reference is not None:
+        report["agreement_with_reference"] = agreement(dataset.reference, T).to_yaml()
     if result.assessment is not None:
         report.update(assessment_yaml(result.assessment, steps))
     return report
 
 
+def overlay_stem(dataset: Dataset, pair: int, view: int) -> str:
+    """The file stem of a pair's overlays: ``NNNN`` for one camera, ``NNNN_SENSOR`` for a head's sensor."""
+    return f"{pair:04d}" if len(dataset.views) == 1 else f"{pair:04d}_{dataset.views[view]}"
+
+
 def _write_visuals(dataset: Dataset, feats: list[PairFeatures], initial: Transform, T: Transform, out: Path) -> None:
-    """Per pair: the edge points the calibration used over the image with the initial guess and with the
-    solution, the close-up of where they moved most (overlays/NNNN_{before,after,closeup}.png), and the
-    cloud coloured from the image with the solution (clouds/NNNN.ply, and from above: overlays/NNNN_cloud.png)."""
-    camera = dataset.rig.camera.model()
+    """Per pair and view: the edge points the calibration used over the image with the initial guess and with
+    the solution, the close-up of where they moved most (overlays/NNNN[_SENSOR]_{before,after,closeup}.png),
+    and per pair the cloud coloured from its images with the solution (clouds/NNNN.ply, and from above:
+    overlays/NNNN_cloud.png)."""
+    cameras = dataset.rig.camera.models()
     (out / "overlays").mkdir(parents=True, exist_ok=True)
     (out / "clouds").mkdir(parents=True, exist_ok=True)
     for i in range(len(dataset)):
         pair = dataset.load_pair(i)
-        views = edge_views(pair.image, camera, initial, T, feats[i].points.points_lidar)
-        for name in OVERLAY_STAGES:
-            cv2.imwrite(str(out / "overlays" / f"{i:04d}_{name}.png"), getattr(views, name))
-        write_coloured_ply(out / "clouds" / f"{i:04d}.ply", pair.image, camera, T, pair.cloud.points_lidar)
+        for v, (image, camera) in enumerate(zip(pair.images, cameras, strict=True)):
+            views = edge_views(image, camera, initial, T, feature_at(feats, dataset, i, v).points.points_lidar)
+            for name in OVERLAY_STAGES:
+                cv2.imwrite(str(out / "overlays" / f"{overlay_stem(dataset, i, v)}_{name}.png"), getattr(views, name))
+        seen = list(zip(pair.images, cameras, dataset.masks, strict=True))
+        write_coloured_ply(out / "clouds" / f"{i:04d}.ply", seen, T, pair.cloud.points_lidar)
         cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"),
-                    cloud_top_view(pair.image, camera, T, pair.cloud.points_lidar))
+                    cloud_top_view(seen, T, pair.cloud.points_lidar))
 
 
 def run_calibration(request: CalibrationRequest, progress: Progress | None = None,
@@ -285,7 +323,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
     method = request.method
     photo = photo_params(method)
-    search = dataset.rig.search or default_search(dataset.rig.camera.model())
+    search = dataset.rig.search or default_search(dataset.rig.camera.models()[0])
 
     def on_search(done: int, total: int) -> None:
         if progress:

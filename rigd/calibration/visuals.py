@@ -140,13 +140,32 @@ def _closeup(base: NDArray[np.uint8], box: tuple[int, int, int, int], uv: NDArra
     return crop
 
 
-def write_coloured_ply(path: Path, image: NDArray[np.uint8], camera: CameraModel, T_camera_lidar: Transform,
+# An image, the camera that took it, and its mask ((H,W) bool, True where it shows the scene; None: all of it).
+View = tuple[NDArray[np.uint8], CameraModel, NDArray[np.bool_] | None]
+
+
+def colour_points(views: list[View], T_camera_lidar: Transform,
+                  points_lidar: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.uint8]]:
+    """(indices of the points (N,3) m that some view sees, their BGR (K,3) uint8): each point in the colour of
+    the pixel it projects to in the first view that sees it there (a head's sensors overlap at their edges; a
+    masked pixel shows the rig, not the point)."""
+    colours = np.zeros((len(points_lidar), 3), np.uint8)
+    seen = np.zeros(len(points_lidar), bool)
+    for image, camera, mask in views:
+        idx, uv, _ = project_visible(camera, T_camera_lidar, points_lidar)
+        photo = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+        px = np.clip(np.rint(uv).astype(np.int64), 0, [photo.shape[1] - 1, photo.shape[0] - 1])
+        fresh = ~seen[idx] & (True if mask is None else mask[px[:, 1], px[:, 0]])
+        colours[idx[fresh]] = photo[px[fresh, 1], px[fresh, 0]]
+        seen[idx[fresh]] = True
+    idx_seen = np.flatnonzero(seen)
+    return idx_seen, colours[idx_seen]
+
+
+def write_coloured_ply(path: Path, views: list[View], T_camera_lidar: Transform,
                        points_lidar: NDArray[np.float64]) -> int:
-    """Binary little-endian PLY of the points that see the image, coloured from it (paper Fig. 15)."""
-    idx, uv, _ = project_visible(camera, T_camera_lidar, points_lidar)
-    colour_img = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-    px = np.clip(np.rint(uv).astype(np.int64), 0, [colour_img.shape[1] - 1, colour_img.shape[0] - 1])
-    bgr = colour_img[px[:, 1], px[:, 0]]
+    """Binary little-endian PLY of the points that see an image, coloured from it (paper Fig. 15)."""
+    idx, bgr = colour_points(views, T_camera_lidar, points_lidar)
     rec = np.zeros(len(idx), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
                                     ("red", "u1"), ("green", "u1"), ("blue", "u1")])
     pts = points_lidar[idx]
@@ -164,11 +183,11 @@ def write_coloured_ply(path: Path, image: NDArray[np.uint8], camera: CameraModel
     return len(rec)
 
 
-def cloud_top_view(image: NDArray[np.uint8], camera: CameraModel, T_camera_lidar: Transform,
-                   points_lidar: NDArray[np.float64], size_px: int = 900) -> NDArray[np.uint8]:
+def cloud_top_view(views: list[View], T_camera_lidar: Transform, points_lidar: NDArray[np.float64],
+                   size_px: int = 900) -> NDArray[np.uint8]:
     """(size_px, size_px, 3) uint8 BGR: the cloud (N,3) m, LiDAR frame, seen from above (x forward up the
     picture, y left to the left), each point in the colour of the pixel it projects to with
-    ``T_camera_lidar``, grey where the camera does not see it. With wrong extrinsics the colours of walls
+    ``T_camera_lidar`` (:func:`colour_points`), grey where no camera sees it. With wrong extrinsics the colours of walls
     and cars spill onto the ground beside them: the check people make in a coloured cloud.
 
     The square spans the 95th percentile of the horizontal range (at least 2 m) around the LiDAR; higher
@@ -182,10 +201,8 @@ def cloud_top_view(image: NDArray[np.uint8], camera: CameraModel, T_camera_lidar
     _grid(canvas, extent_m, px_per_m)
     colours = np.empty((len(points_lidar), 3), np.uint8)
     colours[:] = UNSEEN_BGR
-    idx, uv, _ = project_visible(camera, T_camera_lidar, points_lidar)
-    photo = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-    px = np.clip(np.rint(uv).astype(np.int64), 0, [photo.shape[1] - 1, photo.shape[0] - 1])
-    colours[idx] = photo[px[:, 1], px[:, 0]]
+    idx, bgr = colour_points(views, T_camera_lidar, points_lidar)
+    colours[idx] = bgr
     col = np.rint(centre - points_lidar[:, 1] * px_per_m).astype(np.int64)  # y left -> picture left
     row = np.rint(centre - points_lidar[:, 0] * px_per_m).astype(np.int64)  # x forward -> picture up
     order = np.argsort(points_lidar[:, 2], kind="stable")

@@ -14,7 +14,8 @@ from rigd.version import software_version
 
 # Each module defines register(subparsers) and sets a handler with parser.set_defaults(func=...).
 COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "check", "evaluate", "serve", "capture",
-                   "doctor")
+                   "doctor", "import")
+MODULE_OF = {"import": "import_"}  # a command whose module name differs ('import' is a keyword)
 
 
 def build_parser(command: str | None = None) -> RigdArgumentParser:
@@ -27,7 +28,7 @@ def build_parser(command: str | None = None) -> RigdArgumentParser:
     parser.add_argument("--version", action="version", version=f"rigd {software_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in (command,) if command in COMMAND_MODULES else COMMAND_MODULES:
-        importlib.import_module(f"rigd.cli.{name}").register(sub)
+        importlib.import_module(f"rigd.cli.{MODULE_OF.get(name, name)}").register(sub)
     return parser
 
 

@@ -182,6 +182,11 @@ def run(args: argparse.Namespace) -> int:
         err = outcome.report.get("error_vs_ground_truth")
         if err:
             print(f"error vs ground truth: {err['rotation_deg']:.3f} deg, {err['translation_cm']:.2f} cm")
+        ref = outcome.report.get("agreement_with_reference")
+        if ref:
+            z = ", ".join(f"{k} {v:+.2f}" for k, v in ref["z_per_axis"].items())
+            print(f"vs the published reference (reference.yaml): {ref['rotation_deg']:.3f} deg, "
+                  f"{ref['translation_cm']:.2f} cm; per axis in its sigmas: {z}")
     return EXIT_CODES[Status(verdict["status"])]
 
 

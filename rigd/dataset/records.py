@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from calib.assess import TrustOptions
-from calib.camera import CameraModel, Equirectangular, Pinhole
+from calib.camera import CameraModel, Equirectangular, Mounted, Pinhole
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.initial import SearchOptions
@@ -21,17 +22,21 @@ from rigd.errors import DatasetError
 class CameraKind(Enum):
     EQUIRECTANGULAR = "equirectangular"
     PINHOLE = "pinhole"
+    HEAD = "head"  # several pinhole sensors at fixed poses in one head (a Ladybug's side cameras)
 
 
 @dataclass(frozen=True)
 class CameraConfig:
-    """Camera intrinsics: a panorama size, or a pinhole ``K`` (3,3) px and OpenCV ``D``."""
+    """Camera intrinsics: a panorama size, or a pinhole ``K`` (3,3) px and OpenCV ``D``; ``mask``: a file of the
+    dataset, non-zero where the image shows the scene (the rig's own body and a rectified image's black surround
+    are zero)."""
 
     kind: CameraKind
     width: int
     height: int
     K: NDArray[np.float64] | None = None
     D: NDArray[np.float64] | None = None
+    mask: str | None = None
 
     def model(self) -> CameraModel:
         if self.kind is CameraKind.EQUIRECTANGULAR:
@@ -39,11 +44,25 @@ class CameraConfig:
         assert self.K is not None
         return Pinhole(self.K, self.D if self.D is not None else np.zeros(5), self.width, self.height)
 
+    def models(self) -> tuple[CameraModel, ...]:
+        """The camera of each view (one: the camera itself)."""
+        return (self.model(),)
+
+    @property
+    def view_names(self) -> tuple[str, ...]:
+        return (SINGLE_VIEW,)
+
+    @property
+    def masks(self) -> tuple[str | None, ...]:
+        return (self.mask,)
+
     def to_yaml(self) -> dict[str, Any]:
         out: dict[str, Any] = {"model": self.kind.value, "width": self.width, "height": self.height}
         if self.K is not None:
             out["K"] = np.asarray(self.K).tolist()
             out["D"] = np.asarray(self.D if self.D is not None else []).tolist()
+        if self.mask is not None:
+            out["mask"] = self.mask
         return out
 
     @classmethod
@@ -53,16 +72,107 @@ class CameraConfig:
             width, height = int(data["width"]), int(data["height"])
             k = np.asarray(data["K"], dtype=np.float64) if "K" in data else None
             d = np.asarray(data.get("D", []), dtype=np.float64) if k is not None else None
+            mask = None if data.get("mask") is None else str(data["mask"])
         except (KeyError, TypeError, ValueError) as exc:
             raise DatasetError(f"{where}: bad camera section ({exc!r})") from exc
         if kind is CameraKind.PINHOLE and k is None:
             raise DatasetError(f"{where}: a pinhole camera needs K")
-        config = cls(kind, width, height, k, d)
+        if kind is CameraKind.HEAD:
+            raise DatasetError(f"{where}: a head's sensors are listed under camera.sensors")
+        config = cls(kind, width, height, k, d, mask)
         try:
             config.model()
         except CalibError as exc:
             raise DatasetError(f"{where}: {exc}") from exc
         return config
+
+
+SINGLE_VIEW = "image"  # the view name of a single-camera dataset (pairs/NNNN/image.png)
+_NAME = re.compile(r"^[A-Za-z0-9_-]{1,32}$")
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """One sensor of a multi-camera head: ``name`` (its images are pairs/NNNN/images/NAME.png), its pinhole
+    ``camera`` (with its mask) and its factory pose ``T_head_camera`` (``p_head = R p_camera + t``, the camera
+    in the OpenCV optical frame)."""
+
+    name: str
+    camera: CameraConfig
+    T_head_camera: Transform
+
+    def model(self) -> Mounted:
+        to_camera = self.T_head_camera.inverse()
+        return Mounted(self.name, cast(Pinhole, self.camera.model()), to_camera.rotation, to_camera.translation_m)
+
+    def to_yaml(self) -> dict[str, Any]:
+        return {"name": self.name, **self.camera.to_yaml(),
+                "T_head_camera": {"rpy_deg": self.T_head_camera.rpy_deg.tolist(),
+                                  "xyz_m": self.T_head_camera.translation_m.tolist()}}
+
+    @classmethod
+    def from_yaml(cls, data: Any, where: str) -> SensorConfig:
+        if not isinstance(data, dict):
+            raise DatasetError(f"{where}: each of camera.sensors must be a mapping, got {data!r}")
+        name = str(data.get("name", ""))
+        if not _NAME.match(name):
+            raise DatasetError(f"{where}: sensor name {name!r} must be 1-32 letters, digits, '_' or '-'")
+        here = f"{where}: sensor {name}"
+        camera = CameraConfig.from_yaml(data, here)
+        if camera.kind is not CameraKind.PINHOLE:
+            raise DatasetError(f"{here}: a head's sensors are pinhole cameras, got {camera.kind.value}")
+        if "T_head_camera" not in data:
+            raise DatasetError(f"{here}: needs T_head_camera (its pose in the head)")
+        return cls(name, camera, transform_from_yaml(data["T_head_camera"], here))
+
+
+@dataclass(frozen=True)
+class HeadConfig:
+    """A multi-camera head: its ``sensors`` (at least one, names unique). The extrinsics are then
+    ``T_head_lidar`` (reported as T_camera_lidar: the head frame is the camera frame, docs/conventions.md)."""
+
+    sensors: tuple[SensorConfig, ...]
+    kind: CameraKind = CameraKind.HEAD
+
+    @property
+    def width(self) -> int:
+        return max(s.camera.width for s in self.sensors)
+
+    @property
+    def height(self) -> int:
+        return max(s.camera.height for s in self.sensors)
+
+    def models(self) -> tuple[CameraModel, ...]:
+        return tuple(s.model() for s in self.sensors)
+
+    @property
+    def view_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.sensors)
+
+    @property
+    def masks(self) -> tuple[str | None, ...]:
+        return tuple(s.camera.mask for s in self.sensors)
+
+    def to_yaml(self) -> dict[str, Any]:
+        return {"model": CameraKind.HEAD.value, "sensors": [s.to_yaml() for s in self.sensors]}
+
+    @classmethod
+    def from_yaml(cls, data: Any, where: str) -> HeadConfig:
+        sensors = data.get("sensors") if isinstance(data, dict) else None
+        if not isinstance(sensors, list) or not sensors:
+            raise DatasetError(f"{where}: a head camera needs a non-empty list camera.sensors")
+        parsed = tuple(SensorConfig.from_yaml(s, where) for s in sensors)
+        names = [s.name for s in parsed]
+        if len(set(names)) != len(names):
+            raise DatasetError(f"{where}: sensor names must be unique, got {names}")
+        return cls(parsed)
+
+
+def camera_from_yaml(data: Any, where: str) -> CameraConfig | HeadConfig:
+    """rig.yaml's ``camera`` section: one camera, or a head of sensors (``model: head``)."""
+    if isinstance(data, dict) and data.get("model") == CameraKind.HEAD.value:
+        return HeadConfig.from_yaml(data, where)
+    return CameraConfig.from_yaml(data, where)
 
 
 def transform_to_yaml(transform: Transform) -> dict[str, Any]:
@@ -166,7 +276,7 @@ class RigConfig:
     """``rig.yaml``: the camera, the LiDAR model, an optional initial guess of T_camera_lidar, an optional
     prior from the rig's drawing, the field tolerance of the verdict and the global search's range."""
 
-    camera: CameraConfig
+    camera: CameraConfig | HeadConfig
     lidar_model: str = "VLP-16"
     initial_guess: Transform | None = None
     prior: Prior | None = None
@@ -193,7 +303,7 @@ class RigConfig:
     def from_yaml(cls, data: Any, where: str) -> RigConfig:
         if not isinstance(data, dict) or "camera" not in data:
             raise DatasetError(f"{where}: rig file needs a 'camera' section")
-        camera = CameraConfig.from_yaml(data["camera"], where)
+        camera = camera_from_yaml(data["camera"], where)
         lidar = data.get("lidar") or {}
         if not isinstance(lidar, dict):
             raise DatasetError(f"{where}: 'lidar' must be a mapping with a 'model' key, got {lidar!r}")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,21 +21,36 @@ from numpy.typing import NDArray
 
 from calib.geometry import Transform
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
-from rigd.dataset.records import CameraConfig, RigConfig, transform_from_yaml, transform_to_yaml
-from rigd.dataset.working import halvings, working_camera, working_image
+from rigd.dataset.records import (
+    SINGLE_VIEW,
+    CameraConfig,
+    HeadConfig,
+    RigConfig,
+    transform_from_yaml,
+    transform_to_yaml,
+)
+from rigd.dataset.reference import Reference, reference_from_yaml
+from rigd.dataset.working import halvings, working_camera, working_image, working_mask
 from rigd.errors import DatasetError
 
 IMAGE_NAMES = ("image.png", "image.jpg", "image.jpeg")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
 @dataclass(frozen=True)
 class Pair:
-    """One synchronised capture: ``image`` (H,W) or (H,W,3) uint8 (BGR), its cloud and ``meta``."""
+    """One synchronised capture: ``images`` (H,W) or (H,W,3) uint8 (BGR), one per view of the rig (one for a
+    single camera, one per sensor of a head, in rig.yaml's order), its cloud and ``meta``."""
 
     index: int
-    image: NDArray[np.uint8]
+    images: tuple[NDArray[np.uint8], ...]
     cloud: Cloud
     meta: dict[str, Any]
+
+    @property
+    def image(self) -> NDArray[np.uint8]:
+        """The image of a single-camera rig (a head's first sensor)."""
+        return self.images[0]
 
 
 def read_yaml(path: Path) -> Any:
@@ -79,41 +94,79 @@ def read_image(path: Path) -> NDArray[np.uint8]:
     return np.asarray(image, dtype=np.uint8)
 
 
+def _image_path(folder: Path, view: str) -> Path:
+    """The image file of ``view`` in pair ``folder`` (the first of .png, .jpg, .jpeg found)."""
+    candidates = [folder / n for n in IMAGE_NAMES] if view == SINGLE_VIEW else \
+        [folder / "images" / f"{view}{suffix}" for suffix in IMAGE_SUFFIXES]
+    return next((c for c in candidates if c.is_file()), candidates[0])
+
+
 @dataclass(frozen=True)
 class Dataset:
     """An opened dataset; pairs are loaded lazily (a 12-pair set does not have to fit in memory).
 
     ``rig.camera`` is the camera at the working resolution (rigd.dataset.working): the images are halved
-    ``halvings`` times on load from ``source_camera``'s size, the one on disk and in rig.yaml."""
+    ``halvings`` times on load from ``source_camera``'s size, the one on disk and in rig.yaml. ``masks``: per
+    view, (H,W) bool at the working resolution, True where the image shows the scene (None: all of it)."""
 
     root: Path
     rig: RigConfig
     pair_dirs: tuple[Path, ...]
     ground_truth: Transform | None
-    source_camera: CameraConfig
+    source_camera: CameraConfig | HeadConfig
     halvings: int = 0
+    masks: tuple[NDArray[np.bool_] | None, ...] = (None,)
+    reference: Reference | None = None  # reference.yaml: a published calibration of real data
 
     def __len__(self) -> int:
         return len(self.pair_dirs)
 
+    @property
+    def views(self) -> tuple[str, ...]:
+        """The views of every pair: ``image`` for a single camera, the sensors' names for a head."""
+        return self.rig.camera.view_names
+
+    def _sizes(self) -> list[tuple[int, int]]:
+        cam = self.source_camera
+        return [(s.camera.height, s.camera.width) for s in cam.sensors] if isinstance(cam, HeadConfig) \
+            else [(cam.height, cam.width)]
+
     def load_pair(self, i: int) -> Pair:
         folder = self.pair_dirs[i]
-        found = (folder / n for n in IMAGE_NAMES if (folder / n).is_file())
-        image_path = next(found, folder / IMAGE_NAMES[0])
-        image = read_image(image_path)
-        expected = (self.source_camera.height, self.source_camera.width)
-        if image.shape[:2] != expected:
-            raise DatasetError(f"{image_path}: image is {image.shape[1]}x{image.shape[0]}, rig.yaml says "
-                               f"{expected[1]}x{expected[0]}")
-        image = working_image(image, self.source_camera, self.halvings)
+        images = []
+        for view, expected in zip(self.views, self._sizes(), strict=True):
+            image_path = _image_path(folder, view)
+            image = read_image(image_path)
+            if image.shape[:2] != expected:
+                raise DatasetError(f"{image_path}: image is {image.shape[1]}x{image.shape[0]}, rig.yaml says "
+                                   f"{expected[1]}x{expected[0]}")
+            images.append(working_image(image, self.source_camera, self.halvings))
         cloud = read_pcd(folder / "cloud.pcd")
         meta_path = folder / "meta.yaml"
         meta = read_yaml_mapping(meta_path) if meta_path.is_file() else {}
-        return Pair(int(folder.name), image, cloud, meta)
+        return Pair(int(folder.name), tuple(images), cloud, meta)
 
     def pairs(self) -> Iterator[Pair]:
         for i in range(len(self)):
             yield self.load_pair(i)
+
+
+def read_mask(path: Path, size: tuple[int, int]) -> NDArray[np.bool_]:
+    """A sensor's mask file: (H,W) bool, True where non-zero (the image shows the scene); ``size`` (H, W)."""
+    image = read_image(path)
+    mask = np.asarray((image if image.ndim == 2 else image.max(axis=2)) > 0)
+    if mask.shape != size:
+        raise DatasetError(f"{path}: mask is {mask.shape[1]}x{mask.shape[0]}, its sensor {size[1]}x{size[0]}")
+    if not mask.any():
+        raise DatasetError(f"{path}: mask shows nothing of the scene (all zero)")
+    return mask
+
+
+def _masks(root: Path, camera: CameraConfig | HeadConfig, n: int) -> tuple[NDArray[np.bool_] | None, ...]:
+    """Each view's mask at the working resolution (``n`` halvings)."""
+    cameras = [s.camera for s in camera.sensors] if isinstance(camera, HeadConfig) else [camera]
+    return tuple(None if c.mask is None else working_mask(read_mask(root / c.mask, (c.height, c.width)), n)
+                 for c in cameras)
 
 
 def open_dataset(root: Path, max_width: int | None = None) -> Dataset:
@@ -130,9 +183,11 @@ def open_dataset(root: Path, max_width: int | None = None) -> Dataset:
     gt = None
     if gt_path.is_file():
         gt = transform_from_yaml(read_yaml_mapping(gt_path).get("T_camera_lidar", {}), str(gt_path))
+    ref_path = root / "reference.yaml"
+    reference = reference_from_yaml(read_yaml_mapping(ref_path), str(ref_path)) if ref_path.is_file() else None
     n = halvings(rig.camera, max_width)
     working = dataclasses.replace(rig, camera=working_camera(rig.camera, n))
-    return Dataset(root, working, tuple(dirs), gt, rig.camera, n)
+    return Dataset(root, working, tuple(dirs), gt, rig.camera, n, _masks(root, rig.camera, n), reference)
 
 
 def write_rig(root: Path, rig: RigConfig) -> None:
@@ -152,8 +207,11 @@ def next_pair_index(root: Path) -> int:
     return max(done, default=-1) + 1
 
 
-def write_pair(root: Path, index: int, image: NDArray[np.uint8], cloud: Cloud, meta: dict[str, Any]) -> Path:
-    """Write pair ``index`` atomically and return its folder; an existing pair is never overwritten."""
+def write_pair(root: Path, index: int, image: NDArray[np.uint8] | Mapping[str, NDArray[np.uint8] | Path],
+               cloud: Cloud, meta: dict[str, Any]) -> Path:
+    """Write pair ``index`` atomically and return its folder; an existing pair is never overwritten.
+    ``image``: the camera's image, or a head's images by sensor name (images/NAME.png; a Path is an image file
+    copied as it is, images/NAME.jpg for a JPEG: no second lossy encoding)."""
     pairs_dir = Path(root) / "pairs"
     pairs_dir.mkdir(parents=True, exist_ok=True)
     final = pairs_dir / f"{index:04d}"
@@ -162,16 +220,24 @@ def write_pair(root: Path, index: int, image: NDArray[np.uint8], cloud: Cloud, m
     tmp = pairs_dir / f".{index:04d}.tmp"
     if tmp.exists():
         shutil.rmtree(tmp)  # leftover of an interrupted write: never a complete pair
+    images = {"image.png": image} if not isinstance(image, Mapping) else \
+        {f"images/{name}{im.suffix.lower() if isinstance(im, Path) else '.png'}": im for name, im in image.items()}
     try:
         tmp.mkdir()
-        if not cv2.imwrite(str(tmp / "image.png"), image):
-            raise DatasetError(f"{tmp / 'image.png'}: could not write image")
+        for name, im in images.items():
+            (tmp / name).parent.mkdir(exist_ok=True)
+            if isinstance(im, Path):
+                shutil.copyfile(im, tmp / name)
+            elif not cv2.imwrite(str(tmp / name), im):
+                raise DatasetError(f"{tmp / name}: could not write image")
         write_pcd(tmp / "cloud.pcd", cloud)
         write_yaml(tmp / "meta.yaml", meta)
         # Data on disk before the rename makes the pair visible, and the rename itself on disk after:
         # a power cut then leaves either no pair or a complete one (the rig runs on batteries).
-        for name in ("image.png", "cloud.pcd"):
+        for name in (*images, "cloud.pcd"):
             _fsync(tmp / name)
+        if (tmp / "images").is_dir():
+            _fsync(tmp / "images")
         _fsync(tmp)
         tmp.rename(final)
         _fsync(pairs_dir)

@@ -20,16 +20,16 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from rigd.dataset.records import CameraConfig, CameraKind
+from rigd.dataset.records import CameraConfig, CameraKind, HeadConfig
 
 WORKING_WIDTH_PX = 2048
 _PAD = 2  # the 5-tap kernel's reach, in source pixels
 
 
-def halvings(camera: CameraConfig, max_width: int | None) -> int:
-    """How many times ``camera``'s images are halved to be at most ``max_width`` px wide (None or 0: none).
-    A panorama is halved only while its width and height are even (else ``u = w (pi - theta) / (2 pi)``
-    would not hold at the half size)."""
+def halvings(camera: CameraConfig | HeadConfig, max_width: int | None) -> int:
+    """How many times ``camera``'s images are halved to be at most ``max_width`` px wide (None or 0: none; a
+    head's widest sensor decides for all). A panorama is halved only while its width and height are even
+    (else ``u = w (pi - theta) / (2 pi)`` would not hold at the half size)."""
     n, width, height = 0, camera.width, camera.height
     while max_width and width > max_width:
         if camera.kind is CameraKind.EQUIRECTANGULAR and (width % 2 or height % 2):
@@ -60,16 +60,31 @@ def halve_image(image: NDArray[np.uint8], wrap_u: bool) -> NDArray[np.uint8]:
     return np.ascontiguousarray(half, dtype=np.uint8)
 
 
-def working_camera(camera: CameraConfig, n_halvings: int) -> CameraConfig:
-    """``camera`` halved ``n_halvings`` times."""
+def working_camera(camera: CameraConfig | HeadConfig, n_halvings: int) -> CameraConfig | HeadConfig:
+    """``camera`` (every sensor of a head) halved ``n_halvings`` times."""
+    if isinstance(camera, HeadConfig):
+        return HeadConfig(tuple(dataclasses.replace(s, camera=_halved(s.camera, n_halvings)) for s in camera.sensors))
+    return _halved(camera, n_halvings)
+
+
+def _halved(camera: CameraConfig, n_halvings: int) -> CameraConfig:
     for _ in range(n_halvings):
         camera = halve_camera(camera)
     return camera
 
 
-def working_image(image: NDArray[np.uint8], camera: CameraConfig, n_halvings: int) -> NDArray[np.uint8]:
-    """``image`` of ``camera`` (its source size) halved ``n_halvings`` times."""
+def working_image(image: NDArray[np.uint8], camera: CameraConfig | HeadConfig, n_halvings: int) -> NDArray[np.uint8]:
+    """``image`` of ``camera`` (its source size; any sensor of a head) halved ``n_halvings`` times."""
     wrap_u = camera.kind is CameraKind.EQUIRECTANGULAR
     for _ in range(n_halvings):
         image = halve_image(image, wrap_u)
     return image
+
+
+def working_mask(mask: NDArray[np.bool_], n_halvings: int) -> NDArray[np.bool_]:
+    """A sensor's mask (H,W) bool halved as its images are: a working pixel shows the scene when every source
+    pixel its blur reaches does (the halved image is blurred across the mask's border)."""
+    for _ in range(n_halvings):
+        blurred = cv2.pyrDown(np.where(mask, 255, 0).astype(np.uint8))
+        mask = np.asarray(blurred >= 255)
+    return mask

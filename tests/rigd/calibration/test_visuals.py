@@ -78,7 +78,7 @@ def test_the_top_view_colours_each_point_from_the_pixel_it_lands_on():
     ground = np.array([[x, y, -1.0] for x in np.linspace(-3.5, 3.5, 40) for y in np.linspace(-3.5, 3.5, 40)])
     wall_pts = np.array([[4.0, y, z] for y in np.linspace(-3.5, 3.5, 40) for z in np.linspace(0.2, 2.0, 10)])
     size = 400
-    view = cloud_top_view(image, CAMERA, IDENTITY, np.vstack([ground, wall_pts]), size)
+    view = cloud_top_view([(image, CAMERA, None)], IDENTITY, np.vstack([ground, wall_pts]), size)
     assert view.shape == (size, size, 3)
     # The wall is drawn red (up the picture: forward), the ground blue; nothing grey (all seen).
     reddish = (view[..., 2] > 200) & (view[..., 0] < 50)
@@ -91,7 +91,7 @@ def test_the_top_view_colours_each_point_from_the_pixel_it_lands_on():
     # Pitched 40 deg down, the camera sees the wall where the ground was: the wall turns blue, the far
     # ground red. The picture changes with the extrinsics, which is the point of it.
     pitched = Transform.from_rpy_xyz(np.array([0.0, 40.0, 0.0]), np.zeros(3))
-    wrong = cloud_top_view(image, CAMERA, pitched, np.vstack([ground, wall_pts]), size)
+    wrong = cloud_top_view([(image, CAMERA, None)], pitched, np.vstack([ground, wall_pts]), size)
     assert ((wrong[..., 2] > 200) & (wrong[..., 0] < 50)).sum() != reddish.sum()
 
 
@@ -102,7 +102,7 @@ def test_the_top_view_greys_what_the_camera_does_not_see():
     to_optical = Transform(np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), np.zeros(3))
     image = np.full((100, 200, 3), (0, 200, 0), np.uint8)
     points = np.array([[5.0, 0.0, 0.0], [-5.0, 0.0, 0.0]])  # one ahead (seen), one behind (not)
-    view = cloud_top_view(image, camera, to_optical, points, 200)
+    view = cloud_top_view([(image, camera, None)], to_optical, points, 200)
     ahead, behind = view[100 - 96], view[100 + 96]  # 5 m at (200/2 - 4) px per 5 m
     assert ((ahead == (0, 200, 0)).all(axis=1)).any()
     assert ((behind == UNSEEN_BGR).all(axis=1)).any()

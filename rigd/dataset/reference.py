@@ -1,0 +1,86 @@
+"""``reference.yaml``: a published calibration of a real dataset, with its own uncertainty.
+
+Real data has no ground truth, only another method's estimate. ``T_camera_lidar`` is that estimate in the
+dataset's camera frame (the head's for a head dataset). Its one-sigma is given per axis of the form the source
+published it in, ``[x, y, z, roll, pitch, heading]`` of the LiDAR in frame ``sigma_frame`` (the head for the
+Ford sample), with ``T_sigma_frame_camera`` mapping the dataset's camera frame into it (the identity for a
+head dataset, a sensor's factory pose for one camera of the head). A result agrees with the reference when
+every axis of that form lies within a few of the reference's sigmas (:func:`agreement`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.geometry import Transform, rotation_angle_deg
+from rigd.dataset.records import transform_from_yaml, transform_to_yaml
+from rigd.errors import DatasetError
+
+AXES = ("x", "y", "z", "roll", "pitch", "heading")
+
+
+@dataclass(frozen=True)
+class Reference:
+    """``T_camera_lidar``: the published pose in the dataset's frame; ``sigma`` (6,) its one-sigma per axis of
+    the source's form (m, m, m, deg, deg, deg); ``T_sigma_frame_camera`` the dataset's camera in that frame."""
+
+    T_camera_lidar: Transform
+    sigma: NDArray[np.float64]
+    T_sigma_frame_camera: Transform
+    source: str
+
+    def source_form(self, T_camera_lidar: Transform) -> NDArray[np.float64]:
+        """(6,) [x, y, z (m), roll, pitch, heading (deg)] of ``T_camera_lidar`` in the reference's frame."""
+        T = self.T_sigma_frame_camera.compose(T_camera_lidar)
+        return np.concatenate([T.translation_m, T.rpy_deg])
+
+    def to_yaml(self) -> dict[str, Any]:
+        sigma = {"xyz_cm": (self.sigma[:3] * 100.0).tolist(), "roll_pitch_heading_deg": self.sigma[3:].tolist(),
+                 "frame": {"T_frame_camera": transform_to_yaml(self.T_sigma_frame_camera)}}
+        return {"T_camera_lidar": transform_to_yaml(self.T_camera_lidar), "source": self.source, "sigma": sigma}
+
+
+def reference_from_yaml(data: dict[str, Any], where: str) -> Reference:
+    """``reference.yaml`` as read (a mapping); DatasetError naming ``where`` when a key is missing or bad."""
+    try:
+        sigma = data["sigma"]
+        values = np.concatenate([np.asarray(sigma["xyz_cm"], float).reshape(3) / 100.0,
+                                 np.asarray(sigma["roll_pitch_heading_deg"], float).reshape(3)])
+        frame = transform_from_yaml(sigma["frame"]["T_frame_camera"], where)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise DatasetError(f"{where}: needs sigma: {{xyz_cm, roll_pitch_heading_deg, frame: {{T_frame_camera}}}} "
+                           f"({exc!r})") from exc
+    if not (np.all(np.isfinite(values)) and np.all(values > 0)):
+        raise DatasetError(f"{where}: the reference's sigmas must be positive, got {values.tolist()}")
+    return Reference(transform_from_yaml(data.get("T_camera_lidar"), where), values, frame, str(data.get("source", "")))
+
+
+@dataclass(frozen=True)
+class Agreement:
+    """A result against the reference: ``z`` (6,) difference per axis of the source's form in the reference's
+    sigmas; ``rotation_deg``, ``translation_cm`` the whole difference."""
+
+    z: NDArray[np.float64]
+    rotation_deg: float
+    translation_cm: float
+
+    def within(self, z_max: float = 2.5, rotation_deg: float = 0.6, translation_cm: float = 10.0) -> bool:
+        return bool(np.all(np.abs(self.z) <= z_max) and self.rotation_deg <= rotation_deg
+                    and self.translation_cm <= translation_cm)
+
+    def to_yaml(self) -> dict[str, Any]:
+        return {"z_per_axis": dict(zip(AXES, self.z.tolist(), strict=True)), "rotation_deg": self.rotation_deg,
+                "translation_cm": self.translation_cm, "within_2_5_sigma_0_6_deg_10_cm": self.within()}
+
+
+def agreement(reference: Reference, T_camera_lidar: Transform) -> Agreement:
+    """How ``T_camera_lidar`` compares with the reference (the heading difference wrapped to +-180 deg)."""
+    diff = reference.source_form(T_camera_lidar) - reference.source_form(reference.T_camera_lidar)
+    diff[3:] = (diff[3:] + 180.0) % 360.0 - 180.0
+    rot = rotation_angle_deg(reference.T_camera_lidar.rotation, T_camera_lidar.rotation)
+    trans = float(np.linalg.norm(T_camera_lidar.translation_m - reference.T_camera_lidar.translation_m) * 100.0)
+    return Agreement(diff / reference.sigma, rot, trans)

@@ -1,0 +1,1 @@
+"""Importers of recordings made by other rigs and tools into rigd's dataset format (docs/dataset.md)."""
