@@ -19,9 +19,11 @@ from drivers.sim import (
     SimConfig,
     SimRig,
     StitchConfig,
+    ladybug_like_head,
     scene_kind,
 )
 from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, write_ground_truth, write_pair, write_rig
+from rigd.dataset.records import HeadConfig, SensorConfig
 from rigd.errors import DatasetError, RigdError
 
 JPEG_QUALITY = 85  # a moderate Ladybug5 stream setting: blocking and ringing at edges
@@ -35,7 +37,7 @@ DETECT_RANGE_M = 60.0  # with dropouts: a 10 % target's detection range (an assu
 def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, width: int = 1024,
                             height: int = 512, range_noise_m: float = 0.02, progress: bool = True,
                             sensor_effects: bool = False, dropouts: bool = False, trees: bool = False,
-                            pinhole: bool = False, rings64: bool = False) -> Path:
+                            pinhole: bool = False, rings64: bool = False, head: bool = False) -> Path:
     """Simulate ``pairs`` pairs (pair i = location i of dataset ``seed``) into the new dataset ``out_dir``.
 
     Writes rig.yaml (equirectangular ``width`` x ``height``, VLP-16), ground_truth.yaml (the simulator's
@@ -45,7 +47,9 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
     unchanged). ``trees``: rows of street trees in outdoor scenes (the rest of each scene unchanged).
     ``pinhole``: a forward pinhole camera (:data:`PINHOLE`) below a level LiDAR instead of the panorama rig
     (``width`` and ``height`` are then unused; sensor effects are JPEG and the beam footprint). ``rings64``:
-    a 64-ring street LiDAR (drivers.sim.RINGS64_ELEVATIONS_DEG) in place of the VLP-16.
+    a 64-ring street LiDAR (drivers.sim.RINGS64_ELEVATIONS_DEG) in place of the VLP-16. ``head``: five
+    pinhole sensors of a Ladybug-like head (drivers.sim.ladybug_like_head, images/camK.png) instead of the
+    panorama, the ground truth T_head_lidar (sensor effects are then JPEG and the beam footprint).
     """
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -60,10 +64,20 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
     lidar = LidarConfig(range_noise_m=range_noise_m, footprint=footprint,
                         detect_range_m=DETECT_RANGE_M if dropouts else None,
                         elevations_deg=RINGS64_ELEVATIONS_DEG if rings64 else None)
+    camera: CameraConfig | HeadConfig
+    if pinhole and head:
+        raise RigdError("--camera is a pinhole or a head, not both")
     if pinhole:
         config = SimConfig(T_camera_lidar=PINHOLE_T_CAMERA_LIDAR, lidar=lidar, pinhole=PINHOLE, trees=trees,
                            jpeg_quality=JPEG_QUALITY if sensor_effects else None)
         camera = CameraConfig(CameraKind.PINHOLE, PINHOLE.width, PINHOLE.height, PINHOLE.K, np.zeros(0))
+    elif head:
+        sensors = ladybug_like_head(width, height)
+        config = SimConfig(lidar=lidar, head=sensors, trees=trees,
+                           jpeg_quality=JPEG_QUALITY if sensor_effects else None)
+        camera = HeadConfig(tuple(SensorConfig(s.name, CameraConfig(CameraKind.PINHOLE, s.width, s.height, s.K,
+                                                                    np.zeros(0)),
+                                               Transform.from_matrix(s.T_head_sensor.matrix)) for s in sensors))
     else:
         config = SimConfig(width=width, height=height, lidar=lidar, stitch=StitchConfig() if sensor_effects else None,
                            jpeg_quality=JPEG_QUALITY if sensor_effects else None, trees=trees)
@@ -75,5 +89,6 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
                       disable=not progress):
         cap = rig.capture(sim_kind, seed, index)
         sweep = cap.sweep
-        write_pair(out, index, cap.image, Cloud(sweep.points_lidar, sweep.intensity, sweep.ring), cap.meta)
+        images = dict(zip(camera.view_names, cap.images, strict=True)) if cap.images else cap.image
+        write_pair(out, index, images, Cloud(sweep.points_lidar, sweep.intensity, sweep.ring), cap.meta)
     return out

@@ -10,10 +10,12 @@ from drivers.sim.pose import Pose
 from drivers.sim.raycast import Hits, cast
 from drivers.sim.rig import (
     PAPER_T_CAMERA_LIDAR,
+    HeadSensorSpec,
     PinholeSpec,
     SimCapture,
     SimConfig,
     SimRig,
+    ladybug_like_head,
     make_scene,
     scene_kind,
     simulate_pair,
@@ -28,6 +30,7 @@ __all__ = [
     "ROTATION_PANORAMA_OPTICAL",
     "Face",
     "Footprint",
+    "HeadSensorSpec",
     "Hits",
     "LidarConfig",
     "Lighting",
@@ -38,6 +41,7 @@ __all__ = [
     "SceneKind",
     "SimCapture",
     "SimConfig",
+    "ladybug_like_head",
     "SimError",
     "SimRig",
     "StitchConfig",

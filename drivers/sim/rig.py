@@ -22,7 +22,7 @@ from drivers.sim.lidar import LidarConfig, Sweep, scan
 from drivers.sim.outdoor import outdoor_scene
 from drivers.sim.pose import Pose
 from drivers.sim.scene import Scene, SceneKind
-from drivers.sim.stitched import StitchConfig
+from drivers.sim.stitched import StitchConfig, sensor_axes
 
 # Kang & Doh 2020, Table 2, indoor dataset, GMM: roll, pitch, yaw (deg) and t (m).
 PAPER_T_CAMERA_LIDAR = Pose.from_rpy_xyz((-0.18, 15.47, -55.14), (0.0934, 0.0597, -0.1659))
@@ -46,6 +46,33 @@ class PinholeSpec:
 
 
 @dataclass(frozen=True)
+class HeadSensorSpec:
+    """One sensor of a simulated multi-camera head: its pinhole ``K`` (3,3) px and size (no distortion), and
+    ``T_head_sensor``, its optical frame in the head (= the panorama camera's) frame."""
+
+    name: str
+    K: F64
+    width: int
+    height: int
+    T_head_sensor: Pose
+
+
+def ladybug_like_head(width: int = 512, height: int = 640, hfov_deg: float = 80.0,
+                      radius_m: float = 0.045) -> tuple[HeadSensorSpec, ...]:
+    """Five side sensors like a Ladybug's: optical axes level at azimuths 0, 72, ... 288 deg, each
+    ``radius_m`` out from the head's centre along its axis, ``hfov_deg`` of horizontal field (neighbours
+    overlap by 8 deg), portrait images of ``width`` x ``height`` px."""
+    f = (width / 2) / np.tan(np.radians(hfov_deg / 2))
+    K = np.array([[f, 0.0, (width - 1) / 2], [0.0, f, (height - 1) / 2], [0.0, 0.0, 1.0]])
+    out = []
+    for k, axis in enumerate(sensor_axes()):
+        yaw = float(np.arctan2(axis[1], axis[0]))
+        turn = np.array([[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+        out.append(HeadSensorSpec(f"cam{k}", K, width, height, Pose(turn @ ROTATION_PANORAMA_OPTICAL, radius_m * axis)))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """Sensor settings of the simulated rig: panorama size, noise figures, ground truth extrinsics."""
 
@@ -60,6 +87,7 @@ class SimConfig:
     jpeg_quality: int | None = None  # None: the image as rendered; else JPEG-compressed at this quality
     trees: bool = False  # outdoor scenes get rows of street trees (drivers.sim.vegetation)
     pinhole: PinholeSpec | None = None  # None: the panorama; else this pinhole camera (width/height unused)
+    head: tuple[HeadSensorSpec, ...] | None = None  # else: these sensors of a head (width/height unused)
 
     def __post_init__(self) -> None:
         if self.width <= 0 or self.height <= 0 or self.supersample <= 0:
@@ -67,12 +95,15 @@ class SimConfig:
                            f" x{self.supersample}")
         if self.image_noise_grey < 0:
             raise SimError(f"image noise must be >= 0 grey levels, got {self.image_noise_grey}")
-        if self.pinhole is not None and self.stitch is not None:
-            raise SimError("stitched sensors are the panorama's; a pinhole camera has none")
+        if (self.pinhole is not None or self.head is not None) and self.stitch is not None:
+            raise SimError("stitched sensors are the panorama's; a pinhole camera or a head has none")
+        if self.pinhole is not None and self.head is not None:
+            raise SimError("one camera: a pinhole or a head, not both")
 
     @property
     def T_image_lidar(self) -> Pose:
-        """Ground truth in the frame of the image's camera: the panorama's, or the pinhole's optical frame."""
+        """Ground truth in the frame of the image's camera: the panorama's (a head's frame is the panorama's), or
+        the pinhole's optical frame."""
         if self.pinhole is None:
             return self.T_camera_lidar
         return Pose(ROTATION_PANORAMA_OPTICAL.T, np.zeros(3)).compose(self.T_camera_lidar)
@@ -80,8 +111,9 @@ class SimConfig:
 
 @dataclass(frozen=True)
 class SimCapture:
-    """One simulated pair with its ground truth: ``image`` (H,W) or (H,W,3) uint8, the sweep, meta.yaml
-    content, the scene and the sensor poses in the world."""
+    """One simulated pair with its ground truth: ``image`` (H,W) or (H,W,3) uint8 (a head's first sensor's),
+    the sweep, meta.yaml content, the scene and the sensor poses in the world; ``images``: every sensor's image
+    of a head (empty for one camera)."""
 
     image: NDArray[np.uint8]
     sweep: Sweep
@@ -89,6 +121,7 @@ class SimCapture:
     scene: Scene
     pose_world_camera: Pose
     pose_world_lidar: Pose
+    images: tuple[NDArray[np.uint8], ...] = ()
 
 
 def scene_kind(kind: SceneKind | str) -> SceneKind:
@@ -166,7 +199,9 @@ class SimRig:
         scene = make_scene(k, seed, index, cfg.trees)
         pose_cam = place_rig(scene, rng_for(k, seed, index, "pose"), cfg.T_camera_lidar)
         pose_lidar = pose_cam.compose(cfg.T_camera_lidar)
-        image = self._render(scene, pose_cam, rng_for(k, seed, index, "camera"))
+        camera_rng = rng_for(k, seed, index, "camera")
+        images = tuple(self._render_sensor(scene, pose_cam, s, camera_rng) for s in cfg.head) if cfg.head else ()
+        image = images[0] if images else self._render(scene, pose_cam, camera_rng)
         sweep = scan(scene, pose_lidar, rng_for(k, seed, index, "lidar"), cfg.lidar)
         meta = {
             "source": "simulated",
@@ -192,7 +227,18 @@ class SimRig:
         if cfg.lidar.detect_range_m is not None:
             meta["lidar_detection"] = {"detect_range_m": float(cfg.lidar.detect_range_m),
                                        "energy_noise": float(cfg.lidar.energy_noise)}
-        return SimCapture(image, sweep, meta, scene, pose_cam, pose_lidar)
+        if cfg.head:
+            meta["head_sensors"] = [s.name for s in cfg.head]
+        return SimCapture(image, sweep, meta, scene, pose_cam, pose_lidar, images)
+
+    def _render_sensor(self, scene: Scene, pose_head: Pose, sensor: HeadSensorSpec,
+                       rng: np.random.Generator) -> NDArray[np.uint8]:
+        """One sensor's image of a head standing at ``pose_head``."""
+        cfg = self.config
+        pose = pose_head.compose(sensor.T_head_sensor)
+        image = render_pinhole(scene, pose.translation_m, pose.rotation, sensor.K, sensor.width, sensor.height, rng,
+                               noise_grey=cfg.image_noise_grey, supersample=cfg.supersample, color=cfg.color)
+        return image if cfg.jpeg_quality is None else jpeg_round_trip(image, cfg.jpeg_quality)
 
     def _render(self, scene: Scene, pose_cam: Pose, rng: np.random.Generator) -> NDArray[np.uint8]:
         """The panorama, or the pinhole image along the panorama's forward axis, from ``pose_cam``."""

@@ -35,8 +35,10 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--scene", choices=[k.value for k in SceneKind], default="indoor")
     parser.add_argument("--pairs", type=_positive_int, default=12, help="number of locations (default 12)")
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (>= 0, default 0)")
-    parser.add_argument("--width", type=_positive_int, default=1024, help="panorama width px (default 1024)")
-    parser.add_argument("--height", type=_positive_int, default=None, help="panorama height px (default width/2)")
+    parser.add_argument("--width", type=_positive_int, default=None,
+                        help="panorama width px (default 1024); with --camera head each sensor's (default 512)")
+    parser.add_argument("--height", type=_positive_int, default=None,
+                        help="panorama height px (default width/2); with --camera head each sensor's (width x 1.25)")
     parser.add_argument("--noise-m", type=_non_negative_float, default=0.02,
                         help="LiDAR range noise sigma in metres (default 0.02)")
     parser.add_argument("--sensor-effects", action="store_true",
@@ -49,9 +51,10 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--trees", action="store_true",
                         help="outdoor scenes get rows of street trees: porous crowns of leaf clumps, which "
                         "crowd the LiDAR's rings with range jumps and the image with texture (docs/simulator.md)")
-    parser.add_argument("--camera", choices=["panorama", "pinhole"], default="panorama",
+    parser.add_argument("--camera", choices=["panorama", "pinhole", "head"], default="panorama",
                         help="pinhole: a forward 1920x1200 camera (48 x 31 deg) below a level LiDAR, as on a car, "
-                        "instead of the Ladybug5 panorama (docs/simulator.md)")
+                        "instead of the Ladybug5 panorama; head: the five side sensors of a Ladybug-like head as "
+                        "separate 512x640 images (docs/simulator.md)")
     parser.add_argument("--lidar", choices=["vlp16", "64"], default="vlp16",
                         help="64: a 64-ring street LiDAR (a dense band of 0.17 deg rings from +2 to -6 deg, like the "
                         "pinhole sample's) in place of the VLP-16 (docs/simulator.md)")
@@ -59,13 +62,17 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    height = args.height if args.height is not None else max(1, args.width // 2)
-    out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, args.width, height, args.noise_m,
+    head = args.camera == "head"
+    width = args.width if args.width is not None else (512 if head else 1024)
+    height = args.height if args.height is not None else (width * 5 // 4 if head else max(1, width // 2))
+    out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, width, height, args.noise_m,
                                   sensor_effects=args.sensor_effects, dropouts=args.dropouts, trees=args.trees,
-                                  pinhole=args.camera == "pinhole", rings64=args.lidar == "64")
+                                  pinhole=args.camera == "pinhole", rings64=args.lidar == "64",
+                                  head=head)
     effects = [text for on, text in ((args.sensor_effects, "sensor effects"), (args.dropouts, "LiDAR dropouts"),
                                      (args.trees, "street trees"), (args.lidar == "64", "a 64-ring LiDAR")) if on]
     extra = f" with {' and '.join(effects)}" if effects else ""
-    size = "1920x1200 pinhole" if args.camera == "pinhole" else f"{args.width}x{height}"
+    sizes = {"pinhole": "1920x1200 pinhole", "head": f"5 sensors of {width}x{height}"}
+    size = sizes.get(args.camera, f"{width}x{height}")
     print(f"wrote {args.pairs} simulated {args.scene} pairs ({size}){extra} to {out}")
     return 0
