@@ -43,7 +43,7 @@ from calib.geometry import Transform
 from calib.gmm import PairFeatures
 from calib.pipeline import CalibParams, calibrate
 from calib.prior import Prior
-from rigd.calibration.service import dataset_features
+from rigd.calibration.service import dataset_features, of_pairs
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.reference import AXES, Reference, agreement
@@ -153,6 +153,7 @@ class WorkerState:
     trust: TrustOptions | None
     error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
     prior: Prior | None = None
+    n_pairs: int = 0  # the dataset's pairs (feats holds one per view of each, view by view)
 
     def checked(self) -> WorkerState:
         """``self``, or the feature extraction's error raised."""
@@ -169,7 +170,7 @@ def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None) -
         feats = tuple(dataset_features(dataset, params, None))
     except (RigdError, CalibError) as exc:
         return WorkerState((), params, trust, f"{root}: {exc}")
-    return WorkerState(feats, params, trust, None, dataset.rig.prior)
+    return WorkerState(feats, params, trust, None, dataset.rig.prior, len(dataset))
 
 
 _STATE: WorkerState | None = None  # one per local pool process, set by _init_worker
@@ -189,8 +190,8 @@ def _in_pool(fn: Callable[[WorkerState, T], R], task: T) -> R:
 def _run_task(state: WorkerState, task: _Task) -> Run:
     started = time.monotonic()
     try:
-        result = calibrate([state.feats[i] for i in task.pairs], task.start, state.params, prior=state.prior,
-                           trust=state.trust)
+        feats = of_pairs(state.feats, state.n_pairs, task.pairs)
+        result = calibrate(feats, task.start, state.params, prior=state.prior, trust=state.trust)
     except CalibError as exc:  # a start that sees nothing: a failed run, counted as not converged
         return Run(task.index, task.pairs, task.start, None, str(exc), None, 0, time.monotonic() - started)
     iterations = sum(level.iterations for level in result.optim.levels)

@@ -32,7 +32,7 @@ from calib.geometry import Transform
 from calib.gmm import PairFeatures
 from calib.methods import Method, calibrate_method, gmm_params, photo_params
 from calib.photometric import PhotoPair
-from rigd.calibration.service import dataset_features, dataset_photo_pairs
+from rigd.calibration.service import dataset_features, dataset_photo_pairs, of_pairs
 from rigd.dataset import open_dataset
 from rigd.dataset.records import transform_to_yaml
 from rigd.dataset.store import write_yaml
@@ -89,6 +89,7 @@ class _State:
     feats: tuple[PairFeatures, ...] | None
     photo: tuple[PhotoPair, ...] | None
     error: str | None
+    n_pairs: int = 0  # the dataset's pairs (feats and photo hold one per view of each, view by view)
 
 
 _STATE: _State | None = None  # one per worker process
@@ -105,7 +106,7 @@ def _init_worker(root: Path, method: Method) -> None:
     except (RigdError, CalibError) as exc:
         _STATE = _State(method, None, None, f"{root}: {exc}")
         return
-    _STATE = _State(method, feats, pairs, None)
+    _STATE = _State(method, feats, pairs, None, len(dataset))
 
 
 def _release() -> None:
@@ -118,8 +119,8 @@ def _run_task(task: _Task) -> Run:
     if state is None or state.error is not None:
         raise RigdError(state.error if state else "compare worker was not initialised")
     started = time.monotonic()
-    feats = None if state.feats is None else [state.feats[i] for i in task.pairs]
-    photo = None if state.photo is None else [state.photo[i] for i in task.pairs]
+    feats = None if state.feats is None else of_pairs(state.feats, state.n_pairs, task.pairs)
+    photo = None if state.photo is None else of_pairs(state.photo, state.n_pairs, task.pairs)
     try:
         result = calibrate_method(state.method, feats, photo, task.start)
     except CalibError as exc:

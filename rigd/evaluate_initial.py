@@ -123,7 +123,7 @@ def run_initial(request: InitialRequest) -> dict[str, Any]:
     if truth is None:
         raise RigdError(f"{dataset.root}: the initial-guess evaluation needs ground_truth.yaml (a simulated dataset)")
     params = calib_params(s.sigmas_deg)
-    base = base_rotation(dataset.rig.camera.model())
+    base = base_rotation(dataset.rig.camera.models()[0])
     ref_start = random_starts(truth, 1, 5.0, 0.1, s.seed + 1)[0]
     mounts = _mounts(request, base)
     tasks = [_Task(-1, None, ref_start, truth)] + [_Task(i, m, None, truth) for i, m in enumerate(mounts)]

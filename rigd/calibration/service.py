@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import multiprocessing
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -117,6 +117,16 @@ def feature_at(feats: list[PairFeatures], dataset: Dataset, pair: int, view: int
     return feats[view * len(dataset) + pair]
 
 
+Item = TypeVar("Item")
+
+
+def of_pairs(items: Sequence[Item], n_pairs: int, pairs: Sequence[int]) -> list[Item]:
+    """Every view of ``pairs`` from a dataset's per-view list ``items`` (:func:`dataset_features`,
+    :func:`dataset_photo_pairs`: ``n_pairs`` pairs, view by view), in the same order."""
+    views = len(items) // n_pairs
+    return [items[v * n_pairs + i] for v in range(views) for i in pairs]
+
+
 def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None,
                      executor: Executor | None = None) -> list[PairFeatures]:
     """Edge features of every pair of ``dataset``, one per view of a pair (FeaturelessError names a pair without
@@ -174,13 +184,13 @@ def _per_pair(dataset: Dataset, what: str, progress: Progress | None, make: Call
 
 
 def dataset_photo_pairs(dataset: Dataset, params: PhotoParams, progress: Progress | None) -> list[PhotoPair]:
-    """The photometric costs' arrays of every pair, one per view (FeaturelessError names a pair whose cloud has
-    no intensity)."""
+    """The photometric costs' arrays of every pair, one per view, view by view as :func:`dataset_features`
+    (FeaturelessError names a pair whose cloud has no intensity)."""
     cameras = dataset.rig.camera.models()
     per_pair = _per_pair(dataset, "reflectivity and image", progress, lambda pair, i: [photo_pair(
         image, pair.cloud.points_lidar, pair.cloud.intensity, pair.cloud.ring, camera, params, index=i, mask=mask)
         for image, camera, mask in zip(pair.images, cameras, dataset.masks, strict=True)])
-    return [p for views in per_pair for p in views]
+    return [views[v] for v in range(len(cameras)) for views in per_pair]
 
 
 def not_assessed_yaml(method: Method) -> dict[str, Any]:

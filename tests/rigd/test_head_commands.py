@@ -12,6 +12,7 @@ import yaml
 
 from calib.camera import Mounted
 from calib.geometry import rotation_angle_deg
+from rigd.calibration.service import of_pairs
 from rigd.cli import main
 from rigd.dataset import open_dataset
 from rigd.dataset.records import HeadConfig
@@ -68,3 +69,16 @@ def test_the_photometric_baseline_runs_on_a_head(head_dataset: Path, tmp_path: P
     assert code == 5  # a baseline: not assessed
     found = yaml.safe_load((tmp_path / "n" / "extrinsics.yaml").read_text())["T_camera_lidar"]
     assert rotation_angle_deg(np.array(found["matrix"])[:3, :3], truth.rotation) < 3.0
+
+
+def test_a_subset_of_pairs_takes_every_view_of_each() -> None:
+    views_by_pair = [f"v{v}p{p}" for v in range(3) for p in range(4)]  # 4 pairs, 3 views, view by view
+    assert of_pairs(views_by_pair, 4, [1, 3]) == ["v0p1", "v0p3", "v1p1", "v1p3", "v2p1", "v2p3"]
+    assert of_pairs(["a", "b"], 2, [1]) == ["b"]  # one camera
+
+
+def test_the_convergence_protocol_solves_with_every_sensor(head_dataset: Path, tmp_path: Path) -> None:
+    assert main(["evaluate", "convergence", str(head_dataset), "--trials", "2", "--rot-deg", "2", "--trans-m",
+                 "0.03", "--workers", "1", "--no-uncertainty", "--out", str(tmp_path / "e")]) == 0
+    report = yaml.safe_load((tmp_path / "e" / "convergence.yaml").read_text())
+    assert report["summary"]["error_vs_ground_truth"]["run_median"]["rotation_deg"] < 0.3
