@@ -1,4 +1,4 @@
-"""``rigd import ford SRC OUT``: recordings of other rigs as rigd datasets (docs/dataset.md, "Importing")."""
+"""``rigd import ford|kitti SRC OUT``: recordings of other rigs as rigd datasets (docs/dataset.md, "Importing")."""
 
 from __future__ import annotations
 
@@ -39,17 +39,46 @@ def register(subparsers: Any) -> None:
     ford.add_argument("--scans", type=_scan_list, default=None, metavar="LIST",
                       help="scans to take, e.g. 1-10 (default: every scan the folder holds)")
     ford.set_defaults(func=_ford)
+    kitti = formats.add_parser(
+        "kitti", help="one camera of a KITTI raw drive (HDL-64E)",
+        description="A KITTI raw drive folder (image_0X/data/*.png, velodyne_points/data/*.bin, and "
+        "calib_cam_to_cam.txt / calib_velo_to_cam.txt beside it or in the date folder) as a pinhole dataset of "
+        "rectified camera X; KITTI's own calibration is written to OUT/reference.yaml.")
+    kitti.add_argument("src", type=Path, metavar="DRIVE", help="the drive folder (DATE_drive_NNNN_sync)")
+    kitti.add_argument("out", type=Path, metavar="OUT", help="new (or empty) dataset folder")
+    kitti.add_argument("--camera", type=int, choices=range(4), default=2, help="rectified camera 0-3 (default 2)")
+    kitti.add_argument("--frames", type=_scan_list, default=None, metavar="LIST",
+                       help="frames to take, e.g. 0-5 or 0,50,100 (default: every frame)")
+    kitti.set_defaults(func=_kitti)
+
+
+def _bar(desc: str, unit: str) -> tuple[tqdm, Any]:
+    bar = tqdm(desc=desc, unit=unit)
+
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    return bar, progress
 
 
 def _ford(args: argparse.Namespace) -> int:
     from rigd.importers.ford import import_ford  # scipy/cv2 only when importing
 
-    with tqdm(desc="import ford", unit="scan") as bar:
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.update(done - bar.n)
-
+    bar, progress = _bar("import ford", "scan")
+    with bar:
         n = import_ford(args.src, args.out, args.camera, args.scans, progress)
     what = f"camera {args.camera}" if args.camera else "head"
     print(f"written: {args.out} ({n} pairs, {what}; reference pose in {args.out / 'reference.yaml'})")
+    return 0
+
+
+def _kitti(args: argparse.Namespace) -> int:
+    from rigd.importers.kitti import import_kitti
+
+    bar, progress = _bar("import kitti", "frame")
+    with bar:
+        n = import_kitti(args.src, args.out, args.camera, args.frames, progress)
+    print(f"written: {args.out} ({n} pairs, camera {args.camera}; KITTI's calibration in "
+          f"{args.out / 'reference.yaml'})")
     return 0

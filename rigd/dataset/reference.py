@@ -26,10 +26,11 @@ AXES = ("x", "y", "z", "roll", "pitch", "heading")
 @dataclass(frozen=True)
 class Reference:
     """``T_camera_lidar``: the published pose in the dataset's frame; ``sigma`` (6,) its one-sigma per axis of
-    the source's form (m, m, m, deg, deg, deg); ``T_sigma_frame_camera`` the dataset's camera in that frame."""
+    the source's form (m, m, m, deg, deg, deg), None when the source published none (KITTI);
+    ``T_sigma_frame_camera`` the dataset's camera in the frame of that form."""
 
     T_camera_lidar: Transform
-    sigma: NDArray[np.float64]
+    sigma: NDArray[np.float64] | None
     T_sigma_frame_camera: Transform
     source: str
 
@@ -39,13 +40,17 @@ class Reference:
         return np.concatenate([T.translation_m, T.rpy_deg])
 
     def to_yaml(self) -> dict[str, Any]:
-        sigma = {"xyz_cm": (self.sigma[:3] * 100.0).tolist(), "roll_pitch_heading_deg": self.sigma[3:].tolist(),
-                 "frame": {"T_frame_camera": transform_to_yaml(self.T_sigma_frame_camera)}}
+        sigma = None if self.sigma is None else {
+            "xyz_cm": (self.sigma[:3] * 100.0).tolist(), "roll_pitch_heading_deg": self.sigma[3:].tolist(),
+            "frame": {"T_frame_camera": transform_to_yaml(self.T_sigma_frame_camera)}}
         return {"T_camera_lidar": transform_to_yaml(self.T_camera_lidar), "source": self.source, "sigma": sigma}
 
 
 def reference_from_yaml(data: dict[str, Any], where: str) -> Reference:
     """``reference.yaml`` as read (a mapping); DatasetError naming ``where`` when a key is missing or bad."""
+    T = transform_from_yaml(data.get("T_camera_lidar"), where)
+    if data.get("sigma") is None:
+        return Reference(T, None, Transform.identity(), str(data.get("source", "")))
     try:
         sigma = data["sigma"]
         values = np.concatenate([np.asarray(sigma["xyz_cm"], float).reshape(3) / 100.0,
@@ -56,24 +61,27 @@ def reference_from_yaml(data: dict[str, Any], where: str) -> Reference:
                            f"({exc!r})") from exc
     if not (np.all(np.isfinite(values)) and np.all(values > 0)):
         raise DatasetError(f"{where}: the reference's sigmas must be positive, got {values.tolist()}")
-    return Reference(transform_from_yaml(data.get("T_camera_lidar"), where), values, frame, str(data.get("source", "")))
+    return Reference(T, values, frame, str(data.get("source", "")))
 
 
 @dataclass(frozen=True)
 class Agreement:
     """A result against the reference: ``z`` (6,) difference per axis of the source's form in the reference's
-    sigmas; ``rotation_deg``, ``translation_cm`` the whole difference."""
+    sigmas (NaN when it has none); ``rotation_deg``, ``translation_cm`` the whole difference."""
 
     z: NDArray[np.float64]
     rotation_deg: float
     translation_cm: float
 
     def within(self, z_max: float = 2.5, rotation_deg: float = 0.6, translation_cm: float = 10.0) -> bool:
-        return bool(np.all(np.abs(self.z) <= z_max) and self.rotation_deg <= rotation_deg
-                    and self.translation_cm <= translation_cm)
+        """Every axis within ``z_max`` sigmas (when the reference has sigmas) and the whole difference within
+        ``rotation_deg`` and ``translation_cm``."""
+        sigmas_agree = bool(np.all(np.isnan(self.z)) or np.all(np.abs(self.z) <= z_max))
+        return sigmas_agree and self.rotation_deg <= rotation_deg and self.translation_cm <= translation_cm
 
     def to_yaml(self) -> dict[str, Any]:
-        return {"z_per_axis": dict(zip(AXES, self.z.tolist(), strict=True)), "rotation_deg": self.rotation_deg,
+        z = [None if np.isnan(v) else float(v) for v in self.z]
+        return {"z_per_axis": dict(zip(AXES, z, strict=True)), "rotation_deg": self.rotation_deg,
                 "translation_cm": self.translation_cm, "within_2_5_sigma_0_6_deg_10_cm": self.within()}
 
 
@@ -83,4 +91,4 @@ def agreement(reference: Reference, T_camera_lidar: Transform) -> Agreement:
     diff[3:] = (diff[3:] + 180.0) % 360.0 - 180.0
     rot = rotation_angle_deg(reference.T_camera_lidar.rotation, T_camera_lidar.rotation)
     trans = float(np.linalg.norm(T_camera_lidar.translation_m - reference.T_camera_lidar.translation_m) * 100.0)
-    return Agreement(diff / reference.sigma, rot, trans)
+    return Agreement(diff / reference.sigma if reference.sigma is not None else np.full(6, np.nan), rot, trans)
