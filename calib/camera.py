@@ -199,23 +199,29 @@ class Pinhole:
         dxd_dy = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y
         dyd_dx = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y
         dyd_dy = radial + 2.0 * y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x
-        d_norm = np.zeros((len(x), 2, 2))
-        d_norm[:, 0, 0] = self.K[0, 0] * dxd_dx + self.K[0, 1] * dyd_dx
-        d_norm[:, 0, 1] = self.K[0, 0] * dxd_dy + self.K[0, 1] * dyd_dy
-        d_norm[:, 1, 0] = self.K[1, 1] * dyd_dx
-        d_norm[:, 1, 1] = self.K[1, 1] * dyd_dy
-        # d(x, y)/d(p) for x = X/Z, y = Y/Z
-        d_xy = np.zeros((len(x), 2, 3))
-        d_xy[:, 0, 0] = 1.0 / zs
-        d_xy[:, 0, 2] = -x / zs
-        d_xy[:, 1, 1] = 1.0 / zs
-        d_xy[:, 1, 2] = -y / zs
-        jac: F64 = np.einsum("nij,njk->nik", d_norm, d_xy)
+        # d(u, v)/d(x, y) through K, then d(x, y)/d(p) for x = X/Z, y = Y/Z: written out, as the (N,2,2) x (N,2,3)
+        # product is a sixth of an iteration's time on a five-sensor head through einsum.
+        du_dx = self.K[0, 0] * dxd_dx + self.K[0, 1] * dyd_dx
+        du_dy = self.K[0, 0] * dxd_dy + self.K[0, 1] * dyd_dy
+        dv_dx = self.K[1, 1] * dyd_dx
+        dv_dy = self.K[1, 1] * dyd_dy
+        inv_z = 1.0 / zs
+        jac = np.empty((len(x), 2, 3))
+        jac[:, 0, 0] = du_dx * inv_z
+        jac[:, 0, 1] = du_dy * inv_z
+        jac[:, 0, 2] = -(du_dx * x + du_dy * y) * inv_z
+        jac[:, 1, 0] = dv_dx * inv_z
+        jac[:, 1, 1] = dv_dy * inv_z
+        jac[:, 1, 2] = -(dv_dx * x + dv_dy * y) * inv_z
         return jac
 
     def back_project(self, uv: F64) -> F64:
         uv = np.asarray(uv, dtype=np.float64).reshape(-1, 1, 2)
-        xy = cv2.undistortPoints(uv, self.K, self.D).reshape(-1, 2)
+        if not self.D.any():  # a rectified image (the Ford and KITTI sets): K's inverse, without the iteration
+            y = (uv[:, 0, 1] - self.K[1, 2]) / self.K[1, 1]
+            xy = np.stack([(uv[:, 0, 0] - self.K[0, 2] - self.K[0, 1] * y) / self.K[0, 0], y], axis=1)
+        else:
+            xy = cv2.undistortPoints(uv, self.K, self.D).reshape(-1, 2)
         rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
         unit_rays: F64 = rays / np.linalg.norm(rays, axis=1, keepdims=True)
         return unit_rays

@@ -364,3 +364,15 @@ def test_mounted_back_project_gives_head_rays(pinhole: Pinhole) -> None:
     back, valid = mounted.project(origin + 100.0 * rays)
     assert valid.all()
     np.testing.assert_allclose(back, uv, atol=1e-6)
+
+
+def test_a_rectified_pinhole_back_projects_through_k_alone() -> None:
+    K = np.array([[408.4, 0.0, 806.6], [0.0, 204.2, 315.5], [0.0, 0.0, 1.0]])  # fy = fx / 2, as the Ford images
+    uv = np.array([[0.0, 0.0], [806.6, 315.5], [1615.0, 615.0], [300.25, 520.75]])
+    rays = Pinhole(K, np.zeros(0), 1616, 616).back_project(uv)
+    expected = cv2.undistortPoints(uv.reshape(-1, 1, 2), K, np.zeros(5)).reshape(-1, 2)
+    np.testing.assert_allclose(rays[:, :2] / rays[:, 2:], expected, atol=1e-12)
+    skewed = Pinhole(K + [[0.0, 1.5, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]], np.zeros(0), 1616, 616)
+    back, valid = skewed.project(skewed.back_project(uv) * 7.0)  # OpenCV's undistortPoints ignores a skew
+    assert valid.all()
+    np.testing.assert_allclose(back, uv, atol=1e-9)
