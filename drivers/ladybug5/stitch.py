@@ -76,14 +76,21 @@ class _Tile:
 
 
 class Stitcher:
-    """Precomputes remap maps for one rig and panorama spec; ``stitch`` then costs 6 remaps and a sum."""
+    """Precomputes remap maps for one rig and panorama spec; ``stitch`` then costs 6 remaps and a sum.
+    ``masks``: per camera, (H,W) bool True where its image shows the scene (None: all of it); a masked pixel
+    (the vehicle's body, a rectified image's black surround) gives no weight to the panorama."""
 
-    def __init__(self, rig: RigCameras, spec: PanoramaSpec = PanoramaSpec()) -> None:
+    def __init__(self, rig: RigCameras, spec: PanoramaSpec = PanoramaSpec(),
+                 masks: Sequence[NDArray[np.bool_] | None] | None = None) -> None:
         self.rig = rig
         self.spec = spec
         rays = panorama_rays(spec.width, spec.height).reshape(-1, 3)
         points_head = rays if math.isinf(spec.radius_m) else rays * spec.radius_m
-        maps, weights = zip(*(self._camera_map(c, points_head) for c in rig.cameras), strict=True)
+        masks = list(masks) if masks is not None else [None] * len(rig.cameras)
+        if len(masks) != len(rig.cameras):
+            raise Ladybug5Error(f"stitch needs one mask (or None) per camera, got {len(masks)} for {len(rig.cameras)}")
+        maps, weights = zip(*(self._camera_map(c, points_head, m) for c, m in zip(rig.cameras, masks, strict=True)),
+                            strict=True)
         total = np.sum(weights, axis=0)
         self.coverage = (total > 0).reshape(spec.height, spec.width)  # (H, W) seen by some camera
         seen_by = np.sum([w > 0 for w in weights], axis=0).reshape(spec.height, spec.width)
@@ -91,7 +98,7 @@ class Stitcher:
         normalised = [w / np.where(total > 0, total, 1.0) for w in weights]
         self._tiles = [tile for i in range(len(rig.cameras)) for tile in self._tiles_for(i, maps[i], normalised[i])]
 
-    def _camera_map(self, camera: RigCamera, points_head: F64) -> tuple[F64, F64]:
+    def _camera_map(self, camera: RigCamera, points_head: F64, mask: NDArray[np.bool_] | None) -> tuple[F64, F64]:
         """Raw-image uv (N,2) of every panorama pixel and its feather weight (N,) (0 where not seen)."""
         if math.isinf(self.spec.radius_m):
             points_cam = points_head @ camera.R_head_camera  # R^T d, translation is irrelevant at infinity
@@ -103,6 +110,12 @@ class Stitcher:
         )
         # Distance to the image border ramps the weight down to 0 at the edge: seams blend smoothly.
         weight = np.where(valid, np.maximum(border_px, 0.0) + 1e-3, 0.0)
+        if mask is not None:
+            if mask.shape != (camera.height, camera.width):
+                raise Ladybug5Error(f"{camera.name}: mask is {mask.shape[1]}x{mask.shape[0]}, the camera "
+                                    f"{camera.width}x{camera.height}")
+            px = np.clip(np.rint(uv).astype(np.int64), 0, [camera.width - 1, camera.height - 1])
+            weight = np.where(mask[px[:, 1], px[:, 0]], weight, 0.0)
         return uv, weight
 
     def _tiles_for(self, index: int, uv: F64, weight: F64) -> list[_Tile]:

@@ -38,6 +38,9 @@ def register(subparsers: Any) -> None:
     ford.add_argument("--camera", default=None, metavar="NAME", help="one camera (cam0..cam4) as a pinhole dataset")
     ford.add_argument("--scans", type=_scan_list, default=None, metavar="LIST",
                       help="scans to take, e.g. 1-10 (default: every scan the folder holds)")
+    ford.add_argument("--panorama", type=int, default=None, metavar="WIDTH",
+                      help="the five cameras stitched into one equirectangular panorama WIDTH px wide (rigd's own "
+                      "stitching from the head calibration) instead of the head")
     ford.set_defaults(func=_ford)
     kitti = formats.add_parser(
         "kitti", help="one camera of a KITTI raw drive (HDL-64E)",
@@ -67,8 +70,8 @@ def _ford(args: argparse.Namespace) -> int:
 
     bar, progress = _bar("import ford", "scan")
     with bar:
-        n = import_ford(args.src, args.out, args.camera, args.scans, progress)
-    what = f"camera {args.camera}" if args.camera else "head"
+        n = import_ford(args.src, args.out, args.camera, args.scans, progress, args.panorama)
+    what = f"camera {args.camera}" if args.camera else f"panorama {args.panorama} px" if args.panorama else "head"
     print(f"written: {args.out} ({n} pairs, {what}; reference pose in {args.out / 'reference.yaml'})")
     return 0
 

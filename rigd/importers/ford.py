@@ -7,8 +7,10 @@ covariance, and a starting guess). Poses there are ``[x, y, z, roll, pitch, head
 ``p_a = R p_b + t`` with ``R = Rz(heading) Ry(pitch) Rx(roll)``, the same convention as rigd's rpy_deg.
 
 Written: a head dataset (the five cameras as sensors with their masks), or with ``camera`` one sensor as a
-pinhole dataset; the clouds with their rings (:mod:`rigd.importers.scan_order`); ``reference.yaml`` with the
-published pose as T_camera_lidar (the head's, or the one camera's) and its one-sigma per axis of the head form
+pinhole dataset, or with ``panorama_width`` the five stitched into one equirectangular panorama by rigd's own
+stitching (drivers.ladybug5.stitch, from the head calibration; what a stitched Ladybug stream gives); the
+clouds with their rings (:mod:`rigd.importers.scan_order`); ``reference.yaml`` with the published pose as
+T_camera_lidar (the head's, or the one camera's) and its one-sigma per axis of the head form
 (:mod:`rigd.dataset.reference`).
 """
 
@@ -20,14 +22,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from calib.geometry import Transform
+from drivers.ladybug5.rig import RigCamera, RigCameras
+from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 from rigd.dataset.pcd import Cloud, read_pcd
 from rigd.dataset.records import CameraConfig, CameraKind, HeadConfig, RigConfig, SensorConfig
 from rigd.dataset.reference import Reference
-from rigd.dataset.store import read_image, read_yaml_mapping, write_pair, write_rig, write_yaml
+from rigd.dataset.store import read_image, read_mask, read_yaml_mapping, write_pair, write_rig, write_yaml
 from rigd.errors import DatasetError
 from rigd.importers.scan_order import rings_from_scan_order
 
@@ -102,15 +107,28 @@ def _reference(T: Transform, head: FordHead, T_head_camera: Transform) -> Refere
                      "Pandey et al., Ford Campus data (IJRR 2011): MI calibration, head.yaml head_lidar_reference")
 
 
+def _stitcher(src: Path, head: FordHead, width: int) -> Stitcher:
+    """rigd's own stitching (drivers.ladybug5.stitch) of the five cameras, from the head calibration and the
+    masks, onto a ``width`` x ``width / 2`` panorama of the head frame at the SDK's 20 m sphere."""
+    cameras = tuple(RigCamera(s.name, s.camera.width, s.camera.height, np.asarray(s.camera.K), np.zeros(5),
+                              s.T_head_camera.rotation, s.T_head_camera.translation_m) for s in head.sensors)
+    masks = [read_mask(src / str(s.camera.mask), (s.camera.height, s.camera.width)) for s in head.sensors]
+    return Stitcher(RigCameras("Ladybug3", cameras), PanoramaSpec(width, width // 2), masks)
+
+
 def import_ford(src: Path, out: Path, camera: str | None = None, scans: list[int] | None = None,
-                progress: Any = None) -> int:
+                progress: Any = None, panorama_width: int | None = None) -> int:
     """Write the dataset ``out`` from the Ford sample at ``src``; returns the number of pairs. ``camera``: one
-    sensor (cam0..cam4) as a pinhole dataset, else the whole head. ``scans``: which scans (default all)."""
+    sensor (cam0..cam4) as a pinhole dataset; ``panorama_width``: the five stitched into one equirectangular
+    panorama of that width (the way a stitched Ladybug stream is calibrated); neither: the whole head.
+    ``scans``: which scans (default all)."""
     src, out = Path(src), Path(out)
     head = read_head(src / "head.yaml")
     names = [s.name for s in head.sensors]
     if camera is not None and camera not in names:
         raise DatasetError(f"{src / 'head.yaml'}: no camera {camera!r} (the head has {', '.join(names)})")
+    if camera is not None and panorama_width is not None:
+        raise DatasetError("one camera or a stitched panorama, not both")
     available = scan_numbers(src)
     chosen = available if scans is None else scans
     missing = sorted(set(chosen) - set(available))
@@ -119,26 +137,37 @@ def import_ford(src: Path, out: Path, camera: str | None = None, scans: list[int
     if out.exists() and any(out.iterdir()):
         raise DatasetError(f"{out}: exists and is not empty; give a new folder")
     sensors = [s for s in head.sensors if camera is None or s.name == camera]
-    _write_rig(src, out, head, sensors, camera is not None)
+    stitcher = None if panorama_width is None else _stitcher(src, head, panorama_width)
+    _write_rig(src, out, head, sensors, camera is not None, stitcher)
     for index, scan in enumerate(chosen):
         images = {s.name: src / s.name / f"image{scan:04d}.jpg" for s in sensors}
-        for path in images.values():
-            read_image(path)  # a missing or corrupt image fails here, naming the file, before anything is written
+        arrays = {name: read_image(path) for name, path in images.items()}  # a missing or corrupt image fails here
         cloud = _cloud(src / "scans" / f"scan{scan:04d}.pcd")
         meta = {"source": "ford_campus", "scan": scan}
-        if camera is None:
+        if stitcher is not None:
+            meta["stitched"] = {"sphere_radius_m": stitcher.spec.radius_m}
+            write_pair(out, index, stitcher.stitch([arrays[s.name] for s in head.sensors]), cloud, meta)
+        elif camera is None:
             write_pair(out, index, dict(images), cloud, meta)
         else:
-            write_pair(out, index, read_image(images[camera]), cloud, meta)
+            write_pair(out, index, arrays[camera], cloud, meta)
         if progress:
             progress(index + 1, len(chosen))
     return len(chosen)
 
 
-def _write_rig(src: Path, out: Path, head: FordHead, sensors: list[SensorConfig], single: bool) -> None:
-    """rig.yaml, the masks a head needs, and reference.yaml (the head's pose, or the one camera's)."""
+def _write_rig(src: Path, out: Path, head: FordHead, sensors: list[SensorConfig], single: bool,
+               stitcher: Stitcher | None) -> None:
+    """rig.yaml, the masks, and reference.yaml (the head's pose, or the one camera's)."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "masks").mkdir(exist_ok=True)
+    if stitcher is not None:
+        cv2.imwrite(str(out / "masks" / "panorama.png"), np.where(stitcher.coverage, 255, 0).astype(np.uint8))
+        panorama = CameraConfig(CameraKind.EQUIRECTANGULAR, stitcher.spec.width, stitcher.spec.height,
+                                mask="masks/panorama.png")
+        write_rig(out, RigConfig(panorama, LIDAR_MODEL, head.guess))
+        write_yaml(out / "reference.yaml", _reference(head.reference, head, Transform.identity()).to_yaml())
+        return
     for s in sensors:
         assert s.camera.mask is not None
         if not (src / s.camera.mask).is_file():

@@ -70,7 +70,7 @@ def kitti_camera(drive: Path, camera: int) -> tuple[CameraConfig, Transform]:
     width, height = (int(round(v)) for v in _get(c2c, f"S_rect_0{camera}", 2, c2c_path))
     T_cam0_velo = Transform(_get(v2c, "R", 9, v2c_path).reshape(3, 3), _get(v2c, "T", 3, v2c_path))
     K = P[:, :3].copy()
-    baseline = np.linalg.solve(K, P[:, 3])  # P = K [I | t]
+    baseline = np.asarray(np.linalg.solve(K, P[:, 3]), dtype=np.float64)  # P = K [I | t]
     T = Transform(R_rect, baseline).compose(T_cam0_velo)  # R_rect is a rotation: rectify, then shift
     return CameraConfig(CameraKind.PINHOLE, width, height, K, np.zeros(0)), T
 
