@@ -246,18 +246,23 @@ class Coverage:
 
 
 def coverage(reference: Transform, results: Sequence[Transform | None], sigmas: Sequence[F64 | None],
-             verdicts: Sequence[str | None], tolerance: F64) -> Coverage:
+             verdicts: Sequence[str | None], tolerance: F64, reference_sigma: F64 | None = None) -> Coverage:
     """Coverage of ``results`` (with their per-axis ``sigmas`` (6,) deg/cm and verdict names) around
-    ``reference``; ``tolerance`` (6,) deg/cm."""
+    ``reference``; ``tolerance`` (6,) deg/cm. ``reference_sigma`` (6,) deg/cm: the reference is itself an
+    estimate (real data) with this one-sigma per axis: a difference is then weighed against both sigmas, and a
+    trusted run counts as wrong only beyond the tolerance plus 2.5 of the reference's sigmas (closer, the
+    reference cannot tell)."""
     z = np.full((len(results), 6), np.nan)
     wrong = 0
+    ref_sigma = np.zeros(6) if reference_sigma is None else np.asarray(reference_sigma, dtype=np.float64)
     for i, (t, s, v) in enumerate(zip(results, sigmas, verdicts, strict=True)):
         if t is None or s is None:
             continue
         err = xi_of(reference.tau, t.tau) * TO_DISPLAY
+        both = np.sqrt(np.asarray(s, dtype=np.float64) ** 2 + ref_sigma**2)
         with np.errstate(divide="ignore", invalid="ignore"):
-            z[i] = np.where(np.asarray(s) > 0, err / np.asarray(s), np.where(np.abs(err) < 1e-9, 0.0, np.inf))
-        wrong += int(v == "trusted" and bool((np.abs(err) > tolerance).any()))
+            z[i] = np.where(both > 0, err / both, np.where(np.abs(err) < 1e-9, 0.0, np.inf))
+        wrong += int(v == "trusted" and bool((np.abs(err) > tolerance + 2.5 * ref_sigma).any()))
     finite = ~np.isnan(z)
     share = float((np.abs(z[finite]) <= 3.0).mean()) if finite.any() else float("nan")
     per_axis = tuple(float((np.abs(z[finite[:, k], k]) <= 3.0).mean()) if finite[:, k].any() else float("nan")

@@ -24,6 +24,7 @@ from typing import Any, TypeVar
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 from tqdm import tqdm
 
 from calib.assess import TrustOptions
@@ -402,8 +403,9 @@ def _vs_reference(ref: Reference, runs: Sequence[Run]) -> dict[str, Any]:
             "median_translation_cm": float(np.median([a.translation_cm for a in done]))}
 
 
-def _coverage_yaml(c: Coverage, source: Source) -> dict[str, Any]:
-    return {
+def _coverage_yaml(c: Coverage, source: Source,
+                   reference_sigma: NDArray[np.float64] | None = None) -> dict[str, Any]:
+    out = {
         "against": source.value,
         "within_3_sigma": c.within_3_sigma,
         "within_3_sigma_per_axis": dict(zip(("roll", "pitch", "yaw", "x", "y", "z"), c.per_axis, strict=True)),
@@ -412,6 +414,9 @@ def _coverage_yaml(c: Coverage, source: Source) -> dict[str, Any]:
         "trusted_but_wrong": c.trusted_but_wrong,
         "median_abs_z": [float(v) for v in np.nanmedian(np.abs(c.z), axis=0)] if np.isfinite(c.z).any() else None,
     }
+    if reference_sigma is not None:  # a published estimate, not a truth: differences weighed against both sigmas
+        out["reference_sigma_deg_cm"] = reference_sigma.tolist()
+    return out
 
 
 def _runs_yaml(runs: Sequence[Run], stats: RunStats, protocol: Protocol) -> list[dict[str, Any]]:
@@ -461,9 +466,10 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
         report["settings"]["prior"] = prior_to_yaml(dataset.rig.prior)
     if s.trust is not None:
         sigmas = [None if r.sigma is None else np.array(r.sigma) for r in runs]
+        ref_sigma = dataset.reference.local_sigma() if source is Source.REFERENCE and dataset.reference else None
         check = coverage(reference, [r.result for r in runs], sigmas, [r.verdict for r in runs],
-                         s.trust.tolerance_display)
-        report["summary"]["uncertainty_check"] = _coverage_yaml(check, source)
+                         s.trust.tolerance_display, ref_sigma)
+        report["summary"]["uncertainty_check"] = _coverage_yaml(check, source, ref_sigma)
     yaml_path = out / f"{protocol.value}.yaml"
     write_yaml(yaml_path, report)
     return EvaluationOutcome(protocol, stats, runs, reference, source, report, yaml_path, plot_path)

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.geometry import Transform, rotation_angle_deg
+from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.dataset.records import transform_from_yaml, transform_to_yaml
 from rigd.errors import DatasetError
 
@@ -38,6 +39,27 @@ class Reference:
         """(6,) [x, y, z (m), roll, pitch, heading (deg)] of ``T_camera_lidar`` in the reference's frame."""
         T = self.T_sigma_frame_camera.compose(T_camera_lidar)
         return np.concatenate([T.translation_m, T.rpy_deg])
+
+    def local_sigma(self) -> NDArray[np.float64] | None:
+        """(6,) the reference's one-sigma in rigd's local coordinates around it (roll, pitch, yaw about the LiDAR's
+        axes in deg, x, y, z in cm: docs/conventions.md), its published per-axis sigmas carried through the
+        derivative of that change of coordinates (numerically, at the reference); None without sigmas."""
+        if self.sigma is None:
+            return None
+        base = self.source_form(self.T_camera_lidar)
+        tau0 = self.T_camera_lidar.tau
+        to_camera = self.T_sigma_frame_camera.inverse()
+        steps = np.array([1e-4] * 3 + [1e-3] * 3)
+        jac = np.zeros((6, 6))
+        for k in range(6):
+            cols = []
+            for sign in (1.0, -1.0):
+                form = base.copy()
+                form[k] += sign * steps[k]
+                T = to_camera.compose(Transform.from_rpy_xyz(form[3:], form[:3]))
+                cols.append(xi_of(tau0, T.tau) * TO_DISPLAY)
+            jac[:, k] = (cols[0] - cols[1]) / (2.0 * steps[k])
+        return np.asarray(np.sqrt(np.diag(jac @ np.diag(self.sigma**2) @ jac.T)), dtype=np.float64)
 
     def to_yaml(self) -> dict[str, Any]:
         sigma = None if self.sigma is None else {

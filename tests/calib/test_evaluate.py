@@ -155,3 +155,17 @@ def test_coverage_counts_axes_within_3_sigma_and_trusted_but_wrong_runs():
     assert c.trusted_but_wrong == 1 and c.verdicts == {"trusted": 2}
     assert c.within_3_sigma == pytest.approx(11 / 12) and c.per_axis[5] == pytest.approx(0.5)
     assert np.allclose(c.z[0], [0.5, 0, 0, 0, 0, 0.5], atol=1e-9) and np.isnan(c.z[2]).all()
+
+
+def test_coverage_against_an_uncertain_reference_weighs_both_sigmas() -> None:
+    reference = Transform.identity()
+    off = Transform(np.eye(3), np.array([0.0, 0.0, 0.05]))  # 5 cm off in z, trusted with a 0.7 cm sigma
+    sigma = np.array([0.05, 0.05, 0.05, 0.7, 0.7, 0.7])
+    tol = np.array([0.2, 0.2, 0.2, 2.0, 2.0, 2.0])
+    truth = coverage(reference, [off], [sigma], ["trusted"], tol)
+    assert truth.trusted_but_wrong == 1 and truth.per_axis[5] == 0.0
+    ref_sigma = np.array([0.2, 0.2, 0.2, 2.9, 3.3, 2.5])  # a published estimate good to 2.5 cm in z
+    estimate = coverage(reference, [off], [sigma], ["trusted"], tol, ref_sigma)
+    assert estimate.trusted_but_wrong == 0 and estimate.per_axis[5] == 1.0
+    far = Transform(np.eye(3), np.array([0.0, 0.0, 0.09]))  # beyond 2 cm + 2.5 x 2.5 cm: the reference can tell
+    assert coverage(reference, [far], [sigma], ["trusted"], tol, ref_sigma).trusted_but_wrong == 1

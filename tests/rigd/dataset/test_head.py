@@ -121,3 +121,14 @@ def test_agreement_is_measured_in_the_references_own_form_and_sigmas(tmp_path: P
     np.testing.assert_allclose(a.z, [0.0, 0.0, 2.0, 0.0, 0.0, 1.5], atol=1e-6)
     assert a.within() and not a.within(z_max=1.9)
     assert a.rotation_deg == pytest.approx(0.3, abs=1e-6) and a.translation_cm == pytest.approx(5.0, abs=1e-6)
+
+
+def test_the_references_sigmas_in_local_coordinates() -> None:
+    # A reference that is the identity in its own frame: local and published axes are the same ones.
+    ref = Reference(Transform.identity(), np.array([0.03, 0.02, 0.01, 0.2, 0.3, 0.4]), Transform.identity(), "t")
+    np.testing.assert_allclose(ref.local_sigma(), [0.2, 0.3, 0.4, 3.0, 2.0, 1.0], rtol=1e-4)
+    # Seen from a camera turned 90 deg about z, the x and y sigmas swap: translation is in the camera frame.
+    turned = Transform.from_rpy_xyz(np.array([0.0, 0.0, 90.0]), np.zeros(3))
+    ref = Reference(turned.inverse(), np.array([0.03, 0.02, 0.01, 0.2, 0.2, 0.2]), turned, "t")
+    np.testing.assert_allclose(ref.local_sigma()[3:], [2.0, 3.0, 1.0], rtol=1e-4)
+    assert Reference(Transform.identity(), None, Transform.identity(), "kitti").local_sigma() is None
