@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from calib.errors import CalibError
 from calib.gmm import CostGrad, Evaluator, Frozen, GmmOptions, PairFeatures, cost_and_gradient, freeze_all
 from calib.prior import Prior
-from calib.uncertainty import LevelModel, clusters_at, hessian, local_gradient, nll_scale, scatter, symmetric
+from calib.uncertainty import LevelModel, clusters_at, local_gradient, nll_scale, scatter
 
 F64 = NDArray[np.float64]
 
@@ -240,12 +240,22 @@ def hessian_steps(feats: list[PairFeatures], gmm: GmmOptions) -> F64:
 
 
 def estimate_kappa(model: LevelModel, tau: F64, steps: F64, cell_deg: float) -> float:
-    """The level cost's scale in NLL units at ``tau`` (:func:`calib.uncertainty.nll_scale`)."""
+    """The level cost's scale in NLL units at ``tau`` (:func:`calib.uncertainty.nll_scale`). Only the Hessian's
+    diagonal enters, taken by one-sided differences of the gradient (7 evaluations, not the 13 of the full
+    central-difference Hessian: the prior's weight needs its scale, not its last percent)."""
     frozen = model.freeze(tau)
     clusters = clusters_at(model, tau, cell_deg)
-    h = symmetric(hessian(model, frozen, tau, steps, clusters).sum(axis=0))
-    b = scatter(local_gradient(model, frozen, tau, np.zeros(6), clusters))
-    return nll_scale(h, b) if np.all(np.isfinite(b)) else 1.0
+    per_cluster = local_gradient(model, frozen, tau, np.zeros(6), clusters)
+    b = scatter(per_cluster)
+    if not np.all(np.isfinite(b)):
+        return 1.0
+    g0 = per_cluster.sum(axis=0)
+    diagonal = np.zeros(6)
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = steps[k]
+        diagonal[k] = (local_gradient(model, frozen, tau, e, clusters).sum(axis=0)[k] - g0[k]) / steps[k]
+    return nll_scale(np.diag(diagonal), b)
 
 
 def tail_options(opts: OptimOptions, k: int) -> OptimOptions:
@@ -274,13 +284,15 @@ def _coarse_to_fine(
         sigma_rad = float(np.radians(sigma_deg))
         model = level_model(feats, opts, gmm, level)
         given = None if kappas is None else kappas[level]
+        moves_t = not fixed_t and level >= opts.rotation_only_levels
+        # A prior on the lever arm alone weighs nothing on a level that holds the translation: skip its scale.
+        weighs = prior is not None and (moves_t or prior.sigma_rot_rad is not None)
         if given is not None:
             kappa = given
         else:
-            kappa = estimate_kappa(model, tau, steps, opts.cluster_cell_deg) if steps is not None else 1.0
+            kappa = estimate_kappa(model, tau, steps, opts.cluster_cell_deg) if steps is not None and weighs else 1.0
         prob = _Problem(feats, model.gmm, list(model.sigma_in_px), opts.numerical_gradient, prior, kappa)
         cb = (lambda i, c, lv=level: on_iter(lv, i, c)) if on_iter else None
-        moves_t = not fixed_t and level >= opts.rotation_only_levels
         level_scale = scale * ([1.0] * 3 + [1.0 if moves_t else 0.0] * 3)
         tau, trace = _run_level(prob, tau, opts, level_scale, sigma_rad, range_m, cb)
         levels.append(replace(trace, kappa=kappa))

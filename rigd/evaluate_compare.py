@@ -294,10 +294,13 @@ def run_compare(req: CompareRequest) -> CompareOutcome:
     dataset = open_dataset(req.dataset, WORKING_WIDTH_PX)
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
-    reference = dataset.ground_truth or dataset.rig.initial_guess
+    published = dataset.reference.T_camera_lidar if dataset.reference is not None else None
+    reference = dataset.ground_truth or published or dataset.rig.initial_guess
     if reference is None:
-        raise RigdError(f"{dataset.root}: compare needs ground_truth.yaml or an initial_guess in rig.yaml")
-    source = "ground_truth" if dataset.ground_truth is not None else "initial_guess"
+        raise RigdError(f"{dataset.root}: compare needs ground_truth.yaml, reference.yaml or an initial_guess in "
+                        "rig.yaml")
+    source = "ground_truth" if dataset.ground_truth is not None else "reference" if published is not None \
+        else "initial_guess"
     all_pairs = tuple(range(len(dataset)))
     subsets = random_subsets(len(dataset), req.size, req.subsets, req.seed) if len(dataset) > req.size else ()
     starts = random_starts(reference, req.trials, req.rot_deg, req.trans_m, req.seed)

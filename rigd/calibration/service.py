@@ -14,6 +14,7 @@ from typing import Any, TypeVar
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from calib.assess import Assessment, Status, TrustOptions
 from calib.errors import CalibError
@@ -24,6 +25,7 @@ from calib.methods import Method, calibrate_method, gmm_params, photo_params  # 
 from calib.optimize import typical_range_m
 from calib.photometric import PhotoPair, PhotoParams, photo_pair
 from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, extract_place, paper_params
+from calib.pipeline import edge_points as edge_points_of
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.advice import SceneFacts, next_steps
@@ -297,24 +299,50 @@ def overlay_stem(dataset: Dataset, pair: int, view: int) -> str:
     return f"{pair:04d}" if len(dataset.views) == 1 else f"{pair:04d}_{dataset.views[view]}"
 
 
-def _write_visuals(dataset: Dataset, feats: list[PairFeatures], initial: Transform, T: Transform, out: Path) -> None:
-    """Per pair and view: the edge points the calibration used over the image with the initial guess and with
-    the solution, the close-up of where they moved most (overlays/NNNN[_SENSOR]_{before,after,closeup}.png),
-    and per pair the cloud coloured from its images with the solution (clouds/NNNN.ply, and from above:
+def _write_pair_visuals(dataset: Dataset, i: int, edge_points: list[NDArray[np.float64]] | None, initial: Transform,
+                        T: Transform, out: Path) -> None:
+    """Pair ``i``'s pictures: per view, the edge points (N,3) m, LiDAR frame, of ``edge_points[view]`` (None:
+    the GMM's own edge points of the cloud, for a photometric method) over the image with the initial guess and
+    with the solution, the close-up of where they moved most (overlays/NNNN[_SENSOR]_{before,after,closeup}.png);
+    and the cloud coloured from the pair's images with the solution (clouds/NNNN.ply, and from above:
     overlays/NNNN_cloud.png)."""
     cameras = dataset.rig.camera.models()
+    pair = dataset.load_pair(i)
+    if edge_points is None:
+        points = edge_points_of(pair.cloud.points_lidar, pair.cloud.ring, CalibParams()).points_lidar
+        edge_points = [points] * len(cameras)
+    for v, (image, camera) in enumerate(zip(pair.images, cameras, strict=True)):
+        views = edge_views(image, camera, initial, T, edge_points[v])
+        for name in OVERLAY_STAGES:
+            cv2.imwrite(str(out / "overlays" / f"{overlay_stem(dataset, i, v)}_{name}.png"), getattr(views, name))
+    seen = list(zip(pair.images, cameras, dataset.masks, strict=True))
+    write_coloured_ply(out / "clouds" / f"{i:04d}.ply", seen, T, pair.cloud.points_lidar)
+    cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"), cloud_top_view(seen, T, pair.cloud.points_lidar))
+
+
+def _write_visuals(dataset: Dataset, feats: list[PairFeatures] | None, initial: Transform, T: Transform, out: Path,
+                   executor: Executor | None = None) -> None:
+    """:func:`_write_pair_visuals` of every pair, side by side in ``executor`` if given."""
     (out / "overlays").mkdir(parents=True, exist_ok=True)
     (out / "clouds").mkdir(parents=True, exist_ok=True)
-    for i in range(len(dataset)):
-        pair = dataset.load_pair(i)
-        for v, (image, camera) in enumerate(zip(pair.images, cameras, strict=True)):
-            views = edge_views(image, camera, initial, T, feature_at(feats, dataset, i, v).points.points_lidar)
-            for name in OVERLAY_STAGES:
-                cv2.imwrite(str(out / "overlays" / f"{overlay_stem(dataset, i, v)}_{name}.png"), getattr(views, name))
-        seen = list(zip(pair.images, cameras, dataset.masks, strict=True))
-        write_coloured_ply(out / "clouds" / f"{i:04d}.ply", seen, T, pair.cloud.points_lidar)
-        cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"),
-                    cloud_top_view(seen, T, pair.cloud.points_lidar))
+    views = range(len(dataset.views))
+    tasks = [(dataset, i, None if feats is None else [feature_at(feats, dataset, i, v).points.points_lidar
+                                                       for v in views], initial, T, out) for i in range(len(dataset))]
+    if executor is None:
+        for task in tasks:
+            _write_pair_visuals(*task)
+        return
+    for future in [executor.submit(_write_pair_visuals, *task) for task in tasks]:
+        future.result()
+
+
+def _method_yaml(method: Method, params: CalibParams, photo: PhotoParams | None) -> dict[str, Any]:
+    out: dict[str, Any] = {"name": method.value}
+    if method.uses_gmm:
+        out["sigmas_deg"] = list(params.optim.sigmas_deg)
+    if photo is not None:
+        out["photometric"] = {"cost": photo.cost.value, "blur_deg": list(photo.blur_deg), "bins": photo.n_bins}
+    return out
 
 
 def run_calibration(request: CalibrationRequest, progress: Progress | None = None,
@@ -340,40 +368,35 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             progress(f"no initial guess: global search over the mounts, pair {done}/{total}", 0.5 + 0.2 * done / total)
 
     searched = time.monotonic()
-    try:
-        with worker_pool(request.workers) as pool:
+    with worker_pool(request.workers) as pool:
+        try:
             feats = dataset_features(dataset, params, progress, pool) if method.uses_gmm else None
             pairs = dataset_photo_pairs(dataset, photo, progress) if photo is not None else None
             if progress:
                 progress("optimising" if initial is not None else "no initial guess: global search", 0.5)
             result = calibrate_method(method, feats, pairs, initial, params, on_iter, prior, trust, search,
                                       on_search, pool)
-    except CalibError as exc:
-        raise RigdError(f"{dataset.root}: {exc}") from exc
-    if result.search is not None:
-        initial = Transform.from_tau(result.search.best.tau)
-    assert initial is not None
-    steps = () if result.assessment is None or feats is None else next_steps(
-        result.assessment, _scene_facts(dataset, feats, prior), trust)
-    report = _report(result, initial, dataset, time.monotonic() - started, steps)
-    if result.search is not None:
-        report["initial_search"] = search_yaml(result.search, search, time.monotonic() - searched)
-    if result.assessment is None:
-        report.update(not_assessed_yaml(method))
-    report["method"] = {"name": method.value}
-    if method.uses_gmm:
-        report["method"]["sigmas_deg"] = list(params.optim.sigmas_deg)
-    if photo is not None:
-        report["method"]["photometric"] = {"cost": photo.cost.value, "blur_deg": list(photo.blur_deg),
-                                           "bins": photo.n_bins}
-    if prior is not None:
-        report["prior"] = prior_to_yaml(prior)
-    report["tolerance"] = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm}
-    out = Path(request.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_yaml(out / "extrinsics.yaml", report)
-    if request.write_visuals:
-        if progress:
-            progress("writing overlays", 0.95)
-        _write_visuals(dataset, feats, initial, result.T_camera_lidar, out)
+        except CalibError as exc:
+            raise RigdError(f"{dataset.root}: {exc}") from exc
+        if result.search is not None:
+            initial = Transform.from_tau(result.search.best.tau)
+        assert initial is not None
+        steps = () if result.assessment is None or feats is None else next_steps(
+            result.assessment, _scene_facts(dataset, feats, prior), trust)
+        report = _report(result, initial, dataset, time.monotonic() - started, steps)
+        if result.search is not None:
+            report["initial_search"] = search_yaml(result.search, search, time.monotonic() - searched)
+        if result.assessment is None:
+            report.update(not_assessed_yaml(method))
+        report["method"] = _method_yaml(method, params, photo)
+        if prior is not None:
+            report["prior"] = prior_to_yaml(prior)
+        report["tolerance"] = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm}
+        out = Path(request.out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        write_yaml(out / "extrinsics.yaml", report)
+        if request.write_visuals:
+            if progress:
+                progress("writing overlays", 0.95)
+            _write_visuals(dataset, feats, initial, result.T_camera_lidar, out, pool)
     return CalibrationOutcome(result.T_camera_lidar, initial, report, out)

@@ -15,7 +15,8 @@ def add_parser(protocols: Any, positive_int: Any, non_negative_float: Any) -> No
         "compare", help="the paper's comparison: precision and convergence of several methods side by side",
         description="For each method: SUBSETS random subsets of SIZE pairs calibrated from the reference (Table 1; "
         "skipped when the dataset has no more than SIZE pairs) and TRIALS random starts around it (Fig. 19). "
-        "The reference is ground_truth.yaml (else rig.yaml's initial_guess). Writes OUT/compare.yaml, "
+        "The reference is ground_truth.yaml (else reference.yaml, else rig.yaml's initial_guess). Writes "
+        "OUT/compare.yaml, "
         "compare.md (the table) and compare.png.")
     p.add_argument("dataset", metavar="DATASET")
     p.add_argument("--methods", default="gmm,mi,nid,gom",
