@@ -87,11 +87,18 @@ def activate(service: ServiceDep, number: VersionNumber) -> VersionOut:
     return version_out(service.versions.activate(number))
 
 
-def overlay_path(service: Service, version: ExtrinsicsVersion, pair: int, stage: str) -> pathlib.Path:
+def overlay_path(service: Service, version: ExtrinsicsVersion, pair: int, stage: str,
+                 sensor: str | None = None) -> pathlib.Path:
+    """The overlay file of ``pair`` at ``stage``; a multi-camera head has one per sensor (``sensor``, else the
+    first sensor's), its cloud one per pair."""
     pairs = version.parameters.get("pair_numbers", [])
     if version.job_id is None or pair not in pairs:
         raise NotFoundError(f"extrinsics version {version.number} has no overlay of pair {pair}")
-    path = service.jobs.job_dir(version.job_id) / "calibration" / "overlays" / f"{pairs.index(pair):04d}_{stage}.png"
+    folder = service.jobs.job_dir(version.job_id) / "calibration" / "overlays"
+    stem = f"{pairs.index(pair):04d}"
+    path = folder / (f"{stem}_{sensor}_{stage}.png" if sensor and stage != "cloud" else f"{stem}_{stage}.png")
+    if not path.is_file() and sensor is None and stage != "cloud":
+        path = next(iter(sorted(folder.glob(f"{stem}_*_{stage}.png"))), path)
     if not path.is_file():
         raise NotFoundError(f"the overlay of pair {pair} of version {version.number} is missing ({path.name})")
     return path
@@ -108,8 +115,10 @@ def get_overlay(service: ServiceDep, number: VersionNumber, pair: Annotated[int,
                                             "this version")
                                  ] = "after",
                 width: Annotated[int | None, Query(ge=64, le=8192, description="at most this wide (px): a smaller "
-                                                   "copy for a screen; absent: full resolution")] = None) -> Response:
-    path = overlay_path(service, service.versions.get(number), pair, stage)
+                                                   "copy for a screen; absent: full resolution")] = None,
+                sensor: Annotated[str | None, Query(pattern="^[A-Za-z0-9_-]{1,32}$", description="a multi-camera "
+                                                    "head's sensor (absent: its first)")] = None) -> Response:
+    path = overlay_path(service, service.versions.get(number), pair, stage, sensor)
     if width is None:
         return FileResponse(path, media_type="image/png")
     return Response(narrowed_png(path, width), media_type="image/png")
