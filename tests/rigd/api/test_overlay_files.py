@@ -7,8 +7,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from rigd.store.errors import NotFoundError
 from rigd.api.routes.extrinsics import overlay_path
+from rigd.store.errors import NotFoundError
 
 
 def _fake(tmp_path: Path, names: list[str]) -> tuple[SimpleNamespace, SimpleNamespace]:
