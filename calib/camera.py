@@ -253,7 +253,7 @@ class Mounted:
     """
 
     name: str
-    sensor: Pinhole
+    sensor: Pinhole | Fisheye
     rotation: F64
     translation_m: F64
 
@@ -300,3 +300,121 @@ class Mounted:
 
     def pixel_area_ratio(self, uv: F64) -> F64:
         return self.sensor.pixel_area_ratio(uv)
+
+
+@dataclass(frozen=True)
+class Fisheye:
+    """OpenCV's fisheye model (``cv2.fisheye``: equidistant with ``D`` = (k1, k2, k3, k4)) for wide lenses;
+    optical frame z forward, x right, y down. ``K`` (3,3) px with OpenCV's fisheye skew ``K[0,1] = alpha fx``.
+
+    A ray at angle ``theta`` from the optical axis lands at ``r = theta_d = theta (1 + k1 theta^2 + k2 theta^4 +
+    k3 theta^6 + k4 theta^8)`` from the principal point (normalised), along its azimuth. ``theta`` is taken as
+    ``atan2(sqrt(x^2 + y^2), z)``, which equals OpenCV's ``atan(sqrt(a^2 + b^2))`` (a = x/z, b = y/z) in front
+    and goes on past 90 deg, where a wide lens still sees. Points beyond the image's widest ``theta`` (5 % margin)
+    or where the polynomial stops growing are invalid.
+    """
+
+    K: F64
+    D: F64
+    width: int
+    height: int
+    _max_theta: float = field(init=False, repr=False, default=0.0)
+
+    def __post_init__(self) -> None:
+        k = np.asarray(self.K, dtype=np.float64)
+        d = np.asarray(self.D, dtype=np.float64).reshape(-1)
+        if k.shape != (3, 3) or d.size != 4 or self.width <= 0 or self.height <= 0:
+            raise GeometryError("fisheye needs K (3x3), D with 4 numbers (k1..k4) and a positive size")
+        if not (np.all(np.isfinite(k)) and k[0, 0] > 0 and k[1, 1] > 0 and np.all(np.isfinite(d))):
+            raise GeometryError(f"fisheye K needs positive finite focal lengths, got fx={k[0, 0]}, fy={k[1, 1]}")
+        object.__setattr__(self, "K", k)
+        object.__setattr__(self, "D", d)
+        object.__setattr__(self, "_max_theta", self._field_of_view())
+
+    def _theta_d(self, theta: F64) -> tuple[F64, F64]:
+        """theta_d (N,) and d theta_d / d theta (N,)."""
+        t2 = theta * theta
+        k1, k2, k3, k4 = self.D
+        poly = 1.0 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))
+        d_poly = 1.0 + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + t2 * 9.0 * k4)))
+        return theta * poly, d_poly
+
+    def _field_of_view(self) -> float:
+        """The widest theta that maps into the image (corners, 5 % margin), and never past where theta_d folds."""
+        grid = np.linspace(0.0, np.pi, 4001)
+        _, slope = self._theta_d(grid)
+        folds = np.flatnonzero(slope <= 0.0)
+        limit = float(grid[folds[0] - 1]) if folds.size else float(np.pi)
+        w, h = self.width - 1.0, self.height - 1.0
+        corners = np.array([[0, 0], [w, 0], [0, h], [w, h]], dtype=np.float64)
+        theta = np.arccos(np.clip(self._unit_rays(corners, limit)[:, 2], -1.0, 1.0))
+        return float(min(1.05 * float(theta.max()), limit))
+
+    @property
+    def pixels_per_radian(self) -> float:
+        return float(np.sqrt(self.K[0, 0] * self.K[1, 1]))
+
+    def _distorted(self, points_cam: F64) -> tuple[F64, F64, F64, F64, F64, Mask]:
+        p = np.asarray(points_cam, dtype=np.float64)
+        rho = np.hypot(p[:, 0], p[:, 1])
+        theta = np.arctan2(rho, p[:, 2])
+        theta_d, d_theta_d = self._theta_d(theta)
+        valid = (np.linalg.norm(p, axis=1) > _MIN_DEPTH_M) & (theta < self._max_theta)
+        return p, rho, theta, theta_d, d_theta_d, valid
+
+    def project(self, points_cam: F64) -> tuple[F64, Mask]:
+        p, rho, theta, theta_d, _, valid = self._distorted(points_cam)
+        # theta_d / rho -> 1 / z on the axis (theta ~ rho / z): the limit avoids 0 / 0 there.
+        scale = np.where(rho > 1e-9 * np.abs(p[:, 2]) + 1e-15, theta_d / np.maximum(rho, 1e-300),
+                         1.0 / np.where(np.abs(p[:, 2]) > 0, p[:, 2], 1.0))
+        xd, yd = p[:, 0] * scale, p[:, 1] * scale
+        u = self.K[0, 0] * xd + self.K[0, 1] * yd + self.K[0, 2]
+        v = self.K[1, 1] * yd + self.K[1, 2]
+        return np.stack([u, v], axis=1), valid
+
+    def project_jacobian(self, points_cam: F64) -> F64:
+        """d(u, v)/d(x, y, z) (N,2,3) px/m, analytic (through theta and the azimuth's unit vector)."""
+        p, rho, theta, theta_d, d_theta_d, _ = self._distorted(points_cam)
+        x, y, z = p[:, 0], p[:, 1], p[:, 2]
+        rho = np.maximum(rho, 1e-9 * np.maximum(np.abs(z), 1e-12))
+        r2 = rho * rho + z * z
+        d_theta = np.stack([z * x / (rho * r2), z * y / (rho * r2), -rho / r2], axis=1)  # d theta / d p
+        ex, ey = x / rho, y / rho
+        rho3 = rho**3
+        d_ex = np.stack([y * y / rho3, -x * y / rho3, np.zeros_like(x)], axis=1)
+        d_ey = np.stack([-x * y / rho3, x * x / rho3, np.zeros_like(x)], axis=1)
+        d_xd = (d_theta_d * ex)[:, None] * d_theta + theta_d[:, None] * d_ex
+        d_yd = (d_theta_d * ey)[:, None] * d_theta + theta_d[:, None] * d_ey
+        jac = np.empty((len(p), 2, 3))
+        jac[:, 0, :] = self.K[0, 0] * d_xd + self.K[0, 1] * d_yd
+        jac[:, 1, :] = self.K[1, 1] * d_yd
+        return jac
+
+    def _unit_rays(self, uv: F64, max_theta: float) -> F64:
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        yd = (uv[:, 1] - self.K[1, 2]) / self.K[1, 1]
+        xd = (uv[:, 0] - self.K[0, 2] - self.K[0, 1] * yd) / self.K[0, 0]
+        theta_d = np.hypot(xd, yd)
+        theta = np.minimum(theta_d, max_theta)
+        for _ in range(30):  # Newton on theta_d(theta) = r (increasing below max_theta)
+            value, slope = self._theta_d(theta)
+            theta = np.clip(theta - (value - theta_d) / np.maximum(slope, 1e-6), 0.0, max_theta)
+        safe = np.maximum(theta_d, 1e-15)
+        s = np.sin(theta)
+        return np.stack([s * xd / safe, s * yd / safe, np.cos(theta)], axis=1)
+
+    def back_project(self, uv: F64) -> F64:
+        return self._unit_rays(uv, self._max_theta if self._max_theta > 0 else np.pi)
+
+    def displacement(self, uv_pixels: F64, uv_centres: F64) -> F64:
+        return np.asarray(uv_pixels, dtype=np.float64) - np.asarray(uv_centres, dtype=np.float64)
+
+    def pixel_area_ratio(self, uv: F64) -> F64:
+        """``S_x / S(uv)``: a pixel at angle theta covers the solid angle ``sin(theta) / (f^2 theta_d theta_d')``
+        (rings of radius theta_d and width theta_d' d theta hold sin(theta) d theta d phi), the principal point's
+        ``1 / f^2``, so the ratio is ``theta_d theta_d' / sin(theta)`` (1 on the axis)."""
+        rays = self.back_project(uv)
+        theta = np.arccos(np.clip(rays[:, 2], -1.0, 1.0))
+        theta_d, d_theta_d = self._theta_d(theta)
+        ratio = np.where(theta > 1e-6, theta_d * d_theta_d / np.maximum(np.sin(theta), 1e-12), 1.0)
+        return np.asarray(np.clip(ratio, 0.2, 25.0), dtype=np.float64)

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.assess import TrustOptions
-from calib.camera import CameraModel, Equirectangular, Mounted, Pinhole
+from calib.camera import CameraModel, Equirectangular, Fisheye, Mounted, Pinhole
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.initial import SearchOptions
@@ -22,6 +22,7 @@ from rigd.errors import DatasetError
 class CameraKind(Enum):
     EQUIRECTANGULAR = "equirectangular"
     PINHOLE = "pinhole"
+    FISHEYE = "fisheye"  # OpenCV's fisheye (equidistant) model, D = k1..k4
     HEAD = "head"  # several pinhole sensors at fixed poses in one head (a Ladybug's side cameras)
 
 
@@ -42,6 +43,8 @@ class CameraConfig:
         if self.kind is CameraKind.EQUIRECTANGULAR:
             return Equirectangular(self.width, self.height)
         assert self.K is not None
+        if self.kind is CameraKind.FISHEYE:
+            return Fisheye(self.K, self.D if self.D is not None else np.zeros(4), self.width, self.height)
         return Pinhole(self.K, self.D if self.D is not None else np.zeros(5), self.width, self.height)
 
     def models(self) -> tuple[CameraModel, ...]:
@@ -75,8 +78,8 @@ class CameraConfig:
             mask = None if data.get("mask") is None else str(data["mask"])
         except (KeyError, TypeError, ValueError) as exc:
             raise DatasetError(f"{where}: bad camera section ({exc!r})") from exc
-        if kind is CameraKind.PINHOLE and k is None:
-            raise DatasetError(f"{where}: a pinhole camera needs K")
+        if kind in (CameraKind.PINHOLE, CameraKind.FISHEYE) and k is None:
+            raise DatasetError(f"{where}: a {kind.value} camera needs K")
         if kind is CameraKind.HEAD:
             raise DatasetError(f"{where}: a head's sensors are listed under camera.sensors")
         config = cls(kind, width, height, k, d, mask)
@@ -103,7 +106,8 @@ class SensorConfig:
 
     def model(self) -> Mounted:
         to_camera = self.T_head_camera.inverse()
-        return Mounted(self.name, cast(Pinhole, self.camera.model()), to_camera.rotation, to_camera.translation_m)
+        return Mounted(self.name, cast(Pinhole | Fisheye, self.camera.model()), to_camera.rotation,
+                       to_camera.translation_m)
 
     def to_yaml(self) -> dict[str, Any]:
         return {"name": self.name, **self.camera.to_yaml(),
@@ -119,8 +123,8 @@ class SensorConfig:
             raise DatasetError(f"{where}: sensor name {name!r} must be 1-32 letters, digits, '_' or '-'")
         here = f"{where}: sensor {name}"
         camera = CameraConfig.from_yaml(data, here)
-        if camera.kind is not CameraKind.PINHOLE:
-            raise DatasetError(f"{here}: a head's sensors are pinhole cameras, got {camera.kind.value}")
+        if camera.kind not in (CameraKind.PINHOLE, CameraKind.FISHEYE):
+            raise DatasetError(f"{here}: a head's sensors are pinhole or fisheye cameras, got {camera.kind.value}")
         if "T_head_camera" not in data:
             raise DatasetError(f"{here}: needs T_head_camera (its pose in the head)")
         return cls(name, camera, transform_from_yaml(data["T_head_camera"], here))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from calib.camera import Mounted
+from calib.camera import Fisheye, Mounted
 from calib.geometry import Transform
 from rigd.dataset import Cloud, RigConfig, open_dataset, write_pair, write_rig
 from rigd.dataset.records import CameraConfig, CameraKind, HeadConfig, SensorConfig
@@ -60,7 +60,7 @@ def test_a_head_rig_file_round_trips() -> None:
     ({"model": "head"}, "non-empty list camera.sensors"),
     ({"model": "head", "sensors": [{"name": "a b"}]}, "sensor name 'a b'"),
     ({"model": "head", "sensors": [{"name": "a", "model": "equirectangular", "width": 8, "height": 4,
-                                    "T_head_camera": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}}]}, "pinhole cameras"),
+                                    "T_head_camera": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}}]}, "pinhole or fisheye cameras"),
     ({"model": "head", "sensors": [{"name": "a", "model": "pinhole", "width": 64, "height": 24, "K": K.tolist()}]},
      "needs T_head_camera"),
 ])
@@ -132,3 +132,15 @@ def test_the_references_sigmas_in_local_coordinates() -> None:
     ref = Reference(turned.inverse(), np.array([0.03, 0.02, 0.01, 0.2, 0.2, 0.2]), turned, "t")
     np.testing.assert_allclose(ref.local_sigma()[3:], [2.0, 3.0, 1.0], rtol=1e-4)
     assert Reference(Transform.identity(), None, Transform.identity(), "kitti").local_sigma() is None
+
+
+def test_a_head_may_have_fisheye_sensors() -> None:
+    data = RigConfig(HEAD, "HDL-64E", GUESS).to_yaml()
+    data["camera"]["sensors"][1].update(model="fisheye", D=[0.01, -0.002, 0.0, 0.0])
+    camera = RigConfig.from_yaml(data, "rig.yaml").camera
+    assert isinstance(camera, HeadConfig)
+    fisheye = camera.models()[1]
+    assert isinstance(fisheye, Mounted) and isinstance(fisheye.sensor, Fisheye)
+    data["camera"]["sensors"][1]["D"] = [0.01]
+    with pytest.raises(DatasetError, match="fisheye needs K"):
+        RigConfig.from_yaml(data, "rig.yaml")
