@@ -60,7 +60,8 @@ def test_a_head_rig_file_round_trips() -> None:
     ({"model": "head"}, "non-empty list camera.sensors"),
     ({"model": "head", "sensors": [{"name": "a b"}]}, "sensor name 'a b'"),
     ({"model": "head", "sensors": [{"name": "a", "model": "equirectangular", "width": 8, "height": 4,
-                                    "T_head_camera": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}}]}, "pinhole or fisheye cameras"),
+                                    "T_head_camera": {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}}]},
+     "pinhole or fisheye cameras"),
     ({"model": "head", "sensors": [{"name": "a", "model": "pinhole", "width": 64, "height": 24, "K": K.tolist()}]},
      "needs T_head_camera"),
 ])
