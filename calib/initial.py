@@ -31,9 +31,14 @@ from calib.camera import CameraModel, Equirectangular, Mounted, Pinhole
 from calib.errors import InitialGuessError
 from calib.geometry import rotation_angle_deg, rpy_deg_to_matrix, so3_exp, so3_log
 from calib.gmm import PairFeatures
+from calib.photometric import PhotoPair
+from calib.search_mi import MiSearchPair, mi_costs, prepare
 
 F64 = NDArray[np.float64]
 
+# The grid scores at most this many edge points per pair (every k-th along the rings): a 6 deg Gaussian needs no
+# more, and a head projects each place's points through all its sensors (a Ford head's grid took 320 s).
+SEARCH_POINTS = 2000
 # LiDAR axes (x forward, y left, z up) -> OpenCV optical axes (x right, y down, z forward).
 OPTICAL_FROM_LIDAR_AXES = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
 
@@ -52,22 +57,28 @@ class SearchOptions:
     polish: tuple[tuple[float, float], ...] = ((8.0, 6.0), (4.0, 4.0), (2.0, 3.0), (1.0, 3.0))  # (step, sigma) deg
     polish_rounds: int = 4  # moves per step at most
     distinct_deg: float = 5.0
+    # With LiDAR reflectivity (calib.search_mi): the grid's image blur, and the polish's (step, blur) in deg.
+    mi_blur_deg: float = 2.0
+    mi_polish: tuple[tuple[float, float], ...] = ((8.0, 2.0), (4.0, 1.0), (2.0, 1.0), (1.0, 0.5))
 
 
 @dataclass(frozen=True)
 class Candidate:
     """A refined start: ``tau`` (6,) [omega rad, t m], the grid mount it came from (roll, pitch, yaw deg),
-    its cost at the last refine level, and its rank in the grid (0 = the lowest grid cost)."""
+    its cost at the last refine level, its rank in the grid (0 = the lowest grid cost) and the score it was
+    found by (``edges`` or ``mutual information``: costs compare within one score only)."""
 
     tau: F64
     grid_rpy_deg: F64
     cost: float
     grid_rank: int
+    score: str = "edges"
 
 
 @dataclass(frozen=True)
 class SearchResult:
-    """``candidates`` distinct refined starts, lowest cost first; ``evaluations`` cost evaluations of the grid."""
+    """``candidates`` distinct refined starts, best first (with two scores, each score's best before the
+    runners-up); ``evaluations`` cost evaluations of the grid."""
 
     candidates: tuple[Candidate, ...]
     evaluations: int
@@ -117,13 +128,14 @@ def _grid_costs(feat: PairFeatures, rotations: F64, translation_m: F64, sigma_px
     every mount is sampled in one batch. ``rotations`` (K,3,3)."""
     if feat.fields is None:
         raise InitialGuessError("the global search needs the edge fields (Evaluator.FIELD or AUTO)")
-    pts = feat.points.points_lidar
+    every = -(-len(feat.points) // SEARCH_POINTS)  # every k-th point along the rings, at most SEARCH_POINTS
+    pts = feat.points.points_lidar[::every]
     p_cam = np.einsum("kij,nj->kni", rotations, pts) + translation_m  # (K,N,3) m
     uv, valid = feat.camera.project(p_cam.reshape(-1, 3))
     sel = np.flatnonzero(valid)
     sums = feat.fields.sample(uv[sel], np.full(len(sel), sigma_px))
     count = (np.maximum(sums[:, 6], 0.0) ** 4 + (6.0 * sigma_px) ** 4) ** 0.25  # |Omega_i| as in calib.gmm
-    score = np.tile(feat.points.score, len(rotations))[sel]
+    score = np.tile(feat.points.score[::every], len(rotations))[sel]
     value = (sums[:, 0] + score * sums[:, 3]) / (2.0 * count)
     return np.asarray(-np.bincount(sel // len(pts), weights=value, minlength=len(rotations)), dtype=np.float64)
 
@@ -146,20 +158,48 @@ def _costs(feats: list[PairFeatures], rotations: F64, translation_m: F64, sigma_
 _STENCIL = np.stack(np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0], indexing="ij"), -1).reshape(-1, 3)
 
 
-def _polish(feats: list[PairFeatures], rotation: F64, translation_m: F64, opts: SearchOptions) -> tuple[F64, float]:
-    """Pattern search from a grid mount: the best of the 27 neighbours ``step`` apart, at a Gaussian width
-    that narrows with the step, until the centre is best; then the next step. Returns the rotation and its
-    cost at the last width (the same for every candidate, so the costs compare)."""
+Score = Callable[[F64, F64, float], F64]  # (rotations (K,3,3), translation (3,), width deg) -> costs (K,)
+
+
+def _edge_score(feats: list[PairFeatures], opts: SearchOptions) -> Score:
+    return lambda rotations, translation_m, sigma_deg: _costs(feats, rotations, translation_m, sigma_deg, opts.batch)
+
+
+def _mi_score(photo: list[PhotoPair]) -> Score:
+    """Minus the mutual information (calib.search_mi) with the images blurred by the width, each blur prepared
+    once."""
+    prepared: dict[float, list[MiSearchPair]] = {}
+
+    def score(rotations: F64, translation_m: F64, blur_deg: float) -> F64:
+        if blur_deg not in prepared:
+            prepared[blur_deg] = prepare(photo, blur_deg)
+        return mi_costs(prepared[blur_deg], rotations, translation_m)
+
+    return score
+
+
+def _polish(score: Score, rotation: F64, translation_m: F64, steps: tuple[tuple[float, float], ...],
+            rounds: int) -> tuple[F64, float]:
+    """Pattern search from a grid mount: the best of the 27 neighbours ``step`` apart, at a width (the
+    Gaussian's, or the image blur of the MI score) that narrows with the step, until the centre is best; then
+    the next step. Returns the rotation and its cost at the last width (the same for every candidate, so the
+    costs compare)."""
     cost = 0.0
-    for step_deg, sigma_deg in opts.polish:
+    for step_deg, width_deg in steps:
         offsets = [so3_exp(np.radians(step_deg) * s) for s in _STENCIL]
-        for _ in range(opts.polish_rounds):
-            costs = _costs(feats, np.stack([rotation @ o for o in offsets]), translation_m, sigma_deg, opts.batch)
+        for _ in range(rounds):
+            costs = score(np.stack([rotation @ o for o in offsets]), translation_m, width_deg)
             best = int(np.argmin(costs))
             rotation, cost = rotation @ offsets[best], float(costs[best])
             if np.all(_STENCIL[best] == 0.0):
                 break
     return rotation, cost
+
+
+def _polish_edges(feats: list[PairFeatures], rotation: F64, translation_m: F64,
+                  opts: SearchOptions) -> tuple[F64, float]:
+    """:func:`_polish` with the edge score (features passed as themselves: the pool holds them)."""
+    return _polish(_edge_score(feats, opts), rotation, translation_m, opts.polish, opts.polish_rounds)
 
 
 def _grid_minima(rotations: F64, costs: F64, opts: SearchOptions) -> list[int]:
@@ -203,31 +243,85 @@ def _pair_costs(feats: list[PairFeatures], rotations: F64, translation_m: F64, o
     return [f.result() for f in pending]
 
 
-def search_initial(
-    feats: list[PairFeatures],
-    translation_m: F64,
-    opts: SearchOptions | None = None,
-    on_progress: Callable[[int, int], None] | None = None,
-    executor: Executor | None = None,
-) -> SearchResult:
-    """Distinct starts for the coarse-to-fine solve, best first; ``translation_m`` (3,) the lever arm
-    (the translation of T_camera_lidar) held during the search. ``on_progress(done, total)`` per pair.
-    ``executor`` (the application's process pool): the pairs' grids and all candidates but the first are
-    computed there, to the same result (the per-pair grids are summed in the pairs' order either way)."""
-    opts = opts or default_search(feats[0].camera)
-    base = base_rotation(feats[0].camera)
-    mounts = grid_mounts(opts)
-    rotations = _rotations(base, mounts)
+def _mi_grid(photo: list[PhotoPair], rotations: F64, translation_m: F64, opts: SearchOptions,
+             on_progress: Callable[[int, int], None] | None) -> F64:
+    """The MI score (K,) of every grid rotation, in batches (progress per batch)."""
+    score = _mi_score(photo)
+    out = np.zeros(len(rotations))
+    batches = range(0, len(rotations), opts.batch)
+    for done, lo in enumerate(batches):
+        out[lo:lo + opts.batch] = score(rotations[lo:lo + opts.batch], translation_m, opts.mi_blur_deg)
+        if on_progress is not None:
+            on_progress(done + 1, len(batches))
+    return out
+
+
+def _edge_candidates(feats: list[PairFeatures], rotations: F64, mounts: F64, translation_m: F64,
+                     opts: SearchOptions, on_progress: Callable[[int, int], None] | None,
+                     executor: Executor | None) -> list[Candidate]:
     costs = np.zeros(len(mounts))
     for pair_costs in _pair_costs(feats, rotations, translation_m, opts, on_progress, executor):
         costs += pair_costs
     if not np.any(costs < 0):
         raise InitialGuessError("global search: no grid mount brings any LiDAR edge near an image edge")
     minima = _grid_minima(rotations, costs, opts)
-    pending = [executor.submit(_polish, feats, rotations[k], translation_m, opts) for k in minima[1:]] \
+    pending = [executor.submit(_polish_edges, feats, rotations[k], translation_m, opts) for k in minima[1:]] \
         if executor is not None else []
-    polished = [_polish(feats, rotations[k], translation_m, opts) for k in minima[:1 if pending else None]]
+    polished = [_polish_edges(feats, rotations[k], translation_m, opts) for k in minima[:1 if pending else None]]
     polished += [f.result() for f in pending]
-    cands = [Candidate(np.concatenate([so3_log(rotation), translation_m]), mounts[k].copy(), cost, rank)
-             for rank, (k, (rotation, cost)) in enumerate(zip(minima, polished, strict=True))]
-    return SearchResult(tuple(_distinct(cands, opts.distinct_deg)), len(mounts))
+    return _candidates(minima, polished, mounts, translation_m, "edges")
+
+
+def _mi_candidates(photo: list[PhotoPair], rotations: F64, mounts: F64, translation_m: F64,
+                   opts: SearchOptions) -> list[Candidate]:
+    costs = _mi_grid(photo, rotations, translation_m, opts, None)
+    if not np.any(costs < 0):
+        return []
+    minima = _grid_minima(rotations, costs, opts)
+    mi = _mi_score(photo)
+    polished = [_polish(mi, rotations[k], translation_m, opts.mi_polish, opts.polish_rounds) for k in minima]
+    return _candidates(minima, polished, mounts, translation_m, "mutual information")
+
+
+def _candidates(minima: list[int], polished: list[tuple[F64, float]], mounts: F64, translation_m: F64,
+                score: str) -> list[Candidate]:
+    return [Candidate(np.concatenate([so3_log(rotation), translation_m]), mounts[k].copy(), cost, rank, score)
+            for rank, (k, (rotation, cost)) in enumerate(zip(minima, polished, strict=True))]
+
+
+def _interleaved(first: list[Candidate], second: list[Candidate], distinct_deg: float) -> list[Candidate]:
+    """Each score's distinct candidates, best first, taken in turn (first[0], second[0], first[1], ...), a
+    candidate within ``distinct_deg`` of one already taken dropped."""
+    ordered = [c for pair in zip(first, second, strict=False) for c in pair] + first[len(second):] + second[len(first):]
+    kept: list[Candidate] = []
+    for c in ordered:
+        if all(rotation_angle_deg(so3_exp(c.tau[:3]), so3_exp(k.tau[:3])) > distinct_deg for k in kept):
+            kept.append(c)
+    return kept
+
+
+def search_initial(
+    feats: list[PairFeatures],
+    translation_m: F64,
+    opts: SearchOptions | None = None,
+    on_progress: Callable[[int, int], None] | None = None,
+    executor: Executor | None = None,
+    photo: list[PhotoPair] | None = None,
+) -> SearchResult:
+    """Distinct starts for the coarse-to-fine solve, best first; ``translation_m`` (3,) the lever arm
+    (the translation of T_camera_lidar) held during the search. ``on_progress(done, total)`` per pair.
+    ``photo``: the pairs' images and LiDAR reflectivity; given, the mounts are scored by mutual information
+    (:mod:`calib.search_mi`) too, and each score's best start comes before the runners-up: neither score finds
+    every rig (the edges failed on a real head's street scenes, MI on a simulated set with sensor effects and
+    on one real narrow camera), and the GMM solves from both (:func:`calib.pipeline.calibrate`) decide.
+    ``executor`` (the application's process pool): the pairs' edge grids and all edge candidates but the first
+    are computed there, to the same result (the per-pair grids are summed in the pairs' order either way)."""
+    opts = opts or default_search(feats[0].camera)
+    mounts = grid_mounts(opts)
+    rotations = _rotations(base_rotation(feats[0].camera), mounts)
+    edges = _distinct(_edge_candidates(feats, rotations, mounts, translation_m, opts, on_progress, executor),
+                      opts.distinct_deg)
+    if not photo:
+        return SearchResult(tuple(edges), len(mounts))
+    mi = _distinct(_mi_candidates(photo, rotations, mounts, translation_m, opts), opts.distinct_deg)
+    return SearchResult(tuple(_interleaved(edges, mi, opts.distinct_deg)), 2 * len(mounts))

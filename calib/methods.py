@@ -114,12 +114,14 @@ def calibrate_method(
     search: SearchOptions | None = None,
     on_search: Callable[[int, int], None] | None = None,
     executor: Executor | None = None,
+    search_photo: list[PhotoPair] | None = None,
 ) -> CalibResult:
     """Calibrate with ``method`` from ``initial``. ``feats``: the GMM features (GMM methods), ``photo``: the
     photometric pairs (MI, NID, GOM, rigd+nid). ``params`` overrides :func:`gmm_params` (GMM methods only).
     The result has an assessment only for GMM-only methods with ``trust``. ``initial`` None: the global search
     of :mod:`calib.initial` (it scores the GMM's edge fields, so the photometric-only methods need a guess).
-    ``executor``: the GMM's independent solves side by side (:func:`calib.pipeline.calibrate`)."""
+    ``executor``: the GMM's independent solves side by side (:func:`calib.pipeline.calibrate`).
+    ``search_photo``: the pairs' images and reflectivity for the global search's score (calib.search_mi)."""
     gmm = (params if params is not None else gmm_params(method)) if method.uses_gmm else None
     photo_opts = photo_params(method)
     result: CalibResult | None = None
@@ -127,7 +129,7 @@ def calibrate_method(
         if feats is None:
             raise CalibError(f"method {method.value} needs the GMM edge features")
         result = calibrate(feats, initial, gmm, on_iter, prior, None if photo_opts is not None else trust,
-                           search, on_search, executor)
+                           search, on_search, executor, search_photo)
     if photo_opts is None:
         assert result is not None
         return result

@@ -60,6 +60,7 @@ from calib.uncertainty import tau_at, xi_of
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
+_REMAP_WIDTH = 16384
 
 
 class PhotoCost(Enum):
@@ -288,9 +289,15 @@ def sample(image: F32, camera: CameraModel, uv: F64) -> F64:
     if len(uv) == 0:
         return np.zeros(0)
     border = cv2.BORDER_WRAP if isinstance(camera, Equirectangular) else cv2.BORDER_REPLICATE
-    mx = np.ascontiguousarray(uv[:, 0].astype(np.float32).reshape(1, -1))
-    my = np.ascontiguousarray(uv[:, 1].astype(np.float32).reshape(1, -1))
-    return np.asarray(cv2.remap(image, mx, my, cv2.INTER_LINEAR, borderMode=border), dtype=np.float64).reshape(-1)
+    # cv2.remap's maps are images of fewer than 32767 columns: many samples go as rows of _REMAP_WIDTH.
+    n = len(uv)
+    rows = -(-n // _REMAP_WIDTH)
+    maps = np.zeros((2, rows * _REMAP_WIDTH), np.float32)
+    maps[:, :n] = uv.T
+    mx = maps[0].reshape(rows, _REMAP_WIDTH) if rows > 1 else maps[0, :n].reshape(1, n)
+    my = maps[1].reshape(rows, _REMAP_WIDTH) if rows > 1 else maps[1, :n].reshape(1, n)
+    out = cv2.remap(image, mx, my, cv2.INTER_LINEAR, borderMode=border)
+    return np.asarray(out, dtype=np.float64).reshape(-1)[:n]
 
 
 def _projected(lp: _LevelPair, tau: F64) -> tuple[F64, NDArray[np.bool_]]:

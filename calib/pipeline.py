@@ -27,6 +27,7 @@ from calib.geometry import Transform
 from calib.gmm import Evaluator, GmmOptions, KernelNorm, PairFeatures, in_image, transform_points
 from calib.initial import SearchOptions, SearchResult, search_initial
 from calib.optimize import OptimOptions, OptimResult, optimise
+from calib.photometric import PhotoPair
 from calib.pixel_grid import PixelGrid
 from calib.prior import Prior
 
@@ -231,12 +232,15 @@ def calibrate(
     search: SearchOptions | None = None,
     on_search: Callable[[int, int], None] | None = None,
     executor: Executor | None = None,
+    search_photo: list[PhotoPair] | None = None,
 ) -> CalibResult:
     """Algorithm 1 from ``initial`` (with the prior's MAP term if given), then, with ``trust``, the restarts,
     per-axis uncertainty and verdict of :mod:`calib.assess` (a restart that ends lower is the solution).
 
     ``initial`` None: the global search of :mod:`calib.initial` (``search`` options, the lever arm from the
-    prior or zero) gives the start, and its runner-up is solved in full too and weighed by the assessment.
+    prior or zero; the mounts scored by mutual information with ``search_photo``, the pairs' images and LiDAR
+    reflectivity, else by the edges) gives the start, and its runner-up is solved in full too and weighed by
+    the assessment.
     A given ``initial`` without a translation prior adds its lever arm as a weak prior (:func:`solve_prior`).
 
     ``executor`` (the application's process pool): the independent full solves (the alternative schedule, the
@@ -245,7 +249,7 @@ def calibrate(
     found = None
     if initial is None:
         lever_arm = prior.xyz_m if prior is not None and prior.xyz_m is not None else np.zeros(3)
-        found = search_initial(feats, lever_arm, search, on_search, executor)
+        found = search_initial(feats, lever_arm, search, on_search, executor, search_photo)
         initial = Transform.from_tau(found.best.tau)
     if prior is not None and prior.fix_translation and prior.xyz_m is not None:
         initial = Transform(initial.rotation, prior.xyz_m)

@@ -17,13 +17,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.assess import Assessment, Status, TrustOptions
-from calib.errors import CalibError
+from calib.errors import CalibError, FeaturelessError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
 from calib.initial import SearchOptions, SearchResult, default_search
 from calib.methods import Method, calibrate_method, gmm_params, photo_params  # Method: also the CLI's
 from calib.optimize import typical_range_m
-from calib.photometric import PhotoPair, PhotoParams, photo_pair
+from calib.photometric import PhotoCost, PhotoPair, PhotoParams, photo_pair
 from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, extract_place, paper_params
 from calib.pipeline import edge_points as edge_points_of
 from calib.prior import Prior
@@ -86,7 +86,7 @@ def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> dict
         "start": {"grid_rpy_deg": found.best.grid_rpy_deg.tolist(), "rpy_deg": best.rpy_deg.tolist(),
                   "xyz_m": best.translation_m.tolist()},
         "candidates": [{"grid_rpy_deg": c.grid_rpy_deg.tolist(), "rpy_deg": Transform.from_tau(c.tau).rpy_deg.tolist(),
-                        "cost": c.cost, "grid_rank": c.grid_rank,
+                        "cost": c.cost, "grid_rank": c.grid_rank, "score": c.score,
                         "from_start_deg": rotation_angle_deg(best.rotation, Transform.from_tau(c.tau).rotation)}
                        for c in found.candidates],
         "wall_time_s": round(wall_s, 3),
@@ -336,6 +336,15 @@ def _write_visuals(dataset: Dataset, feats: list[PairFeatures] | None, initial: 
         future.result()
 
 
+def _search_photo(dataset: Dataset, progress: Progress | None) -> list[PhotoPair] | None:
+    """The pairs' images and LiDAR reflectivity for the global search's score (calib.search_mi), or None when a
+    cloud has no intensity (the search then scores the edges)."""
+    try:
+        return dataset_photo_pairs(dataset, PhotoParams(cost=PhotoCost.MI), progress)
+    except FeaturelessError:  # a cloud without intensity (the message names it): nothing to compare
+        return None
+
+
 def _method_yaml(method: Method, params: CalibParams, photo: PhotoParams | None) -> dict[str, Any]:
     out: dict[str, Any] = {"name": method.value}
     if method.uses_gmm:
@@ -372,10 +381,11 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
         try:
             feats = dataset_features(dataset, params, progress, pool) if method.uses_gmm else None
             pairs = dataset_photo_pairs(dataset, photo, progress) if photo is not None else None
+            search_photo = _search_photo(dataset, progress) if initial is None and method.uses_gmm else None
             if progress:
                 progress("optimising" if initial is not None else "no initial guess: global search", 0.5)
             result = calibrate_method(method, feats, pairs, initial, params, on_iter, prior, trust, search,
-                                      on_search, pool)
+                                      on_search, pool, search_photo)
         except CalibError as exc:
             raise RigdError(f"{dataset.root}: {exc}") from exc
         if result.search is not None:

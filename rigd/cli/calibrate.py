@@ -196,11 +196,10 @@ def _fmt(values: list[float | None]) -> str:
 
 def print_search(section: dict[str, Any]) -> None:
     start = section["start"]
-    print(f"initial guess by global search ({section['grid']['mounts']} mounts, {section['wall_time_s']:.0f} s): "
-          f"start rpy_deg {np.round(start['rpy_deg'], 1).tolist()} from grid mount {start['grid_rpy_deg']}")
+    print(f"initial guess by global search ({section['grid']['mounts']} mount scores, {section['wall_time_s']:.0f} "
+          f"s): start rpy_deg {np.round(start['rpy_deg'], 1).tolist()} from grid mount {start['grid_rpy_deg']}")
     for c in section["candidates"][1:]:
-        print(f"  runner-up: {c['from_start_deg']:.1f} deg away, cost {c['cost']:.3f} "
-              f"(winner {section['candidates'][0]['cost']:.3f})")
+        print(f"  runner-up by {c.get('score', 'edges')}: {c['from_start_deg']:.1f} deg away, cost {c['cost']:.4f}")
 
 
 def print_trust(report: dict[str, Any]) -> None:

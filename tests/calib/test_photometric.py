@@ -181,3 +181,9 @@ def test_average_ranks_are_scipys_rankdata(values):
     from scipy.stats import rankdata
 
     assert np.array_equal(average_ranks(values), rankdata(values))
+
+
+def test_sampling_takes_more_points_than_one_remap_row_holds() -> None:
+    image = np.add.outer(np.arange(40.0), np.arange(60.0)).astype(np.float32)  # value = row + column
+    uv = np.random.default_rng(0).uniform([0, 0], [59, 39], size=(70000, 2))  # > 32767: OpenCV's map limit
+    np.testing.assert_allclose(sample(image, Pinhole(np.eye(3), np.zeros(0), 60, 40), uv), uv.sum(axis=1), atol=1e-3)
