@@ -78,10 +78,11 @@ class Candidate:
 @dataclass(frozen=True)
 class SearchResult:
     """``candidates`` distinct refined starts, best first (with two scores, each score's best before the
-    runners-up); ``evaluations`` cost evaluations of the grid."""
+    runners-up); ``evaluations`` the grid's mounts (each scored by every one of ``scores``)."""
 
     candidates: tuple[Candidate, ...]
     evaluations: int
+    scores: tuple[str, ...] = ("edges",)
 
     @property
     def best(self) -> Candidate:
@@ -324,4 +325,4 @@ def search_initial(
     if not photo:
         return SearchResult(tuple(edges), len(mounts))
     mi = _distinct(_mi_candidates(photo, rotations, mounts, translation_m, opts), opts.distinct_deg)
-    return SearchResult(tuple(_interleaved(edges, mi, opts.distinct_deg)), 2 * len(mounts))
+    return SearchResult(tuple(_interleaved(edges, mi, opts.distinct_deg)), len(mounts), ("edges", "mutual information"))

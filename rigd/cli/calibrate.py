@@ -196,8 +196,10 @@ def _fmt(values: list[float | None]) -> str:
 
 def print_search(section: dict[str, Any]) -> None:
     start = section["start"]
-    print(f"initial guess by global search ({section['grid']['mounts']} mount scores, {section['wall_time_s']:.0f} "
-          f"s): start rpy_deg {np.round(start['rpy_deg'], 1).tolist()} from grid mount {start['grid_rpy_deg']}")
+    scores = " and ".join(section["grid"].get("scores", ["edges"]))
+    print(f"initial guess by global search ({section['grid']['mounts']} mounts scored by {scores}, "
+          f"{section['wall_time_s']:.0f} s): start rpy_deg {np.round(start['rpy_deg'], 1).tolist()} from grid "
+          f"mount {start['grid_rpy_deg']}")
     for c in section["candidates"][1:]:
         print(f"  runner-up by {c.get('score', 'edges')}: {c['from_start_deg']:.1f} deg away, cost {c['cost']:.4f}")
 

@@ -115,6 +115,7 @@ def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path):
     assert proc.returncode in (0, 3, 4), proc.stderr
     search = report["initial_search"]
     assert search["grid"]["mounts"] == 600 and search["candidates"][0]["from_start_deg"] == 0.0
+    assert search["grid"]["scores"] == ["edges", "mutual information"]  # the simulated clouds carry intensity
     assert "global search" in proc.stderr
     truth = open_dataset(small_dataset).ground_truth
     start = np.array(search["start"]["rpy_deg"])
