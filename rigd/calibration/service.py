@@ -82,7 +82,8 @@ def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> dict
     best = Transform.from_tau(found.best.tau)
     return {
         "grid": {"mounts": found.evaluations, "scores": list(found.scores), "sigma_deg": opts.sigma_deg,
-                 "yaw_range_deg": opts.yaw_range_deg, "yaw_step_deg": opts.yaw_step_deg, "tilt_deg": opts.tilt_deg, "tilt_step_deg": opts.tilt_step_deg},
+                 "yaw_range_deg": opts.yaw_range_deg, "yaw_step_deg": opts.yaw_step_deg, "tilt_deg": opts.tilt_deg,
+                 "tilt_step_deg": opts.tilt_step_deg},
         "start": {"grid_rpy_deg": found.best.grid_rpy_deg.tolist(), "rpy_deg": best.rpy_deg.tolist(),
                   "xyz_m": best.translation_m.tolist()},
         "candidates": [{"grid_rpy_deg": c.grid_rpy_deg.tolist(), "rpy_deg": Transform.from_tau(c.tau).rpy_deg.tolist(),
