@@ -418,3 +418,17 @@ class Fisheye:
         theta_d, d_theta_d = self._theta_d(theta)
         ratio = np.where(theta > 1e-6, theta_d * d_theta_d / np.maximum(np.sin(theta), 1e-12), 1.0)
         return np.asarray(np.clip(ratio, 0.2, 25.0), dtype=np.float64)
+
+
+def project_rotated(camera: CameraModel, rotations: F64, translation_m: F64, points: F64) -> tuple[F64, Mask]:
+    """``camera.project`` of ``points`` (N,3) m under each of ``rotations`` (K,3,3) with one ``translation_m``
+    (3,): (K*N,2) px and (K*N,) valid, mount by mount. A head's sensor folds its own pose into each rotation
+    first (one transform of the points, not two), and the rotations go through one batched matrix product."""
+    if isinstance(camera, Mounted):
+        rotations = np.einsum("ij,kjl->kil", camera.rotation, rotations)
+        translation_m = camera.rotation @ translation_m + camera.translation_m
+        camera_model: CameraModel = camera.sensor
+    else:
+        camera_model = camera
+    p_cam = np.matmul(np.asarray(points, dtype=np.float64)[None], np.transpose(rotations, (0, 2, 1))) + translation_m
+    return camera_model.project(p_cam.reshape(-1, 3))

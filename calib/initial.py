@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.camera import CameraModel, Equirectangular, Mounted, Pinhole
+from calib.camera import CameraModel, Equirectangular, Mounted, Pinhole, project_rotated
 from calib.errors import InitialGuessError
 from calib.geometry import rotation_angle_deg, rpy_deg_to_matrix, so3_exp, so3_log
 from calib.gmm import PairFeatures
@@ -131,8 +131,7 @@ def _grid_costs(feat: PairFeatures, rotations: F64, translation_m: F64, sigma_px
         raise InitialGuessError("the global search needs the edge fields (Evaluator.FIELD or AUTO)")
     every = -(-len(feat.points) // SEARCH_POINTS)  # every k-th point along the rings, at most SEARCH_POINTS
     pts = feat.points.points_lidar[::every]
-    p_cam = np.einsum("kij,nj->kni", rotations, pts) + translation_m  # (K,N,3) m
-    uv, valid = feat.camera.project(p_cam.reshape(-1, 3))
+    uv, valid = project_rotated(feat.camera, rotations, translation_m, pts)
     sel = np.flatnonzero(valid)
     sums = feat.fields.sample(uv[sel], np.full(len(sel), sigma_px))
     count = (np.maximum(sums[:, 6], 0.0) ** 4 + (6.0 * sigma_px) ** 4) ** 0.25  # |Omega_i| as in calib.gmm

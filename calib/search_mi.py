@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.camera import Equirectangular
+from calib.camera import Equirectangular, project_rotated
 from calib.gmm import in_image
 from calib.photometric import PhotoPair, _blur, kde_smooth, mutual_information, sample
 
@@ -58,9 +58,8 @@ def prepare(pairs: list[PhotoPair], blur_deg: float, seed: int = 0) -> list[MiSe
 def _joints(sp: MiSearchPair, rotations: F64, translation_m: F64) -> F64:
     """(K, BINS * BINS) soft joint histograms of reflectivity and grey level of the pair at each rotation."""
     k = len(rotations)
-    p_cam = np.einsum("kij,nj->kni", rotations, sp.points_lidar) + translation_m  # (K,N,3)
     cam = sp.pair.camera
-    uv, valid = cam.project(p_cam.reshape(-1, 3))
+    uv, valid = project_rotated(cam, rotations, translation_m, sp.points_lidar)
     inside = in_image(cam, uv, valid)
     if sp.pair.mask is not None and inside.any():
         px = np.rint(uv[inside]).astype(np.int64)

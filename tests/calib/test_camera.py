@@ -9,7 +9,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from calib.camera import Equirectangular, Fisheye, Mounted, Pinhole
+from calib.camera import Equirectangular, Fisheye, Mounted, Pinhole, project_rotated
 from calib.geometry import Transform
 from tests.testdata import PINHOLE_FRAME
 
@@ -419,3 +419,16 @@ def test_fisheye_area_ratio_of_an_ideal_equidistant_lens() -> None:
     theta = np.radians([1e-4, 30.0, 60.0, 95.0])
     uv, _ = ideal.project(np.stack([np.sin(theta), np.zeros(4), np.cos(theta)], axis=1))
     np.testing.assert_allclose(ideal.pixel_area_ratio(uv), theta / np.sin(theta), rtol=1e-6)
+
+
+def test_projecting_under_many_rotations_equals_projecting_each(pinhole: Pinhole) -> None:
+    rotations = np.stack([Transform.from_rpy_xyz(np.array(r), np.zeros(3)).rotation
+                          for r in ([0.0, 0.0, 0.0], [5.0, -3.0, 40.0], [-20.0, 10.0, 170.0])])
+    t = np.array([0.1, -0.2, 0.3])
+    points = np.random.default_rng(3).normal(size=(40, 3)) * 8.0
+    for camera in (pinhole, _mounted(pinhole), PANO):
+        uv, valid = project_rotated(camera, rotations, t, points)
+        for k, r in enumerate(rotations):
+            one_uv, one_valid = camera.project(points @ r.T + t)
+            np.testing.assert_array_equal(valid[k * 40:(k + 1) * 40], one_valid)
+            np.testing.assert_allclose(uv[k * 40:(k + 1) * 40][one_valid], one_uv[one_valid], atol=1e-9)
