@@ -131,6 +131,27 @@ class Equirectangular:
         return 1.0 / np.maximum(s, 0.05)
 
 
+def _check_intrinsics(k: F64, model: str) -> None:
+    """Raise GeometryError naming the first bad entry of ``k`` (3,3) px, the intrinsic matrix of a ``model`` camera.
+
+    Checked here, at construction, because a bad K fails far from its cause: a zero fx divides by zero in the
+    search's field of view, a negative one turns the texture radius into NaN, and a non-[0, 0, 1] last row is
+    silently ignored by the projection (which reads fx, skew, cx, fy, cy only).
+    """
+    names = (("fx", "skew", "cx"), ("K[1,0]", "fy", "cy"), ("K[2,0]", "K[2,1]", "K[2,2]"))
+    for i in range(3):
+        for j in range(3):
+            if not np.isfinite(k[i, j]):
+                raise GeometryError(f"{model} K: {names[i][j]} must be finite, got {k[i, j]:g}")
+    for i, name in ((0, "fx"), (1, "fy")):
+        if k[i, i] <= 0:
+            raise GeometryError(f"{model} K: {name} must be > 0, got {k[i, i]:g}")
+    if k[1, 0] != 0:
+        raise GeometryError(f"{model} K: K[1,0] must be 0 (K is upper triangular), got {k[1, 0]:g}")
+    if not np.array_equal(k[2], [0.0, 0.0, 1.0]):
+        raise GeometryError(f"{model} K: the last row must be [0, 0, 1], got {k[2].tolist()}")
+
+
 @dataclass(frozen=True)
 class Pinhole:
     """OpenCV pinhole with distortion ``D`` = (k1, k2, p1, p2[, k3]); optical frame z fwd, x right, y down.
@@ -150,6 +171,9 @@ class Pinhole:
         d_in = np.asarray(self.D, dtype=np.float64).reshape(-1)
         if k.shape != (3, 3) or d_in.size not in (0, 4, 5) or self.width <= 0 or self.height <= 0:
             raise GeometryError("pinhole needs K (3x3), D with 0, 4 or 5 numbers and a positive size")
+        _check_intrinsics(k, "pinhole")
+        if not np.all(np.isfinite(d_in)):
+            raise GeometryError(f"pinhole D must be finite, got {d_in.tolist()}")
         d[: d_in.size] = d_in
         object.__setattr__(self, "K", k)
         object.__setattr__(self, "D", d)
@@ -325,8 +349,9 @@ class Fisheye:
         d = np.asarray(self.D, dtype=np.float64).reshape(-1)
         if k.shape != (3, 3) or d.size != 4 or self.width <= 0 or self.height <= 0:
             raise GeometryError("fisheye needs K (3x3), D with 4 numbers (k1..k4) and a positive size")
-        if not (np.all(np.isfinite(k)) and k[0, 0] > 0 and k[1, 1] > 0 and np.all(np.isfinite(d))):
-            raise GeometryError(f"fisheye K needs positive finite focal lengths, got fx={k[0, 0]}, fy={k[1, 1]}")
+        _check_intrinsics(k, "fisheye")
+        if not np.all(np.isfinite(d)):
+            raise GeometryError(f"fisheye D must be finite, got {d.tolist()}")
         object.__setattr__(self, "K", k)
         object.__setattr__(self, "D", d)
         object.__setattr__(self, "_max_theta", self._field_of_view())

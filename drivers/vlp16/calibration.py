@@ -7,8 +7,10 @@ laser, -11.2 mm for +15 deg). velodyne_decoder and VeloView use the same default
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -75,6 +77,35 @@ class LaserCalibration:
         return ring
 
 
+def _laser_id(path: Path, entry: dict[Any, Any]) -> int:
+    """``entry``'s laser_id, an integer 0..15; CalibrationFileError naming the entry otherwise."""
+    raw: Any = entry.get("laser_id")
+    try:
+        number = float(raw)
+    except (TypeError, ValueError, OverflowError):
+        number = math.nan
+    if isinstance(raw, bool) or not (number.is_integer() and 0 <= number < LASERS):
+        raise CalibrationFileError(f"{path}: bad laser entry {entry!r}: laser_id must be an integer 0..15")
+    return int(number)
+
+
+def _number(path: Path, entry: dict[Any, Any], laser: int, key: str, default: float | None) -> float:
+    """``entry[key]`` as a finite float (``default`` when absent; None: required), else CalibrationFileError
+    naming the laser and the field. Checked one by one, as a NaN would otherwise pass for a missing laser."""
+    if key not in entry:
+        if default is None:
+            raise CalibrationFileError(f"{path}: laser {laser} has no {key}")
+        return default
+    raw = entry[key]
+    try:
+        number = float(raw)
+    except (TypeError, ValueError, OverflowError):
+        number = math.nan
+    if isinstance(raw, bool) or not math.isfinite(number):
+        raise CalibrationFileError(f"{path}: laser {laser}: {key} must be a finite number, got {raw!r}")
+    return number
+
+
 def load_calibration(path: Path) -> LaserCalibration:
     """Read ``lasers: [{laser_id, vert_correction (rad), vert_offset_correction (m)}, ...]`` from YAML."""
     path = Path(path)
@@ -86,25 +117,26 @@ def load_calibration(path: Path) -> LaserCalibration:
     if not isinstance(lasers, list) or len(lasers) != LASERS:
         raise CalibrationFileError(f"{path}: needs a 'lasers' list of 16 entries")
     resolution = data.get("distance_resolution", DISTANCE_UNIT_M)
-    if not isinstance(resolution, (int, float)) or abs(resolution - DISTANCE_UNIT_M) > 1e-9:
+    # Written as "not <=" so that a NaN fails too.
+    if not isinstance(resolution, (int, float)) or not abs(resolution - DISTANCE_UNIT_M) <= 1e-9:
         raise CalibrationFileError(f"{path}: distance_resolution {resolution} is not the VLP-16's 0.002 m")
-    elevation = np.full(LASERS, np.nan)
+    elevation = np.zeros(LASERS)
     offset = np.zeros(LASERS)
+    seen: set[int] = set()
     for entry in lasers:
-        try:
-            laser = int(entry["laser_id"])
-            if not 0 <= laser < LASERS:
-                raise IndexError(f"laser_id {laser} is not in 0..15")
-            elevation[laser] = np.degrees(float(entry["vert_correction"]))
-            offset[laser] = float(entry.get("vert_offset_correction", 0.0))
-            unsupported = [k for k in _UNSUPPORTED_FIELDS if float(entry.get(k, 0.0)) != 0.0]
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise CalibrationFileError(f"{path}: bad laser entry {entry!r} ({exc!r})") from exc
+        if not isinstance(entry, dict):
+            raise CalibrationFileError(f"{path}: bad laser entry {entry!r}: not a mapping")
+        laser = _laser_id(path, entry)
+        if laser in seen:
+            raise CalibrationFileError(f"{path}: laser {laser} is listed twice (laser ids must be 0..15, each once)")
+        seen.add(laser)
+        elevation[laser] = np.degrees(_number(path, entry, laser, "vert_correction", None))
+        offset[laser] = _number(path, entry, laser, "vert_offset_correction", 0.0)
+        unsupported = [k for k in _UNSUPPORTED_FIELDS if _number(path, entry, laser, k, 0.0) != 0.0]
         if unsupported:
             raise CalibrationFileError(
                 f"{path}: laser {laser} sets {', '.join(unsupported)}, which this "
                 "driver does not apply (only vert_correction and vert_offset_correction)"
             )
-    if np.isnan(elevation).any():
-        raise CalibrationFileError(f"{path}: laser ids must be 0..15, each once")
+    # 16 entries, each id in 0..15 and none twice: every laser is there.
     return LaserCalibration(elevation, offset)

@@ -24,7 +24,9 @@ class PositionDatagram(NamedTuple):
 class DatagramBatch:
     """Datagrams in arrival order. ``data`` (K,1206) uint8 data-port payloads of the right size, with
     ``data_host_s`` (K,) float64 s and ``data_index`` (K,) int64 stream datagram (or pcap record) index;
-    ``faults`` lists (fault, count, first index) found before decoding; ``other`` counts other traffic."""
+    ``faults`` lists (fault, count, first index) found before decoding; ``other`` counts other traffic;
+    ``fragments`` the fragments of IPv4 datagrams, skipped as they are not reassembled (a VLP-16 never
+    fragments, so they are someone else's traffic or a capture taken behind a fragmenting link)."""
 
     data: NDArray[np.uint8] = field(default_factory=lambda: np.empty((0, DATA_PACKET_SIZE), np.uint8))
     data_host_s: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
@@ -32,6 +34,7 @@ class DatagramBatch:
     positions: tuple[PositionDatagram, ...] = ()
     faults: tuple[tuple[PacketFault, int, int], ...] = ()
     other: int = 0
+    fragments: int = 0
 
 
 def fault_entry(fault: PacketFault, indices: NDArray[np.int64]) -> tuple[tuple[PacketFault, int, int], ...]:

@@ -113,6 +113,7 @@ class _ChunkRouter:
         self.truncated: list[int] = []
         self.frame_errors: list[int] = []
         self.other = 0
+        self.fragments = 0
 
     def add_rows(
         self,
@@ -162,7 +163,9 @@ class _ChunkRouter:
             + fault_entry(PacketFault.TRUNCATED, np.array(self.truncated, np.int64))
             + fault_entry(PacketFault.FRAME, np.array(self.frame_errors, np.int64))
         )
-        return DatagramBatch(data, host_s[records - first_record], records, positions, faults, self.other)
+        return DatagramBatch(
+            data, host_s[records - first_record], records, positions, faults, self.other, self.fragments
+        )
 
 
 def _parse_one(router: _ChunkRouter, record: int, frame: bytes, linktype: int) -> None:
@@ -180,7 +183,8 @@ def _parse_one(router: _ChunkRouter, record: int, frame: bytes, linktype: int) -
         router.other += 1
         return
     if isinstance(ip, dpkt.ip.IP) and (ip.mf or ip.offset):
-        router.other += 1  # a fragment: a VLP-16 never fragments its datagrams
+        # Counted apart from "other": a fragment may hold part of a data packet, and it is not reassembled.
+        router.fragments += 1
         return
     udp = ip.data
     if not isinstance(udp, dpkt.udp.UDP):

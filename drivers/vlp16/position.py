@@ -8,6 +8,7 @@ from datetime import UTC, datetime
 from functools import reduce
 
 from drivers.vlp16.layout import (
+    HOUR_US,
     POSITION_NMEA_OFFSET,
     POSITION_PACKET_SIZE,
     POSITION_PPS_OFFSET,
@@ -27,10 +28,13 @@ class PositionPacket:
 
 
 def parse_position_packet(payload: bytes) -> PositionPacket | None:
-    """Parse a 512-byte position packet; None if its size or PPS byte is invalid (the caller counts it)."""
+    """Parse a 512-byte position packet; None if its size, PPS byte or timestamp (>= an hour) is invalid (the
+    caller counts it)."""
     if len(payload) != POSITION_PACKET_SIZE or payload[POSITION_PPS_OFFSET] > PpsStatus.ERROR:
         return None
     (timestamp_us,) = struct.unpack_from("<I", payload, POSITION_TIMESTAMP_OFFSET)
+    if timestamp_us >= HOUR_US:  # the clock would take it modulo the hour and anchor to the wrong time
+        return None
     raw = payload[POSITION_NMEA_OFFSET:].split(b"\0", 1)[0]
     nmea = raw.decode("ascii", errors="replace").strip()
     return PositionPacket(timestamp_us, PpsStatus(payload[POSITION_PPS_OFFSET]), nmea, rmc_utc_s(nmea))

@@ -105,10 +105,22 @@ class StreamStats:
     pps: PpsStatus | None
     time_source: TimeSource
     clock_offset_s: float
+    ipv4_fragments: int = 0  # records of a capture that are IPv4 fragments: skipped, not in other_datagrams
 
     @property
     def bad_packets(self) -> int:
         return sum(self.faults.values())
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """Lines for the user about traffic that was skipped without being a bad packet.
+
+        Fragments are counted one by one (a datagram in two fragments counts twice): telling which belong
+        together would need the reassembly that is not done.
+        """
+        if not self.ipv4_fragments:
+            return ()
+        return (f"{self.ipv4_fragments} IPv4 fragments skipped (fragmented datagrams are not reassembled)",)
 
 
 @dataclass
@@ -181,7 +193,7 @@ class SweepAssembler:
         self._pending = _Pending.empty()
         self._floor_us: int | None = None  # device count of the first packet not yet emitted
         self._next_index = 0
-        self._counts = {"data": 0, "position": 0, "missing": 0, "other": 0}
+        self._counts = {"data": 0, "position": 0, "missing": 0, "other": 0, "fragments": 0}
         self._modes: set[ReturnMode] = set()
         self._products: set[int] = set()
         self._cut_units = round(self.config.cut_azimuth_deg * 100) % AZIMUTH_UNITS
@@ -192,6 +204,7 @@ class SweepAssembler:
         for fault, count, first in batch.faults:
             self.tally.add(fault, count, first)
         self._counts["other"] += batch.other
+        self._counts["fragments"] += batch.fragments
         for position in batch.positions:
             packet = parse_position_packet(position.payload)
             if packet is None:
@@ -222,6 +235,7 @@ class SweepAssembler:
             self.clock.pps,
             self.clock.source,
             self.clock.host_offset_s,
+            ipv4_fragments=self._counts["fragments"],
         )
 
     # -- internals -----------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ from enum import Enum
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.vlp16.layout import AZIMUTH_UNITS, BLOCK_FLAG, ReturnMode
+from drivers.vlp16.layout import AZIMUTH_UNITS, BLOCK_FLAG, HOUR_US, ReturnMode
 
 
 class PacketFault(Enum):
@@ -18,9 +18,10 @@ class PacketFault(Enum):
     FRAME = "capture record is not a decodable link-layer frame"
     TRUNCATED = "capture record cut short"
     SIZE = "wrong size"  # a datagram on the data/position port that is not 1206/512 bytes
-    POSITION = "position packet with an invalid PPS byte"
+    POSITION = "position packet with an invalid PPS byte or timestamp"
     FLAG = "block flag is not FF EE"
     AZIMUTH = "block azimuth > 36000"  # 36000 means 0 (written by old firmware)
+    TIMESTAMP = "timestamp >= 3600 s past the hour"  # the device counts 0..3599999999 us past the hour
     RETURN_MODE = "unknown return mode byte"
     PRODUCT_ID = "unexpected product id"
     DUAL_PAIR = "dual-return block pair with different azimuths"
@@ -41,7 +42,7 @@ class PacketCheck:
 
 
 def check_packets(records: np.ndarray, product_ids: Collection[int] | None) -> PacketCheck:
-    """Check (P,) ``DATA_PACKET_DTYPE`` records: block flags, azimuths, mode byte, product id, dual pairs.
+    """Check (P,) ``DATA_PACKET_DTYPE`` records: block flags, azimuths, timestamp, mode byte, product id, dual pairs.
 
     ``product_ids`` are the accepted values of byte 1205; None accepts any (legacy firmware).
     """
@@ -50,6 +51,8 @@ def check_packets(records: np.ndarray, product_ids: Collection[int] | None) -> P
     tests: list[tuple[PacketFault, NDArray[np.bool_]]] = [
         (PacketFault.FLAG, np.any(blocks["flag"] != BLOCK_FLAG, axis=1)),
         (PacketFault.AZIMUTH, np.any(blocks["azimuth"] > AZIMUTH_UNITS, axis=1)),
+        # Unwrapped modulo the hour, such a stamp would land minutes away and start a phantom sweep there.
+        (PacketFault.TIMESTAMP, records["timestamp_us"] >= HOUR_US),
         (PacketFault.RETURN_MODE, ~np.isin(mode, _MODES)),
     ]
     if product_ids is not None:

@@ -150,6 +150,7 @@ def _summary_lines(replay: PcapReplay, sweeps: list[Sweep]) -> list[str]:
             for fault in PacketFault
             if fault in stats.faults
         ),
+        *(f"  {note}" for note in stats.notes),
         f"return mode:     {modes}",
         f"product id:      {products}",
         f"rpm:             {rpm:.1f}" if sweeps else "rpm:             n/a",

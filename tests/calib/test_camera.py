@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from calib.camera import Equirectangular, Fisheye, Mounted, Pinhole, project_rotated
+from calib.errors import GeometryError
 from calib.geometry import Transform
 from tests.testdata import PINHOLE_FRAME
 
@@ -432,3 +433,51 @@ def test_projecting_under_many_rotations_equals_projecting_each(pinhole: Pinhole
             one_uv, one_valid = camera.project(points @ r.T + t)
             np.testing.assert_array_equal(valid[k * 40:(k + 1) * 40], one_valid)
             np.testing.assert_allclose(uv[k * 40:(k + 1) * 40][one_valid], one_uv[one_valid], atol=1e-9)
+
+
+# --- Intrinsics validation ---------------------------------------------------------------------------------
+
+GOOD_K = [[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]]
+
+
+def _k_with(i: int, j: int, value: float) -> np.ndarray:
+    k = np.array(GOOD_K)
+    k[i, j] = value
+    return k
+
+
+BAD_K = {
+    # an all-zero K used to reach the search's field of view and divide by zero there
+    "all zero": (np.zeros((3, 3)), r"K: fx must be > 0, got 0$"),
+    # a negative fx used to turn the texture radius into NaN (a ValueError far from rig.yaml)
+    "negative fx": (_k_with(0, 0, -500.0), r"K: fx must be > 0, got -500$"),
+    "zero fy": (_k_with(1, 1, 0.0), r"K: fy must be > 0, got 0$"),
+    "NaN cx": (_k_with(0, 2, np.nan), r"K: cx must be finite, got nan$"),
+    "infinite skew": (_k_with(0, 1, np.inf), r"K: skew must be finite, got inf$"),
+    "lower triangle": (_k_with(1, 0, 3.0), r"K: K\[1,0\] must be 0 \(K is upper triangular\), got 3$"),
+    "last row": (_k_with(2, 2, 2.0), r"K: the last row must be \[0, 0, 1\], got \[0.0, 0.0, 2.0\]$"),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_K))
+@pytest.mark.parametrize("model", ["pinhole", "fisheye"])
+def test_a_bad_k_is_a_geometry_error_naming_the_value(model: str, name: str) -> None:
+    k, message = BAD_K[name]
+    with pytest.raises(GeometryError, match=f"^{model} {message}"):
+        if model == "pinhole":
+            Pinhole(k, np.zeros(5), 640, 480)
+        else:
+            Fisheye(k, np.zeros(4), 640, 480)
+
+
+def test_a_skewed_k_is_accepted() -> None:
+    k = _k_with(0, 1, 1.5)
+    assert Pinhole(k, np.zeros(5), 640, 480).K[0, 1] == 1.5
+    assert Fisheye(k, np.zeros(4), 640, 480).K[0, 1] == 1.5
+
+
+def test_a_non_finite_distortion_is_a_geometry_error() -> None:
+    with pytest.raises(GeometryError, match=r"^pinhole D must be finite"):
+        Pinhole(np.array(GOOD_K), np.array([0.1, np.nan, 0.0, 0.0]), 640, 480)
+    with pytest.raises(GeometryError, match=r"^fisheye D must be finite"):
+        Fisheye(np.array(GOOD_K), np.array([0.1, 0.0, np.inf, 0.0]), 640, 480)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import struct
 from pathlib import Path
 
@@ -17,10 +18,13 @@ from drivers.vlp16 import (
     LaserCalibration,
     PacketFault,
     PcapReplay,
+    PositionDatagram,
+    PpsStatus,
     ReturnMode,
     Vlp16Config,
     decode_packets,
     encode_data_packets,
+    encode_position_packet,
     load_calibration,
     read_sweeps,
     write_pcap,
@@ -129,6 +133,36 @@ def test_bad_packets_and_garbage_datagrams_are_counted_and_good_ones_decode(tmp_
     assert stats.missing_packets == len(lost)
 
 
+HOUR_US = 3_600_000_000  # the device counts microseconds past the hour, 0 .. HOUR_US - 1
+
+
+def test_a_timestamp_past_the_hour_is_counted_and_dropped() -> None:
+    """A stamp >= 3.6e9 us used to be unwrapped modulo the hour: one such packet made a phantom sweep 98 s on."""
+    f = synthetic_firings(80 * 24)
+    packets = encode_data_packets(f.ranges_m, f.reflectivity, f.azimuth_deg, 1_699_999_300.0)  # 100 s past the hour
+    p = packets.payloads.copy()
+    stamp = struct.unpack_from("<I", p[40].tobytes(), 1200)[0]
+    for index, bad in ((40, stamp + 98_000_000 + HOUR_US), (50, HOUR_US)):
+        p[index, 1200:1204] = np.frombuffer(struct.pack("<I", bad), np.uint8)
+    sweeps, assembler = assemble([batch_of(p, packets.time_s)])
+    stats = assembler.stats()
+    assert stats.faults == {PacketFault.TIMESTAMP: 2} and stats.first_fault == {PacketFault.TIMESTAMP: 40}
+    assert sweeps[-1].end.device - sweeps[0].start.device < 0.2  # 80 packets: 0.1 s, no sweep 98 s later
+    expected = decode_packets(np.delete(packets.payloads, [40, 50], axis=0)).points
+    assert sum(len(s.points) for s in sweeps) == len(expected)
+
+
+def test_a_position_packet_stamped_past_the_hour_is_counted() -> None:
+    good = encode_position_packet(5_000_000, PpsStatus.LOCKED, "")
+    bad = bytearray(good)
+    bad[198:202] = struct.pack("<I", HOUR_US + 5_000_000)
+    positions = (PositionDatagram(good, 0.0, 0), PositionDatagram(bytes(bad), 0.0, 7))
+    _, assembler = assemble([DatagramBatch(positions=positions)])
+    stats = assembler.stats()
+    assert stats.position_packets == 1
+    assert stats.faults == {PacketFault.POSITION: 1} and stats.first_fault == {PacketFault.POSITION: 7}
+
+
 def test_frames_that_are_not_udp_or_are_cut_short(tmp_path: Path) -> None:
     packets = clean_packets(30)
     frames = [udp_frame(p.tobytes(), 2368) for p in packets.payloads]
@@ -146,6 +180,45 @@ def test_frames_that_are_not_udp_or_are_cut_short(tmp_path: Path) -> None:
     assert stats.faults == {PacketFault.TRUNCATED: 1, PacketFault.FRAME: 1}
     assert stats.first_fault == {PacketFault.TRUNCATED: 5, PacketFault.FRAME: 31}
     assert stats.other_datagrams == 1 and stats.data_packets == 29
+
+
+def fragmented(payload: bytes, dport: int, split: int) -> list[bytes]:
+    """The Ethernet frames of ``payload`` sent to ``dport`` as one IPv4 datagram in fragments of ``split`` bytes."""
+    frame = dpkt.ethernet.Ethernet(udp_frame(payload, dport))
+    datagram = bytes(frame.data.data)  # UDP header and payload, what the fragments carry
+    frames = []
+    for offset in range(0, len(datagram), split):
+        ip = dpkt.ip.IP(
+            src=frame.data.src,
+            dst=frame.data.dst,
+            p=dpkt.ip.IP_PROTO_UDP,
+            id=7,
+            ttl=64,
+            data=datagram[offset : offset + split],
+        )
+        ip.mf, ip.offset = int(offset + split < len(datagram)), offset
+        ip.len = len(ip)
+        frames.append(bytes(dpkt.ethernet.Ethernet(src=frame.src, dst=frame.dst, type=frame.type, data=ip)))
+    return frames
+
+
+def test_ipv4_fragments_are_counted_apart_from_other_traffic(tmp_path: Path) -> None:
+    packets = clean_packets(30)
+    frames = [udp_frame(p.tobytes(), 2368) for p in packets.payloads]
+    pieces = fragmented(packets.payloads[10].tobytes(), 2368, 600)  # 1214 bytes of UDP: 3 fragments
+    frames[10:11] = pieces
+    frames.append(udp_frame(b"other traffic", 9999))
+    path = tmp_path / "fragments.pcap"
+    with path.open("wb") as fh:
+        writer = dpkt.pcap.Writer(fh, snaplen=65535)
+        for i, frame in enumerate(frames):
+            writer.writepkt(frame, ts=float(packets.time_s[min(i, 29)]))
+    points, stats = all_points(path)
+    assert len(pieces) == 3 and stats.ipv4_fragments == 3
+    assert stats.other_datagrams == 1 and stats.bad_packets == 0 and stats.data_packets == 29
+    assert stats.notes == ("3 IPv4 fragments skipped (fragmented datagrams are not reassembled)",)
+    assert len(points) == len(decode_packets(np.delete(packets.payloads, 10, axis=0)).points)
+    assert all_points(SMALL_PCAP)[1].notes == ()
 
 
 def test_pcapng_vlan_and_cooked_captures_read_like_plain_pcap(tmp_path: Path) -> None:
@@ -211,6 +284,45 @@ def test_malformed_calibration_files(tmp_path: Path) -> None:
             (tmp_path / name).write_text(text)
         with pytest.raises(CalibrationFileError, match=name):
             load_calibration(tmp_path / name)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("vert_correction", ".nan", r"laser 3: vert_correction must be a finite number, got nan$"),
+        ("vert_correction", "-.inf", r"laser 3: vert_correction must be a finite number, got -inf$"),
+        ("vert_correction", "null", r"laser 3: vert_correction must be a finite number, got None$"),
+        ("vert_offset_correction", ".nan", r"laser 3: vert_offset_correction must be a finite number, got nan$"),
+        ("rot_correction", ".nan", r"laser 3: rot_correction must be a finite number, got nan$"),
+        ("laser_id", ".nan", r"laser_id must be an integer 0\.\.15$"),
+        ("laser_id", "2.5", r"laser_id must be an integer 0\.\.15$"),
+    ],
+)
+def test_a_non_finite_calibration_number_names_the_laser_and_field(
+    tmp_path: Path, field: str, value: str, message: str
+) -> None:
+    """A NaN vert_correction used to be reported as "laser ids must be 0..15, each once"."""
+    entries = [
+        {"laser_id": str(i), "vert_correction": repr(float(np.radians(e))), "vert_offset_correction": "0.0"}
+        for i, e in enumerate(LaserCalibration().elevation_deg)
+    ]
+    entries[3][field] = value
+    text = "lasers:\n" + "".join("  - {" + ", ".join(f"{k}: {v}" for k, v in e.items()) + "}\n" for e in entries)
+    path = tmp_path / "VLP16db.yaml"
+    path.write_text(text)
+    with pytest.raises(CalibrationFileError, match=f"^{re.escape(str(path))}: .*{message}"):
+        load_calibration(path)
+
+
+def test_a_nan_distance_resolution_and_a_repeated_laser_are_named(tmp_path: Path) -> None:
+    good = "lasers:\n" + "".join(f"  - {{laser_id: {i}, vert_correction: 0.0}}\n" for i in range(16))
+    path = tmp_path / "VLP16db.yaml"
+    path.write_text("distance_resolution: .nan\n" + good)
+    with pytest.raises(CalibrationFileError, match=r"distance_resolution nan is not the VLP-16's 0\.002 m"):
+        load_calibration(path)
+    path.write_text(good.replace("laser_id: 4,", "laser_id: 3,"))
+    with pytest.raises(CalibrationFileError, match=r"laser 3 is listed twice"):
+        load_calibration(path)
 
 
 def test_encoder_rejects_bad_arrays() -> None:

@@ -202,6 +202,37 @@ def test_bad_rig_yaml_names_the_file(dataset_root: Path, name: str) -> None:
         open_dataset(dataset_root)
 
 
+POSE = "T_head_camera: {rpy_deg: [0, 0, 0], xyz_m: [0, 0, 0]}"
+BAD_INTRINSICS = {  # rig.yaml text, the message it must give
+    "pinhole fx < 0": (
+        "camera: {model: pinhole, width: 64, height: 32, K: [[-500, 0, 32], [0, 50, 16], [0, 0, 1]]}",
+        r"ds/rig\.yaml: pinhole K: fx must be > 0, got -500$",
+    ),
+    "pinhole K zero": (
+        "camera: {model: pinhole, width: 64, height: 32, K: [[0, 0, 0], [0, 0, 0], [0, 0, 0]]}",
+        r"ds/rig\.yaml: pinhole K: fx must be > 0, got 0$",
+    ),
+    "fisheye fy NaN": (
+        "camera: {model: fisheye, width: 64, height: 32, K: [[50, 0, 32], [0, .nan, 16], [0, 0, 1]], D: [0, 0, 0, 0]}",
+        r"ds/rig\.yaml: fisheye K: fy must be finite, got nan$",
+    ),
+    "head sensor": (
+        "camera: {model: head, sensors: [{name: cam0, model: pinhole, width: 64, height: 32, "
+        "K: [[50, 0, 32], [0, 50, 16], [0, 0, 2]], " + POSE + "}]}",
+        r"ds/rig\.yaml: sensor cam0: pinhole K: the last row must be \[0, 0, 1\]",
+    ),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_INTRINSICS))
+def test_bad_intrinsics_in_rig_yaml_name_the_file_and_the_value(dataset_root: Path, name: str) -> None:
+    """calib's GeometryError on a bad K reaches the user as a DatasetError naming rig.yaml (not a traceback)."""
+    text, message = BAD_INTRINSICS[name]
+    (dataset_root / "rig.yaml").write_text(text + "\n")
+    with pytest.raises(DatasetError, match=message):
+        open_dataset(dataset_root)
+
+
 def test_missing_rig_and_missing_dataset(tmp_path: Path) -> None:
     with pytest.raises(DatasetError, match="nothing.*does not exist"):
         open_dataset(tmp_path / "nothing")
