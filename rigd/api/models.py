@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, StrictInt, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PrivateAttr, StrictInt, model_validator
 
 from calib.errors import CalibError
 from calib.geometry import Transform
@@ -19,18 +20,63 @@ Vec3 = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
 Row4 = Annotated[list[Coordinate], Field(min_length=4, max_length=4)]
 
 
-def lone_surrogate(value: Any, where: str = "body") -> str | None:
-    """Where in a parsed JSON value a string or key holds a lone surrogate, or None."""
-    if isinstance(value, str):
-        return where if unicode_safe(value) != value else None
-    if isinstance(value, dict):
-        named = [(f"{where}.{unicode_safe(str(k))}", (k, v)) for k, v in value.items()]
-    elif isinstance(value, list):
-        named = [(f"{where}[{i}]", (v,)) for i, v in enumerate(value)]
-    else:
-        return None
-    found = (lone_surrogate(part, at) for at, parts in named for part in parts)
-    return next((at for at in found if at is not None), None)
+def _within(low: float, high: float, unit: str, why: str) -> Callable[[float], float]:
+    """A check refusing values outside [low, high] with a message naming the range and why it is the range (the
+    schema states it too, as minimum and maximum)."""
+    def check(value: float) -> float:
+        if not low <= value <= high:
+            raise ValueError(f"must be within {low:g} .. {high:g} {unit}, got {value:g}: {why}")
+        return value
+    return check
+
+
+def _range(low: float, high: float) -> Any:
+    return Field(json_schema_extra={"minimum": low, "maximum": high})
+
+
+# A tolerance or threshold per axis is the error that matters to the application. Below these lower bounds no
+# sensor of the rig resolves a difference (a working pixel is 0.18 deg, a VLP-16 step 0.1-0.4 deg, its range
+# accurate to 3 cm), and the verdict's arithmetic, which divides by them, breaks down (1e-300 killed the worker).
+_TOLERANCE_WHY = "finer than the rig's sensors resolve, or so coarse that any result would pass"
+ToleranceDeg = Annotated[float, _range(0.001, 10.0), AfterValidator(_within(0.001, 10.0, "deg", _TOLERANCE_WHY))]
+ToleranceCm = Annotated[float, _range(0.01, 100.0), AfterValidator(_within(0.01, 100.0, "cm", _TOLERANCE_WHY))]
+# A prior's sigma: how well the rig's drawing knows the lever arm or the mounting angles.
+PriorSigmaCm = Annotated[float, _range(0.01, 1000.0), AfterValidator(_within(
+    0.01, 1000.0, "cm", "no drawing knows a lever arm better than 0.1 mm, and 10 m is no prior at all"))]
+PriorSigmaDeg = Annotated[float, _range(0.001, 180.0), AfterValidator(_within(
+    0.001, 180.0, "deg", "no drawing knows a mounting angle better than 0.001 deg, and 180 deg is no prior at all"))]
+# sigma_in of a coarse-to-fine level, deg at 1 m: narrower than half a working pixel (0.18 deg) it sees no edge.
+SigmaIn = Annotated[float, _range(0.1, 30.0), AfterValidator(_within(
+    0.1, 30.0, "deg", "a kernel narrower than half a working pixel (0.18 deg) sees no edge, wider than 30 deg no "
+    "alignment"))]
+
+
+MAX_NESTING = 16  # levels of objects and arrays in a request body; the deepest request needs 4
+
+
+def body_problem(value: Any) -> str | None:
+    """What makes a parsed JSON body unfit before validation, or None: nesting deeper than ``MAX_NESTING``, or
+    a string or key holding a lone surrogate. Walked with a stack, not recursion: a 1 KB body can nest
+    hundreds of levels deep."""
+    stack: list[tuple[Any, str, int]] = [(value, "body", 0)]
+    while stack:
+        item, where, depth = stack.pop()
+        if isinstance(item, str):
+            if unicode_safe(item) != item:
+                return (f"{where}: text must be Unicode, it holds a lone surrogate (a \\ud800-\\udfff escape "
+                        "outside a pair)")
+            continue
+        if not isinstance(item, dict | list):
+            continue
+        if depth == MAX_NESTING:
+            return (f"{where}: the body is nested more than {MAX_NESTING} levels deep (objects and arrays); "
+                    "no request of this API needs that many")
+        if isinstance(item, dict):  # a key is checked before its value
+            children = [(part, f"{where}.{unicode_safe(str(k))}") for k, v in item.items() for part in (k, v)]
+        else:
+            children = [(v, f"{where}[{i}]") for i, v in enumerate(item)]
+        stack.extend((child, at, depth + 1) for child, at in reversed(children))
+    return None
 
 
 class Request(BaseModel):
@@ -38,12 +84,12 @@ class Request(BaseModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _unicode_only(cls, data: Any) -> Any:
-        # JSON's "\ud800" parses to a string no UTF-8 can carry: it could be neither stored nor answered.
-        where = lone_surrogate(data)
-        if where is not None:
-            raise ValueError(f"{where}: text must be Unicode, it holds a lone surrogate (a \\ud800-\\udfff escape "
-                             "outside a pair)")
+    def _fit(cls, data: Any) -> Any:
+        # JSON's "\ud800" parses to a string no UTF-8 can carry: it could be neither stored nor answered. And
+        # a deep body would exhaust the recursion of whatever walks it next (validation, the error's echo).
+        problem = body_problem(data)
+        if problem is not None:
+            raise ValueError(problem)
         return data
 
 
@@ -78,9 +124,9 @@ class PriorIn(Request):
     (t of T_camera_lidar, m) with ``sigma_cm``, and/or the rotation ``rpy_deg`` with ``sigma_deg``."""
 
     xyz_m: Vec3 | None = None
-    sigma_cm: Annotated[float, Field(gt=0.0, le=1000.0)] | None = None
+    sigma_cm: PriorSigmaCm | None = None
     rpy_deg: Annotated[list[Angle], Field(min_length=3, max_length=3)] | None = None
-    sigma_deg: Annotated[float, Field(gt=0.0, le=180.0)] | None = None
+    sigma_deg: PriorSigmaDeg | None = None
 
     @model_validator(mode="after")
     def _pairs(self) -> PriorIn:
@@ -92,8 +138,10 @@ class PriorIn(Request):
 
 
 class ToleranceIn(Request):
-    rotation_deg: Annotated[float, Field(gt=0.0, le=90.0)] = 0.2
-    translation_cm: Annotated[float, Field(gt=0.0, le=1000.0)] = 2.0
+    """The field tolerance per axis: an axis is known when 2.5 sigma is within it (docs/trust.md)."""
+
+    rotation_deg: ToleranceDeg = Field(default=0.2, description="per rotation axis, deg (0.001 .. 10)")
+    translation_cm: ToleranceCm = Field(default=2.0, description="per translation axis, cm (0.01 .. 100)")
 
 
 class CalibrateIn(Request):
@@ -102,7 +150,7 @@ class CalibrateIn(Request):
         "active", description="initial guess: the active extrinsics version, the rig file's (the dataset's "
         "rig.yaml, else the service's rig file; neither has one: the global search), 'search' (a global search, "
         "after a reassembly), or an explicit transform")
-    sigmas_deg: Annotated[list[Annotated[float, Field(gt=0.0, le=30.0)]], Field(min_length=1, max_length=6)] | None = (
+    sigmas_deg: Annotated[list[SigmaIn], Field(min_length=1, max_length=6)] | None = (
         Field(None, description="sigma_in per coarse-to-fine level, deg at 1 m; absent: the calibration's default "
               "schedule (the levels used are in the version's quality figures)"))
     auto_activate: bool = Field(False, description="activate the result if its verdict is trusted and its quality "

@@ -9,7 +9,10 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import os
 import queue
+import re
+import signal
 import subprocess
 import sys
 import threading
@@ -17,6 +20,7 @@ import time
 import traceback
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -43,6 +47,9 @@ CALIBRATION_METHOD = "kang-doh-2020-gmm-edge-alignment"
 # What a refused client is told to wait: a small dataset calibrates in tens of seconds, a large one in minutes.
 QUEUE_RETRY_AFTER_S = 30
 PROGRESS_INTERVAL_S = 0.5  # progress is written at most this often (plus every change of stage)
+WORKER_POLL_S = 0.1  # how often the runner looks for a cancel, a shutdown or a worker that exited
+WORKER_STOP_GRACE_S = 2.0  # SIGTERM to SIGKILL of a worker's process group
+WORKER_OUTPUT_GRACE_S = 1.0  # a worker that exited: how long its pipe may stay open before it is not read on
 LOG = logging.getLogger(__name__)
 
 
@@ -124,6 +131,71 @@ class _Throttle:
             self.stage, self.last = stage, now
             return True
         return False
+
+
+def _pump(stdout: Any, lines: queue.Queue[str | None]) -> None:
+    """Every line of the worker's ``stdout`` into ``lines``, then None at end of file."""
+    try:
+        for line in stdout:
+            lines.put(line)
+    finally:
+        lines.put(None)
+        stdout.close()
+
+
+def _exited(pid: int) -> bool:
+    """Whether child ``pid`` has exited, leaving it unreaped (a zombie) so its id stays its own."""
+    try:
+        return os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None
+    except ChildProcessError:  # reaped already
+        return True
+
+
+def _group_alive(pgid: int) -> bool:
+    """Whether a process of group ``pgid`` other than a zombie is running (Linux: from /proc)."""
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()  # the name in parentheses may hold spaces
+        except (FileNotFoundError, ProcessLookupError, IndexError):  # it exited meanwhile
+            continue
+        if fields[0] != "Z" and int(fields[2]) == pgid:
+            return True
+    return False
+
+
+def _wait_until(done: Callable[[], bool], timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not (finished := done()) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return finished
+
+
+def _signal_group(pgid: int, signum: signal.Signals) -> None:
+    with contextlib.suppress(ProcessLookupError):  # every member has exited already
+        os.killpg(pgid, signum)
+
+
+_LOG_STAMP = re.compile(r"^\d{4}-\d\d-\d\dT")  # the runner's own lines of a job log (JobStore.log)
+
+
+def _death(code: int, log_path: Path) -> str:
+    """How a worker that reported no error ended, for the job's error: the signal that killed it, or its exit
+    code with the last line it wrote to the job log (a traceback's last line names the exception)."""
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:  # a real-time signal has no name
+            name = f"signal {-code}"
+        hint = " (the out-of-memory killer?)" if code == -signal.SIGKILL else ""
+        return f"was killed by {name}{hint}"
+    try:
+        with log_path.open("rb") as fh:
+            fh.seek(max(0, log_path.stat().st_size - 16384))
+            tail = fh.read().decode("utf-8", "replace").splitlines()
+    except OSError:
+        tail = []
+    last = next((line.strip() for line in reversed(tail) if line.strip() and not _LOG_STAMP.match(line)), None)
+    return f"exited with code {code}" + (f": {last}" if last else " (see the job log)")
 
 
 class JobRunner:
@@ -216,29 +288,27 @@ class JobRunner:
 
     def _run_in_worker(self, job: Job) -> None:
         payload = self._payload(job)
-        with (self.jobs.job_dir(job.id) / "job.log").open("a") as stderr, self._lock:
+        log_path = self.jobs.job_dir(job.id) / "job.log"
+        with log_path.open("a") as stderr, self._lock:
+            # A session of its own: the worker leads a process group that its pool processes join, so a cancel
+            # or a shutdown ends them all with one signal (rigd.lifetime).
             proc = subprocess.Popen([sys.executable, "-m", "rigd.api.worker"], stdin=subprocess.PIPE,
-                                    stdout=subprocess.PIPE, stderr=stderr, text=True)
+                                    stdout=subprocess.PIPE, stderr=stderr, text=True, start_new_session=True)
             self._procs[job.id] = proc
             if job.id in self._cancelled or self._stopping:
-                proc.terminate()
+                _signal_group(proc.pid, signal.SIGTERM)
         assert proc.stdin is not None and proc.stdout is not None
         try:
             self.jobs.log(job.id, f"worker process {proc.pid} started")
             with contextlib.suppress(BrokenPipeError):  # terminated before it read the job: its exit code tells
                 proc.stdin.write(json.dumps(payload) + "\n")
                 proc.stdin.flush()
-            result, error = self._follow_worker(job.id, proc.stdout)
-        except StoreError:  # nothing it computes could be stored: stop it rather than leave it blocked on its pipe
-            proc.kill()
-            proc.wait()
-            with self._lock:
-                del self._procs[job.id]
+            result, error = self._follow_worker(job.id, proc)
+        except BaseException:  # e.g. StoreError: nothing it computes could be stored, it must not run on
+            self._end_worker(job.id, proc, stop=True)
             raise
-        proc.stdin.close()
-        code = proc.wait()
+        code = self._end_worker(job.id, proc, stop=self._ending(job.id))
         with self._lock:
-            del self._procs[job.id]
             cancelled = job.id in self._cancelled
             self._cancelled.discard(job.id)
         if cancelled:
@@ -252,12 +322,33 @@ class JobRunner:
             self._store_result(job, result)
         else:
             self.jobs.finish(job.id, JobStatus.FAILED, "failed",
-                             error=error or f"the {job.kind.value} worker exited with code {code} (see the job log)")
+                             error=error or f"the {job.kind.value} worker {_death(code, log_path)}")
 
-    def _follow_worker(self, job_id: int, stdout: Any) -> tuple[dict[str, Any] | None, str | None]:
+    def _ending(self, job_id: int) -> bool:
+        with self._lock:
+            return job_id in self._cancelled or self._stopping
+
+    def _follow_worker(self, job_id: int, proc: subprocess.Popen[str]) -> tuple[dict[str, Any] | None, str | None]:
+        """The worker's result or error message, following its progress until it ends, is cancelled or the
+        service stops. Its lines are read by a thread: the runner itself waits on the process, never on the
+        pipe, which a child that escaped the worker's group could hold open."""
+        assert proc.stdout is not None
+        lines: queue.Queue[str | None] = queue.Queue()
+        threading.Thread(target=_pump, args=(proc.stdout, lines), name=f"rigd-worker-out-{job_id}", daemon=True).start()
         throttle = _Throttle()
         result, error = None, None
-        for line in stdout:
+        exited_at: float | None = None
+        while not self._ending(job_id):
+            try:
+                line = lines.get(timeout=WORKER_POLL_S)
+            except queue.Empty:
+                if exited_at is None and _exited(proc.pid):
+                    exited_at = time.monotonic()
+                if exited_at is not None and time.monotonic() - exited_at > WORKER_OUTPUT_GRACE_S:
+                    break  # it exited, yet its pipe stays open: the rest of its output is not coming
+                continue
+            if line is None:  # end of file: the worker (the only writer) has gone
+                break
             try:
                 message = json.loads(line)
             except json.JSONDecodeError:
@@ -274,6 +365,30 @@ class JobRunner:
                 error = message["message"]
                 self.jobs.log(job_id, f"error: {error}")
         return result, error
+
+    def _end_worker(self, job_id: int, proc: subprocess.Popen[str], stop: bool) -> int:
+        """Wait for the worker's process group to end (``stop``: end it), reap the worker and return its exit
+        code. SIGTERM first, so multiprocessing's resource tracker can remove the pool's semaphores, then
+        SIGKILL for whatever is left after ``WORKER_STOP_GRACE_S``. The worker is reaped last, under the lock:
+        until then its id names its group, so :meth:`cancel` cannot signal a stranger's."""
+        def ended() -> bool:
+            return _exited(proc.pid) and not _group_alive(proc.pid)
+
+        if not stop:  # it closed its output: give it the time to exit by itself
+            _wait_until(ended, WORKER_OUTPUT_GRACE_S)
+        if not ended():
+            _signal_group(proc.pid, signal.SIGTERM)
+            if not _wait_until(ended, WORKER_STOP_GRACE_S):
+                _signal_group(proc.pid, signal.SIGKILL)
+                LOG.warning("rigd: job %d: worker process group %d outlived SIGTERM, killed", job_id, proc.pid)
+        os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)  # not under the lock: cancels must not wait
+        with self._lock:
+            code = proc.wait()
+            del self._procs[job_id]
+        assert proc.stdin is not None
+        with contextlib.suppress(BrokenPipeError):  # the worker is gone: closing flushes into nowhere
+            proc.stdin.close()
+        return code
 
     def _store_result(self, job: Job, result: dict[str, Any]) -> None:
         params, report = job.params, result["report"]
@@ -367,8 +482,8 @@ class JobRunner:
             self._cancelled.add(job_id)
             self.jobs.progress(job_id, "cancelling", job.fraction)
             self.jobs.log(job_id, "cancel requested")
-            if job_id in self._procs:
-                self._procs[job_id].terminate()
+            if job_id in self._procs:  # the runner's thread then waits for the group, escalating to SIGKILL
+                _signal_group(self._procs[job_id].pid, signal.SIGTERM)
             if job_id in self._captures:
                 self._captures[job_id][1].set()
             return self.jobs.get(job_id)
@@ -378,7 +493,7 @@ class JobRunner:
         with self._lock:
             self._stopping = True
             for proc in self._procs.values():
-                proc.terminate()
+                _signal_group(proc.pid, signal.SIGTERM)
             for _, stop, _ in self._captures.values():
                 stop.set()
             threads = [t for _, _, t in self._captures.values()]

@@ -6,8 +6,16 @@ to stdin and keeps stdin open; the worker writes JSON lines to stdout: ``{"type"
 "message"}``. Its stderr goes to the job log.
 
 A separate process keeps the service responsive (the GIL is not shared) and makes cancelling a running
-calibration or check a plain SIGTERM. When stdin reaches end of file the parent is gone (killed, crashed): the
-worker exits at once instead of finishing a job nobody will record.
+calibration or check a plain SIGTERM to the worker's process group (it leads one: the parent starts it in a
+session of its own, and the calibration's pool processes join it). When stdin reaches end of file the parent is
+gone (killed, crashed): the worker ends its group at once instead of finishing a job nobody will record.
+
+The protocol has the pipe to itself: file descriptor 1 is pointed at stderr (the job log) before anything
+runs, so nothing the worker starts holds the pipe open after the worker is gone, and stray prints from
+libraries go to the log instead of into the protocol.
+
+A failure the worker did not foresee (a bug, numpy's LinAlgError) still ends with an ``error`` line naming
+it, so the job says why it failed; its traceback goes to the job log.
 """
 
 from __future__ import annotations
@@ -16,6 +24,7 @@ import json
 import os
 import sys
 import threading
+import traceback
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -31,6 +40,7 @@ from rigd.calibration.check import run_check
 from rigd.dataset import open_dataset
 from rigd.dataset.records import prior_from_yaml, tolerance_from_yaml
 from rigd.errors import RigdError
+from rigd.lifetime import leave
 from rigd.store.datasets import content_hash
 from rigd.store.jsonsafe import json_safe
 
@@ -48,8 +58,8 @@ class Reporter:
         try:
             self.out.write(json.dumps(message) + "\n")
             self.out.flush()
-        except BrokenPipeError:
-            os._exit(EXIT_PARENT_GONE)
+        except BrokenPipeError:  # the parent is gone
+            leave(EXIT_PARENT_GONE)
 
     def progress(self, stage: str, fraction: float) -> None:
         self.send({"type": "progress", "stage": stage, "fraction": fraction})
@@ -63,9 +73,9 @@ class Reporter:
 
 
 def _watch_parent(stdin: TextIO) -> None:
-    """Exit when the parent closes our stdin (it died, or it cancels us)."""
+    """End the worker's process group when the parent closes our stdin (it died, or it cancels us)."""
     stdin.read()
-    os._exit(EXIT_PARENT_GONE)
+    leave(EXIT_PARENT_GONE)
 
 
 def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
@@ -111,15 +121,29 @@ def run_check_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
 JOBS = {"calibrate": run_job, "check": run_check_job}
 
 
+def _protocol_out() -> TextIO:
+    """The parent's pipe on a descriptor of its own (not inherited by child processes); fd 1 (sys.stdout)
+    becomes the job log."""
+    sys.stdout.flush()
+    out = os.fdopen(os.dup(sys.stdout.fileno()), "w", encoding="utf-8")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+    return out
+
+
 def main() -> int:
+    reporter = Reporter(_protocol_out())
     job = json.loads(sys.stdin.readline())
     threading.Thread(target=_watch_parent, args=(sys.stdin,), daemon=True).start()
-    reporter = Reporter(sys.stdout)
     try:
         reporter.send(JOBS[job.get("kind", "calibrate")](job, reporter))
     except (RigdError, DriverError, CalibError) as exc:
         reporter.send({"type": "error", "message": str(exc)})
         return 2
+    except Exception as exc:  # unforeseen: the job still says what killed it, the log has where
+        traceback.print_exc()
+        cause = traceback.format_exception_only(exc)[-1].strip()
+        reporter.send({"type": "error", "message": f"the worker failed: {cause} (traceback in the job log)"})
+        return 1
     return 0
 
 

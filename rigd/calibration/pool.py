@@ -5,7 +5,8 @@ and those are built on demand where the samples land: seconds of work that pickl
 ``EdgeFields`` travels without its bands). This pool sends a features list to a worker once; a later task
 with the same list goes to a worker that holds it, if one is free, and uses that copy with the bands it
 built. Results do not depend on where a task runs: a band's values do not depend on what was sampled before.
-A worker holds what it was sent until the pool closes, at the end of the calibration.
+A worker holds what it was sent until the pool closes, at the end of the calibration, or until its parent is
+gone: a worker whose parent was killed exits rather than finish a solve nobody will read.
 """
 
 from __future__ import annotations
@@ -13,12 +14,16 @@ from __future__ import annotations
 import functools
 import itertools
 import multiprocessing
+import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from typing import Any, NamedTuple
 
 from calib.gmm import PairFeatures
+from rigd.lifetime import exit_with_parent
+
+EXIT_PARENT_GONE = 3  # a pool worker's exit code when its parent died
 
 _HELD: dict[int, list[PairFeatures]] = {}  # in a worker: the features lists it was sent, by token
 
@@ -41,6 +46,12 @@ def _resolve(arg: Any) -> Any:
     return arg
 
 
+def _start_worker(parent_pid: int, initializer: Callable[..., None] | None, initargs: tuple[Any, ...]) -> None:
+    exit_with_parent(parent_pid, EXIT_PARENT_GONE)
+    if initializer is not None:
+        initializer(*initargs)
+
+
 def _call(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
     return fn(*(_resolve(a) for a in args), **kwargs)
 
@@ -58,7 +69,8 @@ class FeaturePool(Executor):
     def __init__(self, workers: int, initializer: Callable[..., None] | None = None,
                  initargs: tuple[Any, ...] = ()) -> None:
         context = multiprocessing.get_context("spawn")
-        self._workers = [ProcessPoolExecutor(1, mp_context=context, initializer=initializer, initargs=initargs)
+        start = (os.getpid(), initializer, initargs)
+        self._workers = [ProcessPoolExecutor(1, mp_context=context, initializer=_start_worker, initargs=start)
                          for _ in range(workers)]
         self._busy = [0] * workers
         self._held: dict[int, tuple[list[PairFeatures], dict[int, int]]] = {}  # id -> (list, worker -> token)

@@ -151,6 +151,36 @@ def worker_pid(log_tail: list[str]) -> int:
     return pids[-1]
 
 
+def _stat(pid: str) -> list[str] | None:
+    """/proc/PID/stat's fields after the command name (state, ppid, pgrp, ...), None if it has exited."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except (FileNotFoundError, ProcessLookupError):
+        return None
+
+
+def _live() -> dict[int, list[str]]:
+    stats = {int(p.name): _stat(p.name) for p in Path("/proc").iterdir() if p.name.isdigit()}
+    return {pid: fields for pid, fields in stats.items() if fields is not None and fields[0] != "Z"}
+
+
+def process_group(pgid: int) -> list[int]:
+    """The running (not zombie) processes of process group ``pgid``."""
+    return sorted(pid for pid, fields in _live().items() if int(fields[2]) == pgid)
+
+
+def descendants(pid: int) -> list[int]:
+    """The running processes started by ``pid``, its children's children and so on."""
+    children: dict[int, list[int]] = {}
+    for child, fields in _live().items():
+        children.setdefault(int(fields[1]), []).append(child)
+    found, todo = [], [pid]
+    while todo:
+        found += (kids := children.get(todo.pop(), []))
+        todo += kids
+    return sorted(found)
+
+
 def gone(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]

@@ -1,11 +1,26 @@
-"""DELETE /jobs/{id}: a queued calibration is cancelled at once, a running one by stopping its worker, a
-running capture between pairs; a finished job cannot be cancelled."""
+"""DELETE /jobs/{id}: a queued calibration is cancelled at once, a running one by stopping its worker and the
+processes it started (in whatever stage it is), a running capture between pairs; a finished job cannot be
+cancelled."""
 
 from __future__ import annotations
 
 import time
+from typing import Any
 
-from api_helpers import Server, gone, perturbed_truth, simulated_dataset, wait_job, wait_running, worker_pid
+import httpx
+from api_helpers import (
+    FINISHED,
+    Server,
+    gone,
+    perturbed_truth,
+    process_group,
+    simulated_dataset,
+    wait_job,
+    wait_running,
+    worker_pid,
+)
+
+CANCEL_S = 5.0  # a cancelled job is cancelled within this, whatever its stage
 
 
 def test_cancel_queued_and_running_jobs(tmp_path):
@@ -45,5 +60,50 @@ def test_cancel_queued_and_running_jobs(tmp_path):
             again = client.post("/capture", json={"dataset": "cut", "n": 1})
             assert again.status_code == 202
             wait_job(client, again.json()["id"])
+    finally:
+        server.stop()
+
+
+def wait_stage(client: httpx.Client, job_id: int, stage: str, timeout_s: float = 120.0) -> dict[str, Any]:
+    """The job once its stage holds ``stage``."""
+    deadline = time.monotonic() + timeout_s
+    while stage not in (job := client.get(f"/jobs/{job_id}").json())["stage"]:
+        assert job["status"] not in FINISHED and time.monotonic() < deadline, (stage, job)
+        time.sleep(0.02)
+    return job
+
+
+def test_a_calibration_is_cancelled_within_seconds_in_every_stage_and_the_queue_moves_on(tmp_path):
+    """Issue 33: the pool processes held the worker's pipe, so a cancel left the job cancelling and every later
+    job queued for minutes."""
+    data = tmp_path / "data"
+    dataset = simulated_dataset(data, "ds", pairs=3)
+    guess = perturbed_truth(dataset)
+    stages: list[tuple[str, dict[str, Any]]] = [  # the stage to cancel in; the request (each its own sigmas)
+        ("hashing the dataset", {"init": guess, "sigmas_deg": [6.0, 3.0]}),
+        ("global search", {"init": "search"}),
+        ("optimising level", {"init": guess, "sigmas_deg": [5.0, 2.5]}),
+        ("writing overlays", {"init": guess}),
+    ]
+    server = Server(data, env={"RIGD_MAX_QUEUED_JOBS": "8"}).start()
+    try:
+        with server.client() as client:
+            jobs = [client.post("/calibrate", json={"dataset": "ds", **body}).json() for _, body in stages]
+            check = client.post("/check", json={"dataset": "ds", "against": guess}).json()  # queued behind them
+            assert check["status"] == "queued"
+            for (stage, _), job in zip(stages, jobs, strict=True):
+                pid = worker_pid(wait_running(client, job["id"])["log_tail"])
+                wait_stage(client, job["id"], stage)
+                if stage != "hashing the dataset":  # the worker, its two pool processes (and their tracker)
+                    assert len(process_group(pid)) >= 3, (stage, process_group(pid))
+                asked = time.monotonic()
+                cancelling = client.delete(f"/jobs/{job['id']}")
+                assert cancelling.status_code == 202, cancelling.text
+                done = wait_job(client, job["id"], timeout_s=CANCEL_S)
+                print(f"cancel in {stage!r}: {time.monotonic() - asked:.2f} s")
+                assert done["status"] == "cancelled" and done["result"] is None, done
+                assert process_group(pid) == [], f"processes of worker {pid} outlived the cancel in {stage!r}"
+            assert wait_job(client, check["id"])["status"] == "succeeded"
+            assert client.get("/extrinsics/versions").json() == []
     finally:
         server.stop()

@@ -1,5 +1,6 @@
 """The service killed with SIGKILL: versions written until then survive intact, running jobs are marked
-failed (interrupted) at the next start, and the orphaned calibration worker exits by itself."""
+failed (interrupted) at the next start, and the orphaned calibration worker and its pool processes exit by
+themselves. Stopped, it stops its calibration's processes too."""
 
 from __future__ import annotations
 
@@ -9,7 +10,16 @@ import time
 
 import httpx
 import numpy as np
-from api_helpers import Server, gone, matrix, perturbed_truth, simulated_dataset, wait_running, worker_pid
+from api_helpers import (
+    Server,
+    descendants,
+    gone,
+    matrix,
+    perturbed_truth,
+    simulated_dataset,
+    wait_running,
+    worker_pid,
+)
 from scipy.spatial.transform import Rotation
 
 
@@ -77,19 +87,24 @@ def test_sigkill_while_writing_versions_keeps_the_history_intact(tmp_path):
     assert active[0] >= max(activated, default=1)
 
 
-def test_sigkill_during_a_calibration_marks_it_interrupted(tmp_path):
+def test_sigkill_during_a_calibration_marks_it_interrupted_and_leaves_no_process(tmp_path):
     data = tmp_path / "data"
     dataset = simulated_dataset(data, "ds", pairs=3)
     server = Server(data).start()
+    assert server.proc is not None
     with server.client() as client:
         job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
-        current = wait_running(client, job["id"])
+        pid = worker_pid(wait_running(client, job["id"])["log_tail"])
+        wait_running(client, job["id"], "edges of")  # the worker's pool processes have started
+        started = descendants(server.proc.pid)
+    assert pid in started and len(started) >= 3, started  # the worker, two pool processes (and their tracker)
     server.kill()
-    pid = worker_pid(current["log_tail"])
-    deadline = time.monotonic() + 20
-    while not gone(pid):  # its stdin closed with the server: the worker stops instead of finishing
-        assert time.monotonic() < deadline, f"orphaned worker {pid} still runs"
+    killed = time.monotonic()
+    # The worker's stdin closed with the server: it ends its process group instead of finishing.
+    while alive := [p for p in started if not gone(p)]:
+        assert time.monotonic() < killed + 10, f"processes {alive} of the killed service still run"
         time.sleep(0.1)
+    print(f"no process of the killed service after {time.monotonic() - killed:.2f} s")
 
     server.start()
     with server.client() as client:
@@ -105,11 +120,17 @@ def test_stopping_the_service_fails_a_running_calibration_cleanly(tmp_path):
     data = tmp_path / "data"
     dataset = simulated_dataset(data, "ds", pairs=3)
     server = Server(data).start()
+    assert server.proc is not None
     with server.client() as client:
         job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
-        while client.get(f"/jobs/{job['id']}").json()["status"] == "queued":
-            time.sleep(0.05)
+        wait_running(client, job["id"], "edges of")
+        started = descendants(server.proc.pid)
+    asked = time.monotonic()
     server.stop()
+    took = time.monotonic() - asked
+    print(f"rigd serve stopped in {took:.2f} s")
+    assert took < 10, f"stopping took {took:.1f} s"
+    assert [p for p in started if not gone(p)] == []  # its calibration's processes went with it
     server.start()
     with server.client() as client:
         after = client.get(f"/jobs/{job['id']}").json()

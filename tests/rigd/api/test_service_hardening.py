@@ -1,9 +1,11 @@
-"""A careless or hostile client (issue 15): text that is not Unicode, symlinks out of the data directory,
-bodies that never arrive, a full queue, a second service on the same data directory, a deleted data
-directory, a camera without its SDK layout."""
+"""A careless or hostile client (issues 15, 33): text that is not Unicode, bodies nested hundreds of levels
+deep, values beyond physical bounds, symlinks out of the data directory, bodies that never arrive, a full
+queue, a second service on the same data directory, a deleted data directory, a camera without its SDK
+layout."""
 
 from __future__ import annotations
 
+import json
 import shutil
 import socket
 import subprocess
@@ -23,6 +25,11 @@ from api_helpers import (
     wait_running,
     worker_pid,
 )
+from hypothesis import given
+from hypothesis import strategies as st
+
+from rigd.api.main import json_nesting
+from rigd.api.models import MAX_NESTING, CalibrateIn, PriorIn, ToleranceIn, body_problem
 
 JSON = {"Content-Type": "application/json"}
 IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}
@@ -51,6 +58,98 @@ def test_lone_surrogates_are_refused_not_a_server_error(server, path, body):
         # Nothing was stored that could not be read back.
         listed = client.get("/extrinsics/versions")
         assert listed.status_code == 200 and all(v["parameters"].get("note") != "a\ud800b" for v in listed.json())
+
+
+def nested(depth: int) -> str:
+    """JSON ``depth`` levels deep, arrays and objects in turn."""
+    return "".join('[' if i % 2 else '{"a": ' for i in range(depth)) + "0" + "".join(
+        ']' if i % 2 else '}' for i in reversed(range(depth)))
+
+
+@pytest.mark.parametrize("path, body", [
+    ("/calibrate", '{"dataset": "ds", "init": "rig", "x": ' + "[" * 330 + "]" * 330 + "}"),  # issue 33's 1 KB body
+    ("/calibrate", '{"dataset": "ds", "init": {"matrix": ' + "[" * 900 + "]" * 900 + "}}"),
+    ("/extrinsics/versions", '{"T_camera_lidar": ' + nested(3000) + "}"),
+    ("/check", "[" * 30000 + "]" * 30000),  # 60 KB: within the body limit, too deep for Python's JSON parser
+    ("/capture", '{"dataset": "x", "n": ' + nested(17) + "}"),
+])
+def test_deeply_nested_bodies_are_refused_not_a_server_error(server, path, body):
+    with server.client() as client:
+        jobs = len(client.get("/jobs").json())
+        response = client.post(path, content=body.encode(), headers=JSON)
+        assert response.status_code == 422, response.text[:300]
+        assert f"at most {MAX_NESTING} are accepted" in response.json()["detail"]
+        assert len(client.get("/jobs").json()) == jobs
+    assert "Traceback" not in server.log_path.read_text()
+
+
+def test_brackets_in_text_and_bodies_at_the_nesting_limit_are_not_refused_for_depth(server):
+    with server.client() as client:
+        note = "[{" * 200 + '\\"' + "]" * 3
+        stored = client.post("/extrinsics/versions", json={"T_camera_lidar": IDENTITY, "note": note})
+        assert stored.status_code == 201, stored.text
+        assert stored.json()["parameters"]["note"] == note
+        limit = client.post("/calibrate", content=('{"dataset": "ds", "x": ' + nested(MAX_NESTING - 1) + "}").encode(),
+                            headers=JSON)
+        assert limit.status_code == 422 and limit.json()["detail"][0]["type"] == "extra_forbidden", limit.text
+
+
+def depth(value: object) -> int:
+    if isinstance(value, dict | list):
+        return 1 + max(map(depth, value.values() if isinstance(value, dict) else value), default=0)
+    return 0
+
+
+JSON_VALUES = st.recursive(st.none() | st.booleans() | st.floats(allow_nan=False) | st.text(alphabet='[]{}"\\ab'),
+                           lambda inner: st.lists(inner, max_size=3) | st.dictionaries(
+                               st.text(alphabet='[]{}"\\ab'), inner, max_size=3), max_leaves=30)
+
+
+@given(JSON_VALUES)
+def test_json_nesting_counts_the_levels_of_objects_and_arrays(value):
+    assert json_nesting(json.dumps(value).encode()) == depth(value)
+    assert json_nesting(json.dumps(value, ensure_ascii=False).encode()) == depth(value)
+
+
+def test_the_models_bound_the_nesting_without_recursion():
+    deep: list = []
+    for _ in range(100_000):
+        deep = [deep]
+    problem = body_problem({"a": deep})
+    assert problem is not None and f"nested more than {MAX_NESTING} levels deep" in problem
+
+
+IDENTITY_BODY = {"dataset": "ds", "init": IDENTITY}
+
+
+@pytest.mark.parametrize("path, body, field, bounds", [
+    ("/calibrate", {**IDENTITY_BODY, "tolerance": {"rotation_deg": 1e-300}}, "rotation_deg", "0.001 .. 10 deg"),
+    ("/calibrate", {**IDENTITY_BODY, "tolerance": {"translation_cm": 1e-300}}, "translation_cm", "0.01 .. 100 cm"),
+    ("/calibrate", {**IDENTITY_BODY, "tolerance": {"rotation_deg": 45}}, "rotation_deg", "0.001 .. 10 deg"),
+    ("/check", {"dataset": "ds", "against": IDENTITY, "threshold": {"rotation_deg": 1e-300, "translation_cm": 1}},
+     "rotation_deg", "0.001 .. 10 deg"),
+    ("/check", {"dataset": "ds", "against": IDENTITY, "threshold": {"translation_cm": 500}}, "translation_cm",
+     "0.01 .. 100 cm"),
+    ("/calibrate", {**IDENTITY_BODY, "prior": {"xyz_m": [0, 0, 0], "sigma_cm": 1e-300}}, "sigma_cm",
+     "0.01 .. 1000 cm"),
+    ("/calibrate", {**IDENTITY_BODY, "prior": {"rpy_deg": [0, 0, 0], "sigma_deg": 1e-300}}, "sigma_deg",
+     "0.001 .. 180 deg"),
+    ("/calibrate", {**IDENTITY_BODY, "sigmas_deg": [5.0, 1e-300]}, "sigmas_deg", "0.1 .. 30 deg"),
+])
+def test_values_beyond_physical_bounds_are_refused_naming_the_range(server, path, body, field, bounds):
+    with server.client() as client:
+        jobs = len(client.get("/jobs").json())
+        response = client.post(path, json=body)
+        assert response.status_code == 422, response.text
+        errors = [e for e in response.json()["detail"] if field in e["loc"]]
+        assert errors and f"must be within {bounds}" in errors[0]["msg"], response.text
+        assert len(client.get("/jobs").json()) == jobs
+
+
+def test_the_bounds_themselves_are_accepted():
+    assert ToleranceIn(rotation_deg=0.001, translation_cm=0.01) and ToleranceIn(rotation_deg=10, translation_cm=100)
+    assert PriorIn(xyz_m=[0, 0, 0], sigma_cm=0.01, rpy_deg=[0, 0, 0], sigma_deg=0.001)
+    assert CalibrateIn(dataset="ds", sigmas_deg=[0.1, 30.0])
 
 
 def test_symlinks_out_of_the_datasets_folder_are_refused(server, tmp_path):

@@ -1,8 +1,13 @@
 """rigd.calibration.pool: workers keep the features they were sent; a later task with them goes to a free
-worker that holds them, and ends where a serial run does."""
+worker that holds them, and ends where a serial run does; workers whose parent is killed exit."""
 
+import json
 import os
+import signal
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -53,3 +58,36 @@ def test_a_calibration_in_the_pool_ends_exactly_where_the_serial_one_does(pairs)
     for a, b in zip(serial.assessment.restarts, pooled.assessment.restarts, strict=True):
         assert np.array_equal(a.offset, b.offset) and a.delta_nll == b.delta_nll
     assert serial.assessment.verdict == pooled.assessment.verdict
+
+
+PARENT = """
+import json, time
+from rigd.calibration.pool import FeaturePool
+pool = FeaturePool(2)
+for _ in range(2):
+    pool.submit(time.sleep, 600)  # one long task in each worker
+print(json.dumps([p.pid for w in pool._workers for p in w._processes.values()]), flush=True)
+time.sleep(600)
+"""
+
+
+def _running(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_workers_exit_when_their_parent_is_killed():
+    """Issue 33: a killed calibration worker left its pool processes running (each ~200 MB) until their task
+    ended."""
+    parent = subprocess.Popen([sys.executable, "-c", PARENT], stdout=subprocess.PIPE, text=True)
+    assert parent.stdout is not None
+    workers = json.loads(parent.stdout.readline())
+    assert len(workers) == 2 and all(_running(pid) for pid in workers)
+    parent.send_signal(signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 5
+    while alive := [pid for pid in workers if _running(pid)]:
+        assert time.monotonic() < deadline, f"pool workers {alive} outlived their parent"
+        time.sleep(0.1)
