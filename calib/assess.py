@@ -112,6 +112,9 @@ class Uncertainty:
     matched_share: float
 
 
+LOCAL_ORIGINS = ("restart", "solution")  # solves from around the solution (not from the search's other starts)
+
+
 @dataclass(frozen=True)
 class Restart:
     """One restart: its offset from the solution in deg/cm (6,) and the NLL above the best (>= 0 unless it
@@ -119,7 +122,9 @@ class Restart:
 
     offset: F64
     delta_nll: float
-    origin: str = "restart"  # or "search runner-up": a full solve from the global search's next start
+    # or "search runner-up" / "search start": a full solve from one of the global search's starts; "solution":
+    # the first solution, when a restart ended lower
+    origin: str = "restart"
 
 
 @dataclass(frozen=True)
@@ -308,7 +313,7 @@ def restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOp
     levels' basin around a determined pose is wider than the restart offsets (simulated sets: every restart
     back within 0.01 of that bound), so minima this close mean the cost is rugged here and the solution is one
     of several (docs/trust.md). None otherwise."""
-    local = [r for r in restarts if r.origin != "search runner-up"]
+    local = [r for r in restarts if r.origin in LOCAL_ORIGINS]
     bound = np.maximum(trust.tolerance_display, 3.0 * unc.sigma)
     away = [r for r in local if r.delta_nll >= trust.ambiguity_nll and np.any(np.abs(r.offset) > bound)]
     if not local or len(away) <= (1.0 - trust.min_returned_share) * len(local):
@@ -362,8 +367,9 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, mov
         return Verdict(Status.FAILED, AXES, tuple(reasons))
     if weak:
         return Verdict(Status.WEAK, tuple(a for a in AXES if a in weak), tuple(reasons))
+    local = sum(r.origin in LOCAL_ORIGINS for r in restarts)  # the search's other starts need not agree
     return Verdict(Status.TRUSTED, (), (f"every axis within tolerance at {trust.sigma_factor:g} sigma; "
-                                        f"{len(restarts)} restarts agree",))
+                                        f"{local} restarts agree",))
 
 
 def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions,
@@ -379,13 +385,17 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
     poses (6,) tau the solves started from (the initial guess, the search's runners-up); the solution's
     rotation from the nearest one is reported, and beyond ``trust.max_move_deg`` fails the result."""
     solving = prior if solving is None else solving
-    best, runs = _run_restarts(feats, result, opts, gmm, solving, trust, executor)
-    best = min([best, *alternatives], key=lambda r: r.final_cost)
+    # The restarts probe the basin of the lowest full solve: a search runner-up that ends lower than the
+    # search's best start is the solution, and restarts around the start's would only find that start's basin.
+    first = min([result, *alternatives], key=lambda r: r.final_cost)
+    best, runs = _run_restarts(feats, first, opts, gmm, solving, trust, executor)
     unc = _uncertainty(feats, best.tau, opts, gmm, prior, trust, solving)
-    origins = ["solution"] + ["restart"] * len(runs) + ["search runner-up"] * len(alternatives)
+    searched = [(r, "search start" if r is result else "search runner-up")
+                for r in [result, *alternatives] if r is not first]
+    solves = [(first, "solution"), *((r, "restart") for r in runs), *searched]
     restarts = tuple(
         Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (r.final_cost - best.final_cost) / unc.kappa, origin)
-        for r, origin in zip([result, *runs, *alternatives], origins, strict=True) if r is not best
+        for r, origin in solves if r is not best
     )
     moved = min((rotation_angle_deg(so3_exp(s[:3]), so3_exp(best.tau[:3])) for s in starts), default=None)
     return Assessment(best.tau, best, unc, restarts, _verdict(unc, list(restarts), trust, moved), moved)

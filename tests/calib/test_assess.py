@@ -265,15 +265,15 @@ def test_the_guess_lever_arm_is_a_weak_prior_of_the_solve_and_not_of_the_reporte
     from calib.pipeline import CalibParams, calibrate, solve_prior
 
     guess = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.0, -1.5, 1.0], TRUTH.translation_m + [0.04, -0.03, 0.03])
-    weak = solve_prior(None, guess, CalibParams())
+    weak = solve_prior(None, guess, CalibParams().guess_sigma_m)
     assert weak is not None and np.array_equal(weak.xyz_m, guess.translation_m)
     np.testing.assert_array_equal(weak.sigma_xyz_m, [0.1, 0.1, 0.1])
     declared = Prior(TRUTH.translation_m, np.full(3, 0.01))
-    assert solve_prior(declared, guess, CalibParams()) is declared  # the drawing's lever arm wins
+    assert solve_prior(declared, guess, 0.1) is declared  # the drawing's lever arm wins
     rotation_only = Prior(rotation=TRUTH.rotation, sigma_rot_rad=np.full(3, 0.1))
-    merged = solve_prior(rotation_only, guess, CalibParams())
+    merged = solve_prior(rotation_only, guess, 0.1)
     assert merged is not None and merged.sigma_rot_rad is not None and merged.sigma_xyz_m is not None
-    assert solve_prior(None, guess, CalibParams(guess_sigma_m=0.0)) is None
+    assert solve_prior(None, guess, 0.0) is None
 
     trust = TrustOptions(restarts=1)
     with_guess = calibrate(pairs, guess, CalibParams(), trust=trust)

@@ -78,4 +78,8 @@ def test_an_alternative_that_ends_lower_replaces_a_stuck_solution(pairs):
     good = optimise(pairs, TRUTH.tau, opts, FIELD)
     a = assess(pairs, stuck, opts, FIELD, None, TrustOptions(restarts=1), alternatives=(good,))
     assert rotation_angle_deg(so3_exp(a.tau[:3]), TRUTH.rotation) < 0.05
-    assert [r.origin for r in a.restarts if r.origin == "solution"] == ["solution"]
+    assert [r.origin for r in a.restarts if r.origin.startswith("search")] == ["search start"]
+    # The restarts probe the new solution's basin, not the stuck start's 60 deg away: they come back to it (a
+    # restart that ends lower is the solution, and the first solution is listed in its place).
+    restarts = [r for r in a.restarts if r.origin in ("restart", "solution")]
+    assert restarts and all(np.all(np.abs(r.offset) < [0.2, 0.2, 0.2, 1.0, 1.0, 1.0]) for r in restarts)
