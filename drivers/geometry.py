@@ -13,14 +13,15 @@ from numpy.typing import NDArray
 F64 = NDArray[np.float64]
 
 
-def rpy_deg_to_matrix(rpy_deg: F64) -> F64:
+def rpy_deg_to_matrix(rpy_deg: F64 | tuple[float, float, float]) -> F64:
     """(3,3) rotation from roll, pitch, yaw in degrees."""
     roll, pitch, yaw = np.radians(np.asarray(rpy_deg, dtype=np.float64))
     cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
     rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
     ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
     rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
-    return rz @ ry @ rx
+    rotation: F64 = rz @ ry @ rx
+    return rotation
 
 
 def matrix_to_rpy_deg(rotation: F64) -> F64:
@@ -33,7 +34,8 @@ def matrix_to_rpy_deg(rotation: F64) -> F64:
     else:
         roll = np.arctan2(r[2, 1], r[2, 2])
         yaw = np.arctan2(r[1, 0], r[0, 0])
-    return np.degrees(np.array([roll, pitch, yaw]))
+    rpy: F64 = np.degrees(np.array([roll, pitch, yaw], dtype=np.float64))
+    return rpy
 
 
 def matrix_to_quaternion_xyzw(rotation: F64) -> F64:

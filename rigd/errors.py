@@ -7,3 +7,7 @@ class RigdError(Exception):
 
 class DatasetError(RigdError):
     """A dataset, or a file in it, is missing or corrupt; the message names the file."""
+
+
+class DatasetLockedError(DatasetError):
+    """Another process is writing the dataset (a capture, an import); the message names it."""

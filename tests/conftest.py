@@ -1,4 +1,5 @@
-"""CI runs hypothesis derandomised, so a green run is reproducible; locally it explores new examples."""
+"""CI (.ci/run sets CI=1) runs hypothesis derandomised, so a green run is reproducible; locally it explores new
+examples."""
 
 import os
 

@@ -17,6 +17,7 @@ import struct
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -230,14 +231,15 @@ def frame_block_images(block: bytes, layout: PgrLayout, where: str) -> list[NDAr
 
 def assemble_bayer(planes: Sequence[bytes], layout: PgrLayout, where: str) -> NDArray[np.uint8]:
     """Four JPEG Bayer-channel images -> one demosaiced BGR image (2h, 2w, 3) uint8."""
-    decoded = [cv2.imdecode(np.frombuffer(p, np.uint8), cv2.IMREAD_GRAYSCALE) for p in planes]
-    if any(d is None for d in decoded) or len({d.shape for d in decoded}) != 1:
+    maybe = [cv2.imdecode(np.frombuffer(p, np.uint8), cv2.IMREAD_GRAYSCALE) for p in planes]
+    decoded = [d for d in maybe if d is not None]
+    if len(decoded) != len(maybe) or len({d.shape for d in decoded}) != 1:
         raise CorruptFrameError(f"{where}: a Bayer channel JPEG does not decode or sizes differ")
     h, w = decoded[0].shape
     mosaic = np.empty((2 * h, 2 * w), np.uint8)
     for (r, c), plane in zip(layout.slot_cells, decoded, strict=True):
         mosaic[r::2, c::2] = plane
-    return cv2.cvtColor(mosaic, BAYER_TO_BGR[layout.bayer_pattern])
+    return cast(NDArray[np.uint8], cv2.cvtColor(mosaic, BAYER_TO_BGR[layout.bayer_pattern]))
 
 
 def bayer_planes(image_bgr: NDArray[np.uint8], layout: PgrLayout, quality: int = 95) -> list[bytes]:

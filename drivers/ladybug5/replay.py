@@ -16,6 +16,7 @@ import csv
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -75,19 +76,20 @@ def read_timestamps(directory: Path) -> list[_Row]:
     return rows
 
 
-def _to_bgr8(image: NDArray, bayer_pattern: str | None, where: str) -> NDArray[np.uint8]:
+def _to_bgr8(image: NDArray[Any], bayer_pattern: str | None, where: str) -> NDArray[np.uint8]:
     if image.dtype == np.uint16:
         image = (image >> 8).astype(np.uint8)
     if image.dtype != np.uint8:
         raise CorruptFrameError(f"{where}: unsupported pixel type {image.dtype}")
     if image.ndim == 2:
-        return cv2.cvtColor(image, BAYER_TO_BGR[bayer_pattern] if bayer_pattern else cv2.COLOR_GRAY2BGR)
+        return cast(NDArray[np.uint8],
+                    cv2.cvtColor(image, BAYER_TO_BGR[bayer_pattern] if bayer_pattern else cv2.COLOR_GRAY2BGR))
     if image.ndim == 3 and image.shape[2] == 3:
         return image
     raise CorruptFrameError(f"{where}: expected a 1- or 3-channel image, got shape {image.shape}")
 
 
-def _read_image(path: Path, flags: int) -> NDArray:
+def _read_image(path: Path, flags: int) -> NDArray[Any]:
     image = cv2.imread(str(path), flags)
     if image is None:
         raise CorruptFrameError(f"{path}: missing, unreadable or corrupt image")

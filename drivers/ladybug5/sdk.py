@@ -22,7 +22,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -321,7 +321,9 @@ class SdkCamera:
         self.close()
 
 
-def decode_grab(image: GrabbedImage, layout: SdkLayout, bayer_pattern: str, pgr_layout: PgrLayout) -> list[NDArray]:
+def decode_grab(
+    image: GrabbedImage, layout: SdkLayout, bayer_pattern: str, pgr_layout: PgrLayout
+) -> list[NDArray[np.uint8]]:
     """Six BGR images (raw sensor orientation) from a grabbed buffer."""
     where = f"grabbed frame {image.sequence_id}"
     if image.data_format == layout.formats["RAW8"]:
@@ -329,7 +331,7 @@ def decode_grab(image: GrabbedImage, layout: SdkLayout, bayer_pattern: str, pgr_
         if len(image.data) < expected:
             raise CorruptFrameError(f"{where}: RAW8 buffer has {len(image.data)} bytes, six images need {expected}")
         mosaics = np.frombuffer(image.data, np.uint8, expected).reshape(NUM_CAMERAS, image.rows, image.cols)
-        return [cv2.cvtColor(m, BAYER_TO_BGR[bayer_pattern]) for m in mosaics]
+        return [cast(NDArray[np.uint8], cv2.cvtColor(m, BAYER_TO_BGR[bayer_pattern])) for m in mosaics]
     if image.data_format == layout.formats["COLOR_SEP_JPEG8"]:
         return frame_block_images(image.data, pgr_layout, where)
     raise Ladybug5Error(
@@ -366,7 +368,7 @@ class SdkFrameSource:
         )
         self.skipped = SkipCounter()
 
-    def _grab_and_decode(self) -> tuple[GrabbedImage, list[NDArray]]:
+    def _grab_and_decode(self) -> tuple[GrabbedImage, list[NDArray[np.uint8]]]:
         image = self.camera.grab()
         return image, decode_grab(image, self.camera.lib.layout, self.bayer_pattern, self.pgr_layout)
 

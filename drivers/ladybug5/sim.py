@@ -34,7 +34,8 @@ def pixel_rays_optical(camera: RigCamera) -> F64:
     uv = np.stack([u.ravel(), v.ravel()], axis=1).reshape(-1, 1, 2)
     xy = cv2.undistortPoints(uv, camera.K, camera.D, None, None, None, _UNDISTORT_CRITERIA).reshape(-1, 2)
     rays = np.column_stack([xy, np.ones(len(xy))])
-    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    unit: F64 = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    return unit
 
 
 class SimFrameSource:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -128,15 +129,16 @@ class Stitcher:
         row_slice = slice(int(rows[0]), int(rows[-1]) + 1)
         uv_img = uv.reshape(h, w, 2).astype(np.float32)
         tiles = []
-        for c0, c1 in _column_runs(seen.any(axis=0)):
+        for c0, c1 in _column_runs(cast(NDArray[np.bool_], seen.any(axis=0))):
             block = (row_slice, slice(c0, c1))
             map1, map2 = cv2.convertMaps(uv_img[block][..., 0], uv_img[block][..., 1], cv2.CV_16SC2)
             tiles.append(
-                _Tile(index, row_slice, slice(c0, c1), map1, map2, weight_img[block][..., None].astype(np.float32))
+                _Tile(index, row_slice, slice(c0, c1), cast(NDArray[np.int16], map1), cast(NDArray[np.uint16], map2),
+                      weight_img[block][..., None].astype(np.float32))
             )
         return tiles
 
-    def stitch(self, images: Sequence[NDArray]) -> NDArray:
+    def stitch(self, images: Sequence[NDArray[Any]]) -> NDArray[Any]:
         """Panorama (H, W[, C]) in the images' dtype from one image per rig camera (raw orientation).
 
         Pixels no camera sees (below the head) are 0; see ``coverage``.

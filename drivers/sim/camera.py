@@ -12,6 +12,7 @@ camera frame x forward, y left, z up; pixel (row i, column j) has centre ``(u, v
 
 from __future__ import annotations
 
+import typing
 from functools import lru_cache
 
 import cv2
@@ -163,7 +164,7 @@ def render_pinhole(scene: Scene, origin_world: F64, rotation_world_optical: F64,
                          indexing="ij")
     pixels = np.stack([uu.ravel(), vv.ravel()], axis=1).reshape(-1, 1, 2)
     normalised = cv2.undistortPoints(pixels, k, dist).reshape(-1, 2)
-    rays = np.column_stack([normalised, np.ones(len(normalised))])
+    rays = typing.cast(F64, np.column_stack([normalised, np.ones(len(normalised))]))
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)
     dirs = rotate(rays, rotation_world_optical)
     origin = np.asarray(origin_world, dtype=np.float64)

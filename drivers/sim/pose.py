@@ -22,7 +22,8 @@ def rotate(vectors: F64, rotation: F64) -> F64:
     einsum, not ``@``: a BLAS matmul of an (N,3) array by a 3x3 is many times slower (and erratic) when
     OpenBLAS's threads compete for busy cores, and gains nothing for such a small inner dimension.
     """
-    return np.einsum("ij,kj->ik", np.asarray(vectors, dtype=np.float64), np.asarray(rotation, dtype=np.float64))
+    rotated: F64 = np.einsum("ij,kj->ik", np.asarray(vectors, dtype=np.float64), np.asarray(rotation, dtype=np.float64))
+    return rotated
 
 
 @dataclass(frozen=True)

@@ -203,7 +203,7 @@ class SimRig:
         images = tuple(self._render_sensor(scene, pose_cam, s, camera_rng) for s in cfg.head) if cfg.head else ()
         image = images[0] if images else self._render(scene, pose_cam, camera_rng)
         sweep = scan(scene, pose_lidar, rng_for(k, seed, index, "lidar"), cfg.lidar)
-        meta = {
+        meta: dict[str, Any] = {
             "source": "simulated",
             "scene": k.value,
             "seed": int(seed),

@@ -25,7 +25,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -136,7 +136,8 @@ class CameraStream:
     """The moving rig's panorama camera; ``frames()`` renders until ``close()`` (from any thread)."""
 
     def __init__(self, spec: MotionRigSpec, stop: Any = None) -> None:
-        """``stop``: an event (threading or multiprocessing) that ends ``frames()``; by default its own."""
+        """``stop``: what ends ``frames()`` (``is_set()``, ``wait(timeout)``: an event, a child's stop flag);
+        by default its own."""
         self.start_host_s = _require_started(spec)
         self.spec = spec
         self.scene, self.trajectory = spec.build()
@@ -166,10 +167,37 @@ class CameraStream:
 # rendering and ray casting would compete with the capture for the interpreter lock and skew both.
 
 _SPAWN = multiprocessing.get_context("spawn")  # safe with threads in the parent (the capture's feeds, a server)
-_JOIN_S = 10.0
+_GRACE_S = 2.0  # for a child to see its stop flag (a LiDAR turn, not a render: an unfinished frame is not wanted)
+_KILL_S = 2.0  # for a terminated or killed child to be gone
+_DRAIN_S = 1.0  # reading what a stopping camera child still sends
+_STOP_POLL_S = 0.05
 
 
-def _lidar_child(spec: MotionRigSpec, host: str, data_port: int, position_port: int | None, stop: Any,
+class _StopFlag:
+    """A stop request that children poll. Not a multiprocessing Event: its set() waits until every process
+    sleeping in wait() has woken, which a stopped (SIGSTOP) or hung child never does; and its lock, held by a
+    child stopped inside is_set(), would block the parent too. A lock-free shared byte blocks no one."""
+
+    def __init__(self) -> None:
+        self._flag = _SPAWN.RawValue("b", 0)
+
+    def set(self) -> None:
+        self._flag.value = 1
+
+    def is_set(self) -> bool:
+        return bool(self._flag.value)
+
+    def wait(self, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while not self.is_set():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            time.sleep(min(left, _STOP_POLL_S))
+        return True
+
+
+def _lidar_child(spec: MotionRigSpec, host: str, data_port: int, position_port: int | None, stop: _StopFlag,
                  parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is for the capture, which stops its sensors itself
     with LidarEmitter(spec, host, data_port, position_port):
@@ -177,7 +205,7 @@ def _lidar_child(spec: MotionRigSpec, host: str, data_port: int, position_port: 
             pass
 
 
-def _camera_child(spec: MotionRigSpec, conn: Any, stop: Any, parent: int) -> None:
+def _camera_child(spec: MotionRigSpec, conn: Any, stop: _StopFlag, parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     with contextlib.suppress(BrokenPipeError):  # the reader has gone
         for frame in CameraStream(spec, stop).frames():
@@ -192,7 +220,7 @@ class LidarProcess:
     def __init__(self, spec: MotionRigSpec, host: str, data_port: int, position_port: int | None = None) -> None:
         _require_started(spec)
         self.spec = spec
-        self._stop = _SPAWN.Event()
+        self._stop = _StopFlag()
         args = (spec, host, data_port, position_port, self._stop, os.getpid())
         self._process = _SPAWN.Process(target=_lidar_child, args=args, name="sim-vlp16", daemon=True)
 
@@ -216,7 +244,7 @@ class CameraProcess:
     def __init__(self, spec: MotionRigSpec) -> None:
         _require_started(spec)
         self.spec = spec
-        self._stop = _SPAWN.Event()
+        self._stop = _StopFlag()
         self._closed = threading.Event()
         self._reading = False
         self._receive, send = _SPAWN.Pipe(duplex=False)
@@ -225,7 +253,7 @@ class CameraProcess:
         self._process.start()
         send.close()  # the child holds the sending end
 
-    def frames(self) -> Iterator[SimFrame]:
+    def frames(self) -> Generator[SimFrame, None, None]:
         """Frames as the child renders them; call from one thread (the pipe's only reader)."""
         self._reading = True
         try:
@@ -241,8 +269,11 @@ class CameraProcess:
                 raise SimError(f"the simulated camera process ended (exit code {self._process.exitcode})")
         finally:
             self._stop.set()
+            # A child blocked sending a frame finishes once it is read; one that sends nothing (stopped, hung)
+            # is not waited for: close() ends it, and the closed pipe ends a send.
+            deadline = time.monotonic() + _DRAIN_S
             with contextlib.suppress(EOFError, OSError):
-                while self._process.is_alive():  # a child blocked sending a frame finishes once it is read
+                while self._process.is_alive() and time.monotonic() < deadline:
                     if self._receive.poll(0.1):
                         self._receive.recv()
             self._receive.close()
@@ -254,11 +285,17 @@ class CameraProcess:
             self._receive.close()
 
 
-def _stop_child(process: Any, stop: Any) -> None:
+def _stop_child(process: Any, stop: _StopFlag) -> None:
+    """Ask the child to stop, then end it: it holds nothing worth saving, and exit must never hang on it."""
     stop.set()
     if process.pid is None:
         return
-    process.join(_JOIN_S)
-    if process.is_alive():  # stuck (e.g. blocked sending a frame nobody reads): it holds nothing worth saving
+    process.join(_GRACE_S)
+    if process.is_alive():  # stuck: blocked sending a frame nobody reads, inside a long render, or stopped
         process.terminate()
-        process.join(_JOIN_S)
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(process.pid, signal.SIGCONT)  # a stopped (SIGSTOP) child acts on SIGTERM once continued
+        process.join(_KILL_S)
+    if process.is_alive():
+        process.kill()
+        process.join(_KILL_S)

@@ -8,12 +8,15 @@ kernel drop silently instead).
 
 from __future__ import annotations
 
+import errno
+import os
 import queue
 import selectors
 import socket
 import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 
@@ -23,6 +26,36 @@ from drivers.vlp16.layout import DATA_PACKET_SIZE, POSITION_PACKET_SIZE
 from drivers.vlp16.pcap import Ports
 from drivers.vlp16.sweep import StreamStats, Sweep, SweepAssembler, Vlp16Config
 from drivers.vlp16.validate import PacketFault
+
+
+def udp_port_owner(port: int) -> str:
+    """Who has UDP ``port`` bound: "pid N: command line" per process, from /proc (Linux; another user's
+    processes are visible to root only), or how to find out."""
+    inodes: set[str] = set()
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for fields in (line.split() for line in lines):
+            if len(fields) > 9 and int(fields[1].rsplit(":", 1)[1], 16) == port:
+                inodes.add(f"socket:[{fields[9]}]")
+    hint = f"not visible to this user: `sudo ss -ulpn 'sport = :{port}'` names it"
+    if not inodes:  # no /proc (not Linux), or the socket is gone already
+        return hint
+    owners = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit():
+            continue
+        try:
+            if any(os.readlink(fd) in inodes for fd in (proc / "fd").iterdir()):
+                argv = (proc / "cmdline").read_bytes().split(b"\0")
+                this = " (this process)" if proc.name == str(os.getpid()) else ""
+                command = " ".join(a.decode("utf-8", "replace") for a in argv if a)
+                owners.append(f"pid {proc.name}{this}: {command}"[:200])
+        except OSError:  # gone meanwhile, or not ours to look at
+            continue
+    return "; ".join(owners) if owners else hint
 
 
 class _BatchBuilder:
@@ -149,12 +182,16 @@ class UdpReceiver:
     def _bind(self, port: int) -> socket.socket:
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sockets.append(sock)
+        # No SO_REUSEADDR (nor SO_REUSEPORT): on Linux it lets a second UDP socket bind the same port, and the
+        # later one silently takes the sensor's packets from the first. A port has one receiver.
         try:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, self.requested_rcvbuf)
             sock.bind((self.host, port))
         except OSError as exc:
             self.close()
+            if exc.errno == errno.EADDRINUSE:
+                raise ReceiverError(f"UDP receiver: port {port} is in use by another process "
+                                    f"({udp_port_owner(port)}); stop it, or receive on another port") from exc
             raise ReceiverError(f"UDP receiver: cannot bind {self.host}:{port} ({exc.strerror})") from exc
         sock.setblocking(False)
         self.rcvbuf_bytes = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)

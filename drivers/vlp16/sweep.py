@@ -4,7 +4,9 @@ A sweep runs from the first block at or past the cut azimuth to the block before
 VeloView splits frames; the packet holding a crossing contributes to both sweeps. Packets are ordered by
 device time (within ``reorder_window`` packets of arrival order), duplicates dropped, and a packet that
 arrives after its sweep was emitted is counted LATE. Missing packets are gaps in the packet cadence
-(1327.104 us, 663.552 us in dual-return mode).
+(1327.104 us, 663.552 us in dual-return mode), except where the device clock stepped forward (the host
+received the packets on either side of the gap close together). Packets that cross no cut for longer than
+any turn (a head that does not turn) go out as an incomplete sweep every ``STALLED_S``.
 """
 
 from __future__ import annotations
@@ -35,6 +37,13 @@ from drivers.vlp16.layout import (
 )
 from drivers.vlp16.position import parse_position_packet
 from drivers.vlp16.validate import FaultTally, PacketFault, check_packets
+
+# The VLP-16 turns at 300-1200 rpm (0.05-0.2 s a turn): packets spanning longer without a cut come from a head
+# that does not turn. They are emitted rather than held, so memory stays bounded and consumers see them.
+STALLED_S = 0.5
+# A gap in device time that the host's receive times do not show either, by more than this, is the device
+# clock stepping forward, not packets lost: receive delays (network, the receiver's queue) stay far below it.
+CLOCK_STEP_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -300,6 +309,8 @@ class SweepAssembler:
         packets = len(pending.count_us)
         cuts, at_cut = self._cuts(pending)
         if not final:
+            if len(cuts) == 0:
+                return self._stalled()
             ready = cuts // BLOCKS_PER_PACKET < packets - self.config.reorder_window
             cuts, at_cut = cuts[ready], at_cut[ready]
             if len(cuts) == 0:
@@ -320,6 +331,17 @@ class SweepAssembler:
             start_block=int(cuts[-1] % BLOCKS_PER_PACKET),
             started=bool(at_cut[-1]),
         )
+        self._floor_us = int(self._pending.count_us[0])
+        return sweeps
+
+    def _stalled(self) -> list[Sweep]:
+        """No cut in ``STALLED_S`` of packets: emit all but the reorder window as one incomplete sweep."""
+        pending = self._pending
+        end = len(pending.count_us) - self.config.reorder_window - 1  # first packet kept
+        if end <= 0 or pending.count_us[end] - pending.count_us[0] < STALLED_S * 1e6:
+            return []
+        sweeps = self._emit(pending.take(slice(0, end + 1)), [pending.start_block, end * BLOCKS_PER_PACKET], [False])
+        self._pending = replace(pending.take(slice(end, None)), start_block=0, started=False)
         self._floor_us = int(self._pending.count_us[0])
         return sweeps
 
@@ -348,8 +370,8 @@ class SweepAssembler:
         points["time"] += np.repeat(shift_s, emitted.per_block[first:stop])
         last_delay_us = _block_delay_us((stop - 1) % BLOCKS_PER_PACKET, bool(dual[p_last]))
         end_us = count_us[p_last] + last_delay_us + SEQUENCE_US + (LASERS - 1) * FIRING_US  # last firing
-        span = float(count_us[p_end] - count_us[p0])
-        missing = max(round(span / mode.packet_period_us) - (p_end - p0), 0)
+        missing = _missing_packets(count_us[p0 : p_end + 1], emitted.packets.host_s[p0 : p_end + 1],
+                                   mode.packet_period_us)
         self._counts["missing"] += missing
         epoch_s = float(self.clock.epoch_s(0))
         start_us = float(count_us[p0]) + start_delay_us
@@ -369,6 +391,20 @@ class SweepAssembler:
         )
         self._next_index += 1
         return sweep
+
+
+def _missing_packets(count_us: NDArray[np.int64], host_s: NDArray[np.float64], period_us: float) -> int:
+    """Packets missing between the first and last of ``count_us`` (device us, in order), received at ``host_s``.
+
+    A gap counts by device time, unless the device clock ran ahead of the receive times across it by more
+    than ``CLOCK_STEP_S``: the clock stepped (a +10 s step would be 7,535 phantom packets), and only the
+    packets the host's own gap had room for can have gone missing there.
+    """
+    gap_us = np.diff(count_us).astype(np.float64)
+    host_gap_us = np.diff(host_s) * 1e6
+    stepped = gap_us - host_gap_us > CLOCK_STEP_S * 1e6
+    span_us = float(np.where(stepped, np.maximum(host_gap_us, period_us), gap_us).sum())
+    return max(round(span_us / period_us) - len(gap_us), 0)
 
 
 class _Emission:

@@ -85,7 +85,7 @@ def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
     reporter.progress("hashing the dataset", 0.0)
     digest = content_hash(dataset)
     # Without sigmas the request keeps run_calibration's own default schedule.
-    schedule = {"sigmas_deg": tuple(float(s) for s in sigmas)} if sigmas is not None else {}
+    schedule: dict[str, Any] = {"sigmas_deg": tuple(float(s) for s in sigmas)} if sigmas is not None else {}
     request = CalibrationRequest(
         dataset=dataset.root,
         out_dir=Path(job["out_dir"]),
@@ -110,9 +110,10 @@ def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
 def run_check_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
     """A ``"kind": "check"`` job: run_check of the job's extrinsics on the dataset; the result is its report."""
     threshold = job.get("threshold") or {}
-    opts = DriftOptions(**{name: float(threshold[key]) for name, key in
-                           (("threshold_rot_deg", "rotation_deg"), ("threshold_trans_cm", "translation_cm"))
-                           if key in threshold})
+    given: dict[str, Any] = {name: float(threshold[key]) for name, key in
+                             (("threshold_rot_deg", "rotation_deg"), ("threshold_trans_cm", "translation_cm"))
+                             if key in threshold}
+    opts = DriftOptions(**given)
     checked = Transform.from_matrix(np.asarray(job["checked_matrix"], dtype=np.float64))
     outcome = run_check(Path(job["dataset"]), checked, opts, reporter.progress)
     return {"type": "result", "report": json_safe(outcome.report)}

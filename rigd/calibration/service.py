@@ -21,7 +21,7 @@ from calib.errors import CalibError, FeaturelessError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
 from calib.initial import SearchOptions, SearchResult, default_search
-from calib.methods import Method, calibrate_method, gmm_params, photo_params  # Method: also the CLI's
+from calib.methods import Method, calibrate_method, gmm_params, photo_params
 from calib.optimize import typical_range_m
 from calib.photometric import PhotoCost, PhotoPair, PhotoParams, photo_pair
 from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, extract_place, paper_params

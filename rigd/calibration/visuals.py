@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -22,7 +23,9 @@ CLOUD_STAGE = "cloud"  # overlays/NNNN_cloud.png: the cloud from above, coloured
 UNSEEN_BGR = (90, 90, 90)  # points the camera does not see
 
 
-def project_visible(camera: CameraModel, T_camera_lidar: Transform, points_lidar: NDArray[np.float64]):
+def project_visible(
+    camera: CameraModel, T_camera_lidar: Transform, points_lidar: NDArray[np.float64]
+) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
     """(indices of points that land in the image, their uv (K,2) px, camera range (K,) m)."""
     p_cam = T_camera_lidar.apply(points_lidar)
     uv, valid = camera.project(p_cam)
@@ -44,7 +47,7 @@ def range_scale_m(ranges_m: NDArray[np.float64]) -> float:
 def turbo_bgr(ranges_m: NDArray[np.float64], max_range_m: float) -> NDArray[np.uint8]:
     """(N,3) uint8 BGR turbo colours of ``ranges_m`` (N,) m: near blue, far red."""
     levels = np.clip(ranges_m / max_range_m * 255.0, 0, 255).astype(np.uint8)
-    return cv2.applyColorMap(levels.reshape(-1, 1), cv2.COLORMAP_TURBO).reshape(-1, 3)
+    return cast(NDArray[np.uint8], cv2.applyColorMap(levels.reshape(-1, 1), cv2.COLORMAP_TURBO).reshape(-1, 3))
 
 
 def _dimmed_bgr(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -126,7 +129,8 @@ def _closeup(base: NDArray[np.uint8], box: tuple[int, int, int, int], uv: NDArra
     at the enlarged scale (sharp, not blown-up pixels) and ``label`` in a corner."""
     u0, v0, bw, bh = box
     factor = max(2, -(-CLOSEUP_MIN_WIDTH_PX // bw))
-    crop = cv2.resize(base[v0:v0 + bh, u0:u0 + bw], (bw * factor, bh * factor), interpolation=cv2.INTER_CUBIC)
+    crop = cast(NDArray[np.uint8], cv2.resize(base[v0:v0 + bh, u0:u0 + bw], (bw * factor, bh * factor),
+                                              interpolation=cv2.INTER_CUBIC))
     inside = (uv[:, 0] >= u0 - 0.5) & (uv[:, 0] < u0 + bw - 0.5) & (uv[:, 1] >= v0 - 0.5) & (uv[:, 1] < v0 + bh - 0.5)
     local = (uv[inside] - [u0, v0] + 0.5) * factor
     order = np.argsort(-rng[inside])

@@ -5,7 +5,8 @@ then decide: not moved since the last pair -> "move to the next place"; camera o
 for the rig to stop"; still for less than ``still_seconds`` -> "hold still"; still long enough and a
 camera frame exposed inside the window -> fuse the ``sweeps`` sweeps nearest that frame and write the
 pair atomically (rigd.dataset.write_pair). ``stop`` is looked at between sweeps and never while a pair is
-being taken, so a pair is either written whole or not begun.
+being taken, so a pair is either written whole or not begun. A capture holds the dataset's writer lock
+(rigd.dataset.lock) from start to end: a second one into the same folder is refused at once.
 """
 
 from __future__ import annotations
@@ -34,8 +35,10 @@ from rigd.capture.errors import CaptureError, DiskFullError, SensorSilenceError
 from rigd.capture.fuse import fuse_sweeps
 from rigd.capture.gate import FrameSample, StillnessGate, SweepSample, range_change_m, range_image, thumbnail
 from rigd.capture.sources import Sources, frame_time, open_sources
+from rigd.capture.specs import CameraKind as SourceKind
 from rigd.capture.specs import parse_camera, parse_lidar
 from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
+from rigd.dataset.lock import DatasetLock
 from rigd.dataset.store import read_yaml
 from rigd.errors import DatasetError
 from rigd.version import software_version
@@ -59,6 +62,8 @@ STATUS_PERIOD_S = 0.5
 # as processes and render a first frame); after it, silence_timeout_s applies.
 STARTUP_S = 15.0
 RECENT_SWEEPS = 100  # 10 s of sweeps kept with their points for fusing
+RATE_WINDOW_S = 1.0  # packets/s is over this much of the latest data, and 0 once none came for this long
+STOPPED_RPM = 60.0  # a head turning slower than this is stopped (a VLP-16 turns at 300-1200 rpm)
 _POLL_S = 0.1
 
 
@@ -125,15 +130,17 @@ def run_capture(request: CaptureRequest, progress: Progress | None = None,
     settings = load_settings(request.config)
     lidar, camera = parse_lidar(request.lidar), parse_camera(request.camera)
     out = Path(request.out)
-    existing = existing_pairs(out)
-    if len(existing) >= request.n:
-        if progress:
-            progress(CaptureStatus(CaptureState.DONE.value, len(existing), request.n, 0.0, 0.0, 0,
-                                   f"{out} already has {len(existing)} pairs"))
-        return CaptureSummary(out, (), ())
-    sim_default = MotionRigSpec(stops=sim_stops(request.n - len(existing)),
-                                still_s=request.still_seconds + SIM_STOP_MARGIN_S, move_s=SIM_MOVE_S)
     with contextlib.ExitStack() as stack:
+        if len(existing_pairs(out)) < request.n:  # a complete dataset is only read: it may be read-only
+            stack.enter_context(_lock(out))
+        existing = existing_pairs(out)  # under the lock: no other writer adds pairs from now on
+        if len(existing) >= request.n:
+            if progress:
+                progress(CaptureStatus(CaptureState.DONE.value, len(existing), request.n, 0.0, 0.0, 0,
+                                       f"{out} already has {len(existing)} pairs"))
+            return CaptureSummary(out, (), ())
+        sim_default = MotionRigSpec(stops=sim_stops(request.n - len(existing)),
+                                    still_s=request.still_seconds + SIM_STOP_MARGIN_S, move_s=SIM_MOVE_S)
         sources = open_sources(stack, lidar, camera, settings, sim_default, places_done=len(existing))
         return _Session(request, settings, sources, existing, progress, stop or threading.Event()).run()
 
@@ -161,7 +168,26 @@ def existing_pairs(out: Path) -> list[Path]:
     pairs_dir = Path(out) / "pairs"
     if not pairs_dir.is_dir():
         return []
-    return sorted((p for p in pairs_dir.iterdir() if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
+    try:
+        entries = list(pairs_dir.iterdir())
+    except OSError as exc:
+        raise DatasetError(f"{pairs_dir}: cannot list the pairs ({exc.strerror})") from exc
+    return sorted((p for p in entries if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
+
+
+def _lock(out: Path) -> DatasetLock:
+    """The dataset's writer lock, for the whole capture; DatasetLockedError at once if another process has it."""
+    try:
+        return DatasetLock.acquire(out)
+    except DatasetError as exc:
+        if _disk_full(exc):
+            raise DiskFullError(f"{exc}: free some space and rerun") from exc
+        raise
+
+
+def _disk_full(exc: DatasetError) -> bool:
+    cause = exc.__cause__
+    return isinstance(cause, OSError) and cause.errno in (errno.ENOSPC, errno.EDQUOT)
 
 
 class _Session:
@@ -181,6 +207,8 @@ class _Session:
         self.recent: deque[tuple[SweepSample, Sweep]] = deque(maxlen=RECENT_SWEEPS)
         self.frames: deque[tuple[float, PanoramaFrame]] = deque(maxlen=8)
         self.rates: deque[tuple[float, float, int]] = deque(maxlen=20)  # (start, end, packets) of sweeps
+        self._rate_at = -math.inf  # monotonic time the latest sweep (whole or not) arrived
+        self.partial: Sweep | None = None  # the latest incomplete sweep since the last complete one
         self.stats: StreamStats | None = None
         self.written: list[Path] = []
         self.seconds: list[float] = []
@@ -193,7 +221,9 @@ class _Session:
     def run(self) -> CaptureSummary:
         self._set(CaptureState.STARTING, f"waiting for the LiDAR ({self.sources.lidar.describe}) and the camera "
                                          f"({self.sources.camera.describe})")
-        last_data, any_data = time.monotonic(), False
+        # Silence is counted from the last complete sweep: incomplete ones (a stopped head, turns lost) are no
+        # data a pair can be made of, but they end the start-up allowance and say what is wrong.
+        last_sweep, any_data = time.monotonic(), False
         while self.done < self.request.n:
             if self.stop.is_set():
                 self._set(CaptureState.STOPPED, f"stopped after {self.done}/{self.request.n} pairs; rerun the same "
@@ -201,14 +231,18 @@ class _Session:
                 break
             item = self.sources.lidar.get(_POLL_S)
             now = time.monotonic()
-            if item is None:
-                if now - last_data > self._silence_limit(any_data):
-                    raise SensorSilenceError(self._lidar_silence(now - last_data))
-            else:
-                last_data, any_data = now, True
+            if item is not None:
+                if not any_data:
+                    last_sweep, any_data = now, True
                 self.stats = item.stats
+                self._count_packets(item.sweep, now)
                 if item.sweep.complete:
+                    last_sweep, self.partial = now, None
                     self._on_sweep(item.sweep)
+                else:
+                    self.partial = item.sweep
+            if now - last_sweep > self._silence_limit(any_data):
+                raise SensorSilenceError(self._lidar_silence(now - last_sweep))
             self._check_camera()
             self._emit(force=False)
         else:
@@ -219,7 +253,6 @@ class _Session:
         xyz = np.stack([sweep.points["x"], sweep.points["y"], sweep.points["z"]], axis=1)
         sample = SweepSample(sweep.start.device + sweep.clock_offset_s, sweep.end.device + sweep.clock_offset_s,
                              range_image(xyz, sweep.points["ring"]))
-        self.rates.append((sample.t_start, sample.t_end, sweep.packet_count))
         self.recent.append((sample, sweep))
         self.gate.add_sweep(sample)
         for frame in self.sources.camera.poll(sample.t_end):
@@ -262,15 +295,16 @@ class _Session:
         chosen = sorted(nearest[: self.request.sweeps], key=lambda x: x[0].t_start)
         cloud = fuse_sweeps([sw for _, sw in chosen])
         meta = self._meta(frame_t, frame, chosen, cloud, window, moved_m)
-        self._ensure_rig(frame.image)
         index = max((int(p.name) for p in existing_pairs(self.out)), default=-1) + 1
-        self._check_space(frame.image, cloud)
+        self._check_space(frame.image, cloud)  # before anything is written, rig.yaml included
+        self._ensure_rig(frame.image)
         path = self._write(index, frame.image, cloud, meta)
         now = time.monotonic()
         self.written.append(path)
         self.seconds.append(now - self._since)
         self._since = now
         self.done += 1
+        assert cloud.ring is not None  # fuse_sweeps always gives the ring
         self.reference = range_image(cloud.points_lidar, cloud.ring)
         self.gate.restart()
         self._set(CaptureState.CAPTURED, f"captured {self.done}/{self.request.n}")
@@ -331,15 +365,23 @@ class _Session:
                                    f"{width}x{height}: capture into a new dataset")
             return
         camera = CameraConfig(CameraKind.EQUIRECTANGULAR, width, height)
-        write_rig(self.out, RigConfig(camera, self.settings.lidar_model, self.settings.initial_guess,
-                                      self.settings.prior, self.settings.tolerance, self.settings.search))
-        spec = self.sources.sim_spec
-        if spec is not None and not (self.out / "ground_truth.yaml").is_file():
-            write_ground_truth(self.out, Transform.from_matrix(spec.T_camera_lidar.matrix))
+        try:
+            write_rig(self.out, RigConfig(camera, self.settings.lidar_model, self.settings.initial_guess,
+                                          self.settings.prior, self.settings.tolerance, self.settings.search))
+            spec = self.sources.sim_spec
+            if spec is not None and not (self.out / "ground_truth.yaml").is_file():
+                write_ground_truth(self.out, Transform.from_matrix(spec.T_camera_lidar.matrix))
+        except DatasetError as exc:
+            if _disk_full(exc):
+                raise DiskFullError(f"{exc}: disk full before the first pair; free some space and rerun") from exc
+            raise
 
     def _check_space(self, image: np.ndarray, cloud: Cloud) -> None:
         needed = image.nbytes + 20 * len(cloud) + (1 << 20)  # uncompressed image and cloud, and metadata
-        free = shutil.disk_usage(self.out).free
+        try:
+            free = shutil.disk_usage(self.out).free
+        except OSError as exc:
+            raise DatasetError(f"{self.out}: cannot read the free space ({exc.strerror})") from exc
         if free < 2 * needed:
             raise DiskFullError(f"{self.out}: only {free / 1e6:.1f} MB free, a pair needs up to {needed / 1e6:.1f} "
                                 f"MB; free some space and rerun (the {self.done} pairs written are complete)")
@@ -348,8 +390,7 @@ class _Session:
         try:
             return write_pair(self.out, index, image, cloud, meta)
         except DatasetError as exc:
-            cause = exc.__cause__
-            if isinstance(cause, OSError) and cause.errno in (errno.ENOSPC, errno.EDQUOT):
+            if _disk_full(exc):
                 raise DiskFullError(f"{self.out}: disk full while writing pair {index:04d}; it was not written, the "
                                     f"{self.done} pairs before it are complete: free some space and rerun") from exc
             raise
@@ -357,6 +398,14 @@ class _Session:
     # -- sensors' health and status ------------------------------------------------------------------------
     def _lidar_silence(self, silent_s: float) -> str:
         describe = self.sources.lidar.describe
+        partial = self.partial
+        if partial is not None and partial.rpm < STOPPED_RPM:
+            return (f"the VLP-16 at {describe} sends packets ({self._packet_rate():.0f}/s) but its head does not turn "
+                    f"({partial.rpm:.0f} rpm), no sweep for {silent_s:.1f} s: its motor is stopped or blocked; check "
+                    "that nothing holds the head and the motor's rpm setting (web interface), then power-cycle it")
+        if partial is not None:
+            return (f"no complete VLP-16 sweep from {describe} for {silent_s:.1f} s: packets arrive with gaps of a "
+                    f"turn or more ({self._packets_lost()} lost so far): check the network (deploy/network)")
         if self.stats is not None and self.stats.bad_packets:
             faults = ", ".join(f"{k.name} {v}" for k, v in self.stats.faults.items())
             return (f"no usable VLP-16 sweep from {describe} for {silent_s:.1f} s; bad packets: {faults} "
@@ -370,17 +419,26 @@ class _Session:
     def _check_camera(self) -> None:
         silence = self.sources.camera.seconds_since_frame()
         if silence is not None and silence[0] > max(self._silence_limit(silence[1]), self.sources.camera.frame_gap_s):
+            check = ("its process is stopped or hung" if parse_camera(self.request.camera).kind is SourceKind.SIM
+                     else "check the camera's power and USB 3 link (rigd camera info)")
             raise SensorSilenceError(f"no camera frame from {self.sources.camera.describe} for {silence[0]:.1f} s: "
-                                     "check the camera's power and USB 3 link (rigd camera info)")
+                                     f"{check}")
 
     def _packets_lost(self) -> int:
         return 0 if self.stats is None else int(self.stats.missing_packets + self.stats.overruns)
 
+    def _count_packets(self, sweep: Sweep, now: float) -> None:
+        start, end = sweep.start.device + sweep.clock_offset_s, sweep.end.device + sweep.clock_offset_s
+        self.rates.append((start, end, sweep.packet_count))
+        self._rate_at = now
+
     def _packet_rate(self) -> float:
-        if not self.rates:
+        """Packets/s over the last second of data (the sensor's pace, also in a replay read faster than real
+        time); 0 once no data has come for a second, so a stream that stopped does not show its last rate."""
+        if not self.rates or time.monotonic() - self._rate_at > RATE_WINDOW_S:
             return 0.0
         latest = self.rates[-1][1]
-        recent = [r for r in self.rates if r[1] >= latest - 1.0]
+        recent = [r for r in self.rates if r[1] >= latest - RATE_WINDOW_S]
         span = latest - recent[0][0]
         return sum(r[2] for r in recent) / span if span > 0 else 0.0
 

@@ -33,7 +33,8 @@ def _single_return(sweep: Sweep) -> np.ndarray:
     """The sweep's points with one return per beam: the strongest of a dual-return stream."""
     if sweep.return_mode is not ReturnMode.DUAL:
         return sweep.points
-    return sweep.points[(sweep.points["return_type"] & ReturnType.STRONGEST) != 0]
+    strongest: np.ndarray = sweep.points[(sweep.points["return_type"] & ReturnType.STRONGEST) != 0]
+    return strongest
 
 
 def fuse_sweeps(sweeps: Sequence[Sweep]) -> Cloud:

@@ -16,9 +16,11 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import Protocol, cast
 
 import cv2
+import numpy as np
+from numpy.typing import NDArray
 
 from drivers.errors import DriverError
 from drivers.ladybug5 import (
@@ -203,7 +205,7 @@ class PulledCameraFeed:
     def poll(self, until_host_s: float) -> list[PanoramaFrame]:
         if self._ended:
             raise SourceEndedError(f"camera source {self.describe} has no more frames")
-        out = []
+        out: list[PanoramaFrame] = []
         while True:
             if self._pending is None:
                 self._pending = next(self._frames, None)
@@ -234,7 +236,7 @@ def frame_time(frame: PanoramaFrame, describe: str) -> float:
 
 def sim_panorama(frame: SimFrame) -> PanoramaFrame:
     """A simulated frame as the Ladybug5 sources give it: BGR, camera clock and host time."""
-    bgr = cv2.cvtColor(frame.image, cv2.COLOR_GRAY2BGR)
+    bgr = cast(NDArray[np.uint8], cv2.cvtColor(frame.image, cv2.COLOR_GRAY2BGR))
     return PanoramaFrame(bgr, frame.device_time_s, frame.exposure_host_s, frame.sequence, Exposure(), TimeBase.CAMERA)
 
 

@@ -40,7 +40,8 @@ class LidarSpec:
     def __str__(self) -> str:
         if self.kind is LidarKind.UDP:
             return f"udp:{self.host}:{self.data_port}:{self.position_port}"
-        return self.kind.value + (f":{self.path}" if self.path else "")
+        kind: str = self.kind.value
+        return kind + (f":{self.path}" if self.path else "")
 
 
 @dataclass(frozen=True)

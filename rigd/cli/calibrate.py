@@ -13,9 +13,10 @@ import numpy as np
 from calib.assess import Status, TrustOptions
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
+from calib.methods import Method
 from calib.prior import Prior
 from rigd.calibration import CalibrationRequest, run_calibration
-from rigd.calibration.service import DEFAULT_SIGMAS_DEG, PAPER_SIGMAS_DEG, Method
+from rigd.calibration.service import DEFAULT_SIGMAS_DEG, PAPER_SIGMAS_DEG
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 

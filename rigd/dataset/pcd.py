@@ -8,8 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from pypcd4 import PointCloud
-from pypcd4.pypcd4 import Encoding
+from pypcd4.pypcd4 import Encoding, PointCloud
 
 from rigd.errors import DatasetError
 
@@ -56,7 +55,8 @@ def read_pcd(path: Path) -> Cloud:
 def write_pcd(path: Path, cloud: Cloud, compressed: bool = True) -> None:
     """Write x y z [intensity] [ring] as PCD v0.7 (binary_compressed by default)."""
     columns = [cloud.points_lidar[:, i].astype(np.float32) for i in range(3)]
-    fields, types = ["x", "y", "z"], [np.float32, np.float32, np.float32]
+    fields = ["x", "y", "z"]
+    types: list[type[np.generic]] = [np.float32, np.float32, np.float32]
     if cloud.intensity is not None:
         columns.append(cloud.intensity.astype(np.float32))
         fields.append("intensity")

@@ -244,8 +244,18 @@ def prior_to_yaml(prior: Prior) -> dict[str, Any]:
     return out
 
 
-def tolerance_from_yaml(data: Any, where: str) -> TrustOptions:
-    """``tolerance: {rotation_deg: 0.2, translation_cm: 2.0}``: the field tolerance of the verdict."""
+# The field tolerance's bounds, the service's too (rigd/api/models.py): below them no sensor of the rig resolves a
+# difference (a working pixel is 0.18 deg, a VLP-16 step 0.1-0.4 deg, its range accurate to 3 cm) and the verdict's
+# arithmetic, which divides by them, breaks down (a tolerance of 1e-300 killed the calibration with a LinAlgError).
+TOLERANCE_ROT_DEG = (0.001, 10.0)
+TOLERANCE_TRANS_CM = (0.01, 100.0)
+TOLERANCE_WHY = "finer than the rig's sensors resolve, or so coarse that any result would pass"
+
+
+def tolerance_from_yaml(data: Any, where: str, bounded: bool = False) -> TrustOptions:
+    """``tolerance: {rotation_deg: 0.2, translation_cm: 2.0}``: the field tolerance of the verdict; positive, and
+    ``bounded`` (rig.yaml's) within ``TOLERANCE_ROT_DEG`` / ``TOLERANCE_TRANS_CM``. The worker's request tolerance
+    is not bounded here: the service's request models bound it with the same numbers."""
     if not isinstance(data, dict) or set(data) - {"rotation_deg", "translation_cm"}:
         raise DatasetError(f"{where}: 'tolerance' must be a mapping with rotation_deg and/or translation_cm")
     try:
@@ -253,7 +263,13 @@ def tolerance_from_yaml(data: Any, where: str) -> TrustOptions:
         trans = float(data.get("translation_cm", TrustOptions.tolerance_trans_cm))
     except (TypeError, ValueError) as exc:
         raise DatasetError(f"{where}: tolerance values must be numbers ({exc})") from exc
-    if not (np.isfinite(rot) and np.isfinite(trans) and rot > 0 and trans > 0):
+    if bounded:
+        for key, value, (low, high), unit in (("rotation_deg", rot, TOLERANCE_ROT_DEG, "deg"),
+                                              ("translation_cm", trans, TOLERANCE_TRANS_CM, "cm")):
+            if not low <= value <= high:  # NaN too
+                raise DatasetError(f"{where}: tolerance {key} must be within {low:g} .. {high:g} {unit}, got "
+                                   f"{value:g}: {TOLERANCE_WHY}")
+    elif not (np.isfinite(rot) and np.isfinite(trans) and rot > 0 and trans > 0):
         raise DatasetError(f"{where}: tolerance values must be positive, got {rot} deg, {trans} cm")
     return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)
 
@@ -272,7 +288,9 @@ def search_from_yaml(data: Any, where: str) -> SearchOptions:
         raise DatasetError(f"{where}: search values must be numbers ({exc})") from exc
     if not all(np.isfinite(v) and v >= 0 for v in values.values()) or values.get("yaw_range_deg", 180) > 180:
         raise DatasetError(f"{where}: search angles must be >= 0 (yaw_range_deg <= 180), got {values}")
-    return SearchOptions(**values)
+    default = SearchOptions()
+    return SearchOptions(tilt_deg=values.get("tilt_deg", default.tilt_deg),
+                         yaw_range_deg=values.get("yaw_range_deg", default.yaw_range_deg))
 
 
 @dataclass(frozen=True)
@@ -314,6 +332,7 @@ class RigConfig:
         guess = data.get("initial_guess")
         initial = transform_from_yaml(guess, where) if guess else None
         prior = prior_from_yaml(data["prior"], where) if data.get("prior") is not None else None
-        tolerance = tolerance_from_yaml(data["tolerance"], where) if data.get("tolerance") is not None else None
+        tolerance = (tolerance_from_yaml(data["tolerance"], where, bounded=True)
+                     if data.get("tolerance") is not None else None)
         search = search_from_yaml(data["search"], where) if data.get("search") is not None else None
         return cls(camera, str(lidar.get("model", "VLP-16")), initial, prior, tolerance, search)

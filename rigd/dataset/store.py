@@ -6,6 +6,7 @@ so a reader never sees half a pair and an interrupted writer loses nothing alrea
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import shutil
@@ -20,6 +21,7 @@ import yaml
 from numpy.typing import NDArray
 
 from calib.geometry import Transform
+from rigd.dataset.lock import writing
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
 from rigd.dataset.records import (
     SINGLE_VIEW,
@@ -74,13 +76,21 @@ def read_yaml_mapping(path: Path) -> dict[str, Any]:
 
 
 def write_yaml(path: Path, data: Any) -> None:
-    """Write YAML through a temporary file and a rename, so the file is never half written."""
+    """Write YAML through a temporary file and a rename, so the file is never half written; a failed write
+    leaves no temporary file and raises DatasetError naming ``path`` and the OS's reason."""
     tmp = path.with_name(f".{path.name}.tmp")
-    with tmp.open("w") as fh:
-        yaml.safe_dump(data, fh, sort_keys=False)
-        fh.flush()
-        os.fsync(fh.fileno())
-    tmp.replace(path)
+    try:
+        with tmp.open("w") as fh:
+            yaml.safe_dump(data, fh, sort_keys=False)
+            fh.flush()
+            os.fsync(fh.fileno())
+        tmp.replace(path)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):  # the write's own error is the one to report
+            tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise DatasetError(f"{path}: cannot write ({exc.strerror or exc})") from exc
+        raise
 
 
 def read_image(path: Path) -> NDArray[np.uint8]:
@@ -191,7 +201,10 @@ def open_dataset(root: Path, max_width: int | None = None) -> Dataset:
 
 
 def write_rig(root: Path, rig: RigConfig) -> None:
-    Path(root).mkdir(parents=True, exist_ok=True)
+    try:
+        Path(root).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"{root}: cannot create the dataset folder ({exc.strerror})") from exc
     write_yaml(Path(root) / "rig.yaml", rig.to_yaml())
 
 
@@ -211,18 +224,25 @@ def write_pair(root: Path, index: int, image: NDArray[np.uint8] | Mapping[str, N
                cloud: Cloud, meta: dict[str, Any]) -> Path:
     """Write pair ``index`` atomically and return its folder; an existing pair is never overwritten.
     ``image``: the camera's image, or a head's images by sensor name (images/NAME.png; a Path is an image file
-    copied as it is, images/NAME.jpg for a JPEG: no second lossy encoding)."""
-    pairs_dir = Path(root) / "pairs"
-    pairs_dir.mkdir(parents=True, exist_ok=True)
+    copied as it is, images/NAME.jpg for a JPEG: no second lossy encoding). Written under the dataset's
+    writer lock (rigd.dataset.lock): DatasetLockedError while another process writes the dataset."""
+    with writing(Path(root)):
+        return _write_pair(Path(root), index, image, cloud, meta)
+
+
+def _write_pair(root: Path, index: int, image: NDArray[np.uint8] | Mapping[str, NDArray[np.uint8] | Path],
+                cloud: Cloud, meta: dict[str, Any]) -> Path:
+    pairs_dir = root / "pairs"
     final = pairs_dir / f"{index:04d}"
     if final.exists():
         raise DatasetError(f"{final}: pair already exists; refusing to overwrite it")
     tmp = pairs_dir / f".{index:04d}.tmp"
-    if tmp.exists():
-        shutil.rmtree(tmp)  # leftover of an interrupted write: never a complete pair
     images = {"image.png": image} if not isinstance(image, Mapping) else \
         {f"images/{name}{im.suffix.lower() if isinstance(im, Path) else '.png'}": im for name, im in image.items()}
     try:
+        pairs_dir.mkdir(parents=True, exist_ok=True)
+        if tmp.exists():
+            shutil.rmtree(tmp)  # under the lock no other writer is at work: a leftover of an interrupted write
         tmp.mkdir()
         for name, im in images.items():
             (tmp / name).parent.mkdir(exist_ok=True)
@@ -241,8 +261,12 @@ def write_pair(root: Path, index: int, image: NDArray[np.uint8] | Mapping[str, N
         _fsync(tmp)
         tmp.rename(final)
         _fsync(pairs_dir)
-    except OSError as exc:  # disk full, permissions, ...
-        raise DatasetError(f"{tmp}: could not write pair {index:04d} ({exc})") from exc
+    except BaseException as exc:
+        with contextlib.suppress(OSError):  # ours (under the lock), and space a full disk needs back
+            shutil.rmtree(tmp)
+        if isinstance(exc, OSError):  # disk full, permissions, ...
+            raise DatasetError(f"{tmp}: could not write pair {index:04d} ({exc})") from exc
+        raise
     return final
 
 

@@ -41,12 +41,12 @@ def halvings(camera: CameraConfig | HeadConfig, max_width: int | None) -> int:
 def halve_camera(camera: CameraConfig) -> CameraConfig:
     """``camera`` at half resolution: the size of :func:`halve_image`'s output, and a pinhole's ``K`` halved
     (focal lengths, skew and principal point; the distortion acts on normalised coordinates and stays)."""
-    size = {"width": (camera.width + 1) // 2, "height": (camera.height + 1) // 2}
+    width, height = (camera.width + 1) // 2, (camera.height + 1) // 2
     if camera.K is None:
-        return dataclasses.replace(camera, **size)
+        return dataclasses.replace(camera, width=width, height=height)
     K_half = np.asarray(camera.K, dtype=np.float64).copy()
     K_half[:2, :] /= 2.0
-    return dataclasses.replace(camera, K=K_half, **size)
+    return dataclasses.replace(camera, K=K_half, width=width, height=height)
 
 
 def halve_image(image: NDArray[np.uint8], wrap_u: bool) -> NDArray[np.uint8]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import builtins
 import json
 import sqlite3
 from collections import deque
@@ -57,6 +58,7 @@ class JobStore:
         with self.db.read() as conn:
             return self._get(conn, job_id)
 
+    # In this class's annotations ``list`` is this method, so the ones below say ``builtins.list``.
     def list(self, limit: int = 100, kind: JobKind | None = None, status: JobStatus | None = None) -> list[Job]:
         """Newest first."""
         where, args = [], []
@@ -70,14 +72,14 @@ class JobStore:
         with self.db.read() as conn:
             return [_row_to_job(r) for r in conn.execute(sql, (*args, limit))]
 
-    def unfinished(self, kind: JobKind | None = None) -> list[Job]:
+    def unfinished(self, kind: JobKind | None = None) -> builtins.list[Job]:
         """Queued and running jobs, oldest first."""
         with self.db.read() as conn:
             rows = conn.execute("SELECT * FROM jobs WHERE status IN (?, ?) ORDER BY id", _UNFINISHED)
             jobs = [_row_to_job(r) for r in rows]
         return [j for j in jobs if kind is None or j.kind is kind]
 
-    def unfinished_with(self, kind: JobKind, params: dict[str, Any]) -> list[Job]:
+    def unfinished_with(self, kind: JobKind, params: dict[str, Any]) -> builtins.list[Job]:
         """Queued and running jobs of ``kind`` with exactly these parameters (as stored), oldest first."""
         wanted = json.loads(_stored(params))
         return [j for j in self.unfinished(kind) if j.params == wanted]
@@ -111,7 +113,7 @@ class JobStore:
             )
             return self._get(conn, job_id)
 
-    def fail_unfinished(self, reason: str) -> list[Job]:
+    def fail_unfinished(self, reason: str) -> builtins.list[Job]:
         """Mark every queued or running job failed with ``reason`` (at start-up: the last run died)."""
         failed = []
         for job in self.unfinished():
@@ -132,7 +134,7 @@ class JobStore:
         except OSError as exc:
             raise StoreError(f"{path}: cannot append to the job log ({exc.strerror})") from exc
 
-    def log_tail(self, job_id: int, lines: int = 20) -> list[str]:
+    def log_tail(self, job_id: int, lines: int = 20) -> builtins.list[str]:
         path = self.job_dir(job_id) / "job.log"
         try:
             with path.open(errors="replace") as fh:

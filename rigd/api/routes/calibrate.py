@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response, status
 
+from calib.geometry import Transform
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.models import CalibrateIn, ErrorOut, JobOut
 from rigd.api.routes.jobs import queued_out
@@ -22,6 +23,7 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
     dataset = service.datasets.open(body.dataset)
     if len(dataset) == 0:
         raise RigdError(f"dataset {body.dataset} has no pairs yet")
+    initial: Transform | None
     init_version = None
     if body.init == "active":
         active = service.versions.active()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pathlib
 from dataclasses import asdict
-from typing import Annotated
+from typing import Annotated, Any
 
 import cv2
 from fastapi import APIRouter, Path, Query, Response, status
@@ -22,9 +22,10 @@ router = APIRouter(prefix="/extrinsics", tags=["extrinsics"])
 VersionNumber = Annotated[int, Path(ge=1, le=2**31 - 1)]
 Format = Annotated[ExportFormat | None, Query(description="export format; absent: the version record (JSON)")]
 FrameName = Annotated[str, Query(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_/]{0,63}$")]
-EXPORTS = {200: {"content": {"application/yaml": {"schema": {"type": "string"}}},
-                 "description": "the version record, or its export in the requested format"},
-           404: {"model": ErrorOut}}
+EXPORTS: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"application/yaml": {"schema": {"type": "string"}}},
+          "description": "the version record, or its export in the requested format"},
+    404: {"model": ErrorOut}}
 
 
 def version_out(version: ExtrinsicsVersion) -> VersionOut:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterable
@@ -120,3 +122,31 @@ def test_lifecycle_errors_and_clean_shutdown() -> None:
         receiver.start()
     with pytest.raises(ReceiverError, match="cannot bind 203.0.113.7"):
         UdpReceiver(host="203.0.113.7", ports=Ports(0, 0)).start()  # an address this host does not have
+
+
+HOLD_PORT = """
+import socket, sys, time
+sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+if sys.argv[1] == "reuse":
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+sock.bind(("0.0.0.0", 0))
+print(sock.getsockname()[1], flush=True)
+time.sleep(60)
+"""
+
+
+@pytest.mark.parametrize("holder", ["plain", "reuse"])
+def test_a_port_bound_by_another_process_is_refused_naming_it(holder: str) -> None:
+    # Another receiver (with SO_REUSEADDR, as rigd's set it: then Linux let a second one bind and take the packets).
+    other = subprocess.Popen([sys.executable, "-c", HOLD_PORT, holder], stdout=subprocess.PIPE, text=True)
+    try:
+        assert other.stdout is not None
+        port = int(other.stdout.readline())
+        for host in ("0.0.0.0", "127.0.0.1"):
+            with pytest.raises(ReceiverError, match=rf"port {port} is in use by another process \(pid {other.pid}: "):
+                UdpReceiver(host=host, ports=Ports(port, 0)).start()
+    finally:
+        other.kill()
+        other.wait(10)
+    with UdpReceiver(host="127.0.0.1", ports=Ports(port, 0)) as receiver:  # free again
+        assert receiver.ports.data == port

@@ -13,6 +13,7 @@ from drivers.vlp16 import (
     PositionDatagram,
     PpsStatus,
     ReturnMode,
+    SweepAssembler,
     TimeSource,
     Vlp16Config,
     encode_data_packets,
@@ -172,3 +173,29 @@ def test_invalid_pps_byte_is_counted() -> None:
     _, assembler = assemble([DatagramBatch(positions=(PositionDatagram(bytes(bad), 0.0, 3),))])
     assert assembler.stats().faults == {PacketFault.POSITION: 1}
     assert assembler.stats().first_fault == {PacketFault.POSITION: 3}
+
+
+def test_a_forward_clock_step_is_not_lost_packets() -> None:
+    packets = stream(3.2)
+    stepped = packets.payloads.copy()
+    stamps = stepped[:, 1200:1204].view("<u4")
+    stamps[100:] = (stamps[100:].astype(np.int64) + 10_000_000) % 3_600_000_000  # device clock +10 s at packet 100
+    dropped = np.array([30, 31, 170])  # real losses, before and after the step
+    keep = np.setdiff1d(np.arange(len(stepped)), dropped)
+    sweeps, assembler = assemble(batches(packets._replace(payloads=stepped), keep))
+    # The host received packets 99 and 100 1.3 ms apart: the 10 s are the clock's, not 7,535 lost packets.
+    assert assembler.stats().missing_packets == len(dropped) == sum(s.missing_packets for s in sweeps)
+
+
+def test_a_head_that_does_not_turn_gives_incomplete_sweeps_while_it_streams() -> None:
+    f = synthetic_firings(int(1.6 / FIRING_S))  # 1.6 s of firings, all at one azimuth: the motor stopped
+    packets = encode_data_packets(f.ranges_m, f.reflectivity, np.full(len(f.time_s), 123.0), 1000.0)
+    assembler = SweepAssembler()
+    streamed = [s for batch in batches(packets) for s in assembler.feed(batch)]
+    # Every 0.5 s of packets goes out (memory stays bounded) as an incomplete sweep of a head at 0 rpm.
+    assert len(streamed) == 3
+    assert all(not s.complete and s.rpm == 0.0 and s.packet_count > 370 for s in streamed)
+    rest = assembler.flush()
+    assert sum(s.packet_count for s in streamed + rest) == len(packets.payloads)
+    assert assembler.stats().missing_packets == 0
+    assert np.allclose(np.concatenate([s.points["azimuth"] for s in streamed]), 123.0)

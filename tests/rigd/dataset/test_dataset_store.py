@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import errno
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import cv2
@@ -24,8 +27,9 @@ from rigd.dataset import (
     write_pair,
     write_rig,
 )
+from rigd.dataset.lock import DatasetLock
 from rigd.dataset.store import next_pair_index
-from rigd.errors import DatasetError
+from rigd.errors import DatasetError, DatasetLockedError
 from tests.testdata import PINHOLE_FRAME
 
 PANO_RIG = RigConfig(
@@ -283,3 +287,52 @@ def test_pinhole_sample_as_a_dataset(tmp_path: Path) -> None:
     uv, valid = camera.model().project(truth.apply(pair.cloud.points_lidar))
     inside = valid & (uv[:, 0] >= 0) & (uv[:, 0] < 1920) & (uv[:, 1] >= 0) & (uv[:, 1] < 1200)
     assert 10_000 < inside.sum() < 13_000
+
+
+# --- one writer per dataset, and disk errors ------------------------------------------------------------
+
+HOLD_LOCK = """
+import sys, time
+from pathlib import Path
+from rigd.dataset.lock import DatasetLock
+lock = DatasetLock.acquire(Path(sys.argv[1]))
+(Path(sys.argv[1]) / "pairs" / ".0002.tmp").mkdir()  # its pair 0002, half written
+print("locked", flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_dataset_another_process_writes_is_left_alone(dataset_root: Path) -> None:
+    other = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(dataset_root)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert other.stdout is not None and other.stdout.readline() == "locked\n"
+        with pytest.raises(DatasetLockedError, match=rf"dataset {dataset_root} is being written by another process "
+                                                     rf"\(pid {other.pid}: "):
+            write_pair(dataset_root, 2, *small_pair(2))
+        assert (dataset_root / "pairs" / ".0002.tmp").is_dir()  # the other writer's work is not deleted
+        assert not (dataset_root / "pairs" / "0002").exists()
+        with pytest.raises(DatasetLockedError):
+            DatasetLock.acquire(dataset_root)
+    finally:
+        other.kill()
+        other.wait(10)
+    # Its process gone, the kernel dropped its lock: the leftover is cleared and the pair written.
+    write_pair(dataset_root, 2, *small_pair(2))
+    assert not (dataset_root / "pairs" / ".0002.tmp").exists() and len(open_dataset(dataset_root)) == 3
+    with DatasetLock.acquire(dataset_root):  # held by this process: its writes go through
+        write_pair(dataset_root, 3, *small_pair(3))
+    assert len(open_dataset(dataset_root)) == 4
+
+
+def test_a_full_disk_is_a_dataset_error_and_leaves_no_temporary_file(tmp_path: Path) -> None:
+    root = tmp_path / "ds"
+    root.mkdir()
+    tmp = root / ".rig.yaml.tmp"
+    tmp.symlink_to("/dev/full")  # writes there fail with ENOSPC, as on a full disk
+    with pytest.raises(DatasetError, match=r"rig\.yaml: cannot write \(No space left on device\)") as caught:
+        write_rig(root, PANO_RIG)
+    assert isinstance(caught.value.__cause__, OSError) and caught.value.__cause__.errno == errno.ENOSPC
+    assert not os.path.lexists(tmp) and not (root / "rig.yaml").exists()
+    (tmp_path / "file").write_text("not a folder")
+    with pytest.raises(DatasetError, match=r"file/ds: cannot create the dataset folder \(Not a directory\)"):
+        write_rig(tmp_path / "file" / "ds", PANO_RIG)

@@ -50,3 +50,25 @@ def test_fixed_translation_needs_no_sigma():
 def test_bad_tolerance_is_refused(tolerance):
     with pytest.raises(DatasetError, match="tolerance"):
         RigConfig.from_yaml({"camera": CAMERA, "tolerance": tolerance}, "r")
+
+
+@pytest.mark.parametrize("tolerance, words", [
+    ({"rotation_deg": 1e-300}, "rotation_deg must be within 0.001 .. 10 deg, got 1e-300"),
+    ({"rotation_deg": 11}, "rotation_deg must be within 0.001 .. 10 deg, got 11"),
+    ({"rotation_deg": float("nan")}, "rotation_deg must be within 0.001 .. 10 deg, got nan"),
+    ({"translation_cm": 1e-300}, "translation_cm must be within 0.01 .. 100 cm, got 1e-300"),
+    ({"translation_cm": float("inf")}, "translation_cm must be within 0.01 .. 100 cm, got inf"),
+])
+def test_tolerance_out_of_range_names_rig_yaml_and_the_range(tmp_path, tolerance, words):
+    """A tolerance the sensors cannot resolve (1e-300 crashed the verdict's arithmetic) is refused on opening."""
+    (tmp_path / "pairs").mkdir()
+    (tmp_path / "rig.yaml").write_text(yaml.safe_dump({"camera": CAMERA, "tolerance": tolerance}))
+    with pytest.raises(DatasetError, match=words) as info:
+        open_dataset(tmp_path)
+    assert str(tmp_path / "rig.yaml") in str(info.value)
+
+
+def test_tolerance_bounds_are_accepted():
+    for rot, trans in ((0.001, 0.01), (10.0, 100.0)):
+        rig = RigConfig.from_yaml({"camera": CAMERA, "tolerance": {"rotation_deg": rot, "translation_cm": trans}}, "r")
+        assert (rig.tolerance.tolerance_rot_deg, rig.tolerance.tolerance_trans_cm) == (rot, trans)
