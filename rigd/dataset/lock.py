@@ -9,7 +9,6 @@ never deleted (a process could be locking the inode being unlinked).
 
 from __future__ import annotations
 
-import fcntl
 import os
 import threading
 from collections.abc import Iterator
@@ -17,19 +16,12 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from rigd.errors import DatasetError, DatasetLockedError
+from rigd.flock import LockHeld, take
 
 LOCK_FILE = ".rigd.lock"
 
 _held: dict[Path, DatasetLock] = {}  # datasets this process holds the lock of, by resolved folder
 _held_guard = threading.Lock()
-
-
-def _holder(fd: int) -> str:
-    """What the holder wrote into the lock file: "pid N: command line", or "" if it cannot be read."""
-    try:
-        return os.pread(fd, 512, 0).decode("utf-8", "replace").strip()
-    except OSError:
-        return ""
 
 
 def _describe_self() -> str:
@@ -58,26 +50,14 @@ class DatasetLock:
         except OSError as exc:
             raise DatasetError(f"{root}: cannot create the dataset folder ({exc.strerror})") from exc
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)  # not inherited by children
-        except OSError as exc:
-            raise DatasetError(f"{root}: cannot write into the dataset folder ({exc.strerror}: {path.name})") from exc
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            holder = _holder(fd)
-            os.close(fd)
-            if isinstance(exc, BlockingIOError):
-                raise DatasetLockedError(
-                    f"dataset {root} is being written by another process ({holder or 'pid unknown'}): wait for it "
-                    "to finish, stop it, or write into another folder") from exc
-            raise DatasetError(f"{path}: cannot lock the dataset ({exc.strerror})") from exc
+            fd = take(path, _describe_self())
+        except LockHeld as held:
+            raise DatasetLockedError(
+                f"dataset {root} is being written by another process ({held.holder or 'pid unknown'}): wait for "
+                "it to finish, stop it, or write into another folder") from held
+        except OSError as exc:  # a read-only or full file system, mostly
+            raise DatasetError(f"{root}: cannot write into the dataset folder ({exc.strerror}: {LOCK_FILE})") from exc
         lock = cls(root, fd)
-        try:  # written once the lock is ours, so the file names the live holder
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{_describe_self()}\n".encode(), 0)
-        except OSError as exc:
-            lock.release()
-            raise DatasetError(f"{path}: cannot write the lock file ({exc.strerror})") from exc
         with _held_guard:
             _held[lock._key] = lock
         return lock

@@ -7,22 +7,13 @@ drops the lock when the process dies, however it dies, so a stale lock file neve
 
 from __future__ import annotations
 
-import fcntl
 import os
 from pathlib import Path
 
+from rigd.flock import LockHeld, take
 from rigd.store.errors import DataDirLockedError, StoreError
 
 LOCK_FILE = "rigd.lock"
-
-
-def _holder(fd: int) -> str:
-    """The pid the holder wrote into the lock file, as text ("unknown" if it cannot be read)."""
-    try:
-        text = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
-    except OSError:
-        return "unknown"
-    return text if text.isdigit() else "unknown"
 
 
 class DataDirLock:
@@ -38,22 +29,14 @@ class DataDirLock:
         path = Path(data_dir) / LOCK_FILE
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)  # not inherited by the calibration workers
+            fd = take(path, str(os.getpid()))  # not inherited by the calibration workers
+        except LockHeld as held:
+            pid = held.holder if held.holder.isdigit() else "unknown"
+            raise DataDirLockedError(
+                f"data directory {data_dir} is in use by another rigd serve (pid {pid}); stop that one "
+                "or give this one another --data-dir") from held
         except OSError as exc:
-            raise StoreError(f"{path}: cannot open the data directory's lock file ({exc.strerror})") from exc
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            holder = _holder(fd)
-            os.close(fd)
-            if isinstance(exc, BlockingIOError):
-                raise DataDirLockedError(
-                    f"data directory {data_dir} is in use by another rigd serve (pid {holder}); stop that one "
-                    "or give this one another --data-dir") from exc
             raise StoreError(f"{path}: cannot lock the data directory ({exc.strerror})") from exc
-        # Written only once the lock is ours: the file always names the live holder.
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         return cls(path, fd)
 
     def release(self) -> None:

@@ -1,0 +1,50 @@
+"""An exclusive, non-blocking ``flock`` on a lock file that names its holder.
+
+Used for one ``rigd serve`` per data directory (rigd.store.lock) and one writer per dataset
+(rigd.dataset.lock). The kernel drops a ``flock`` when its process dies, however it dies, so a stale lock file
+never blocks a restart; the file is never deleted (a process could be locking the inode being unlinked).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+from pathlib import Path
+
+
+class LockHeld(Exception):
+    """Another process holds the lock; ``holder`` is what it wrote into the file ("" if unreadable)."""
+
+    def __init__(self, holder: str) -> None:
+        super().__init__(holder)
+        self.holder = holder
+
+
+def _read_holder(fd: int) -> str:
+    try:
+        return os.pread(fd, 512, 0).decode("utf-8", "replace").strip()
+    except OSError:
+        return ""
+
+
+def take(path: Path, holder: str) -> int:
+    """Open ``path`` (created), lock it and write ``holder`` into it once the lock is ours (so the file always
+    names the live holder); returns the descriptor, not inherited by child processes: closing it releases.
+    Raises :class:`LockHeld` when another process has the lock, OSError when the file cannot be used."""
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        text = _read_holder(fd)
+        os.close(fd)
+        raise LockHeld(text) from None
+    except OSError:
+        os.close(fd)
+        raise
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{holder}\n".encode(), 0)
+    except OSError:
+        os.close(fd)
+        raise
+    return fd
