@@ -107,7 +107,7 @@ def _band_label(fields: Any, *args: Any) -> str:
 def install() -> None:
     instrument(calib.pipeline, "image_edge_pixels", "image edges (incl. L0)")
     instrument(calib.edges_image, "l0_smooth", "  L0 smoothing")
-    instrument(calib.pipeline, "_edge_points", "point edges")
+    instrument(calib.pipeline, "edge_points", "point edges")
     # Before issue 12 every rung was built with the features; after, rungs and row bands on demand.
     if hasattr(calib.fields, "_rung"):
         instrument(calib.fields.EdgeFields, "build", "field maps (all rungs)")
