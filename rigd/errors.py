@@ -11,3 +11,12 @@ class DatasetError(RigdError):
 
 class DatasetLockedError(DatasetError):
     """Another process is writing the dataset (a capture, an import); the message names it."""
+
+
+class LockHeldError(RigdError):
+    """Another process holds a lock file (:mod:`rigd.flock`); ``holder`` is what it wrote into it ("" if
+    unreadable). The lock's owner turns it into its own error naming what is locked."""
+
+    def __init__(self, holder: str) -> None:
+        super().__init__(holder)
+        self.holder = holder

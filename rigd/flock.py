@@ -11,13 +11,7 @@ import fcntl
 import os
 from pathlib import Path
 
-
-class LockHeld(Exception):
-    """Another process holds the lock; ``holder`` is what it wrote into the file ("" if unreadable)."""
-
-    def __init__(self, holder: str) -> None:
-        super().__init__(holder)
-        self.holder = holder
+from rigd.errors import LockHeldError
 
 
 def _read_holder(fd: int) -> str:
@@ -30,14 +24,14 @@ def _read_holder(fd: int) -> str:
 def take(path: Path, holder: str) -> int:
     """Open ``path`` (created), lock it and write ``holder`` into it once the lock is ours (so the file always
     names the live holder); returns the descriptor, not inherited by child processes: closing it releases.
-    Raises :class:`LockHeld` when another process has the lock, OSError when the file cannot be used."""
+    Raises :class:`LockHeldError` when another process has the lock, OSError when the file cannot be used."""
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
         text = _read_holder(fd)
         os.close(fd)
-        raise LockHeld(text) from None
+        raise LockHeldError(text) from None
     except OSError:
         os.close(fd)
         raise

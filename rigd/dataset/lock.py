@@ -15,8 +15,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from rigd.errors import DatasetError, DatasetLockedError
-from rigd.flock import LockHeld, take
+from rigd.errors import DatasetError, DatasetLockedError, LockHeldError
+from rigd.flock import take
 
 LOCK_FILE = ".rigd.lock"
 
@@ -51,7 +51,7 @@ class DatasetLock:
             raise DatasetError(f"{root}: cannot create the dataset folder ({exc.strerror})") from exc
         try:
             fd = take(path, _describe_self())
-        except LockHeld as held:
+        except LockHeldError as held:
             raise DatasetLockedError(
                 f"dataset {root} is being written by another process ({held.holder or 'pid unknown'}): wait for "
                 "it to finish, stop it, or write into another folder") from held

@@ -10,7 +10,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from rigd.flock import LockHeld, take
+from rigd.errors import LockHeldError
+from rigd.flock import take
 from rigd.store.errors import DataDirLockedError, StoreError
 
 LOCK_FILE = "rigd.lock"
@@ -30,7 +31,7 @@ class DataDirLock:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             fd = take(path, str(os.getpid()))  # not inherited by the calibration workers
-        except LockHeld as held:
+        except LockHeldError as held:
             pid = held.holder if held.holder.isdigit() else "unknown"
             raise DataDirLockedError(
                 f"data directory {data_dir} is in use by another rigd serve (pid {pid}); stop that one "
