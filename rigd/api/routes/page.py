@@ -55,13 +55,23 @@ def install(app: FastAPI) -> None:
 @dataclass(frozen=True)
 class VersionView:
     """A version as the page shows it: its values, change against the active one and sigma per axis
-    (roll, pitch, yaw deg; x, y, z cm; the change in the uncertainty's local axes, as ``rigd check``)."""
+    (roll, pitch, yaw deg; x, y, z cm; the change in the uncertainty's local axes, as ``rigd check``), its
+    pairs with overlays and a multi-camera head's sensors (empty for one camera)."""
 
     record: VersionOut
     values: list[float]
     change: list[float] | None
     sigma: list[float | None] | None
     pairs: list[int]
+    sensors: list[str]
+
+
+def report_sensors(quality: dict[str, Any]) -> list[str]:
+    """A head's sensors, in the dataset's order, as the version's report lists them per pair (the overlays were
+    written per sensor under these names); empty for one camera or a version without pairs (manual)."""
+    pairs = quality.get("pairs") or []
+    per_sensor = pairs[0].get("edge_pixels_per_sensor") if pairs and isinstance(pairs[0], dict) else None
+    return [str(name) for name in per_sensor] if isinstance(per_sensor, dict) else []
 
 
 def version_views(versions: list[VersionOut]) -> list[VersionView]:
@@ -76,7 +86,7 @@ def version_views(versions: list[VersionOut]) -> list[VersionView]:
             change = (xi_of(transforms[active].tau, transforms[v.number].tau) * TO_DISPLAY).tolist()
         sigma = [*v.uncertainty["rpy_deg"], *v.uncertainty["xyz_cm"]] if v.uncertainty else None
         pairs = [int(link.rsplit("/", 1)[1].removesuffix(".png")) for link in v.overlays]
-        views.append(VersionView(v, [float(x) for x in values], change, sigma, pairs))
+        views.append(VersionView(v, [float(x) for x in values], change, sigma, pairs, report_sensors(v.quality)))
     return views
 
 

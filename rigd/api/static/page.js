@@ -5,7 +5,7 @@
 const TOKEN_KEY = "rigd-token";
 const tokenRequired = document.body.dataset.tokenRequired === "true";
 const shown = {};              // part name -> the HTML last put into it
-let viewer = {version: null, pair: null, chosen: false};
+let viewer = {version: null, pair: null, sensor: null, chosen: false};
 let timer = null;
 
 function token() { return sessionStorage.getItem(TOKEN_KEY); }
@@ -78,12 +78,17 @@ const actions = {
     if (job) say("Job " + job.id + ": " + job.status + ".");
   },
   view(el) {
-    viewer = {version: Number(el.dataset.version), pair: null, chosen: true};
+    viewer = {version: Number(el.dataset.version), pair: null, sensor: viewer.sensor, chosen: true};
     showOverlays();
     document.getElementById("overlays").scrollIntoView({behavior: "smooth"});
   },
   pair(el) {
     viewer.pair = Number(el.dataset.pair);
+    viewer.chosen = true;
+    showOverlays();
+  },
+  sensor(el) {
+    viewer.sensor = el.dataset.sensor;
     viewer.chosen = true;
     showOverlays();
   },
@@ -119,8 +124,21 @@ document.getElementById("token-form").addEventListener("submit", (event) => {
   say("");
 });
 
-function overlayUrl(version, pair, stage) {
-  return "/extrinsics/versions/" + version + "/overlays/" + pair + ".png?stage=" + stage;
+// A head's overlays are per sensor, its cloud per pair; one camera's have no sensor (sensor null).
+function overlayUrl(version, pair, stage, sensor) {
+  const url = "/extrinsics/versions/" + version + "/overlays/" + pair + ".png?stage=" + stage;
+  return sensor && stage !== "cloud" ? url + "&sensor=" + encodeURIComponent(sensor) : url;
+}
+
+function chip(action, value, label, current) {
+  const b = document.createElement("button");
+  b.type = "button";
+  b.dataset.action = action;
+  b.dataset[action] = value;
+  b.textContent = label;
+  b.classList.toggle("current", current);
+  b.setAttribute("aria-pressed", String(current));
+  return b;
 }
 
 // Shown at most as wide as the screen can use (a phone need not fetch a 2048 px panorama); the link is full size.
@@ -139,26 +157,27 @@ function showOverlays() {
   const row = rows.find((r) => Number(r.dataset.version) === viewer.version);
   const pairs = row ? row.dataset.pairs.split(",").map(Number) : [];
   if (!pairs.includes(viewer.pair)) viewer.pair = pairs.length ? pairs[0] : null;
+  const sensors = row && row.dataset.sensors ? row.dataset.sensors.split(",") : [];  // a head's; [] for one camera
+  if (!sensors.includes(viewer.sensor)) viewer.sensor = sensors.length ? sensors[0] : null;
   document.getElementById("overlay-empty").hidden = Boolean(row);
   document.getElementById("overlay-views").hidden = !row;
   document.getElementById("overlay-closeup").hidden = !row;
   document.getElementById("overlay-cloud").hidden = !row;
-  document.getElementById("overlay-title").textContent = row ? "version " + viewer.version + ", pair " + viewer.pair : "";
-  const chips = document.getElementById("overlay-pairs");
-  chips.replaceChildren(...pairs.map((p) => {
-    const b = document.createElement("button");
-    b.type = "button";
-    b.dataset.action = "pair";
-    b.dataset.pair = p;
-    b.textContent = "pair " + p;
-    b.classList.toggle("current", p === viewer.pair);
-    return b;
-  }));
+  document.getElementById("overlay-title").textContent = row ? "version " + viewer.version + ", pair " + viewer.pair
+    + (viewer.sensor ? ", " + viewer.sensor : "") : "";
+  document.getElementById("overlay-pairs").replaceChildren(...pairs.map((p) => chip("pair", p, "pair " + p, p === viewer.pair)));
+  const picker = document.getElementById("overlay-sensors");
+  picker.hidden = sensors.length === 0;
+  const label = document.createElement("span");
+  label.className = "muted";
+  label.textContent = "sensor";
+  picker.replaceChildren(...(sensors.length ? [label] : []),
+                         ...sensors.map((s) => chip("sensor", s, s, s === viewer.sensor)));
   for (const stage of ["before", "after", "closeup", "cloud"]) {
     const img = document.getElementById("ov-" + stage);
     const link = document.getElementById("ov-" + stage + "-link");
     if (!row) { img.hidden = true; link.removeAttribute("href"); continue; }
-    const url = overlayUrl(viewer.version, viewer.pair, stage);
+    const url = overlayUrl(viewer.version, viewer.pair, stage, viewer.sensor);
     const src = url + "&width=" + shownWidth(img.closest("figure"));
     if (img.getAttribute("src") !== src) img.src = src;
     link.href = url;

@@ -17,12 +17,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from api_helpers import Server, wait_job
+from api_helpers import Server, perturbed_truth, wait_job
 from selenium import webdriver
 from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.chrome.service import Service as DriverService
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select, WebDriverWait
+
+from rigd.simulate import write_simulated_dataset
 
 # Debian's packages (.ci/run installs them): browser and driver come from one source package, so they match.
 CHROMIUM = Path("/usr/bin/chromium")
@@ -186,6 +188,7 @@ def test_page_capture_calibrate_check_activate(browser, server, figures):
     until(browser, 10, images_loaded)
     assert "version 1, pair 0" in text(browser, "#overlay-title")
     assert browser.find_element(By.ID, "ov-closeup-link").get_attribute("href").endswith("stage=closeup")
+    assert not browser.find_element(By.ID, "overlay-sensors").is_displayed()  # one camera: no sensor to pick
 
     with server.client() as client:
         v1 = client.get("/extrinsics/versions/1").json()
@@ -283,3 +286,76 @@ def test_page_asks_for_the_token_and_sends_it(browser, tmp_path):
     finally:
         browser.execute_script("sessionStorage.clear()")
         server.stop()
+
+
+def overlay_srcs(driver) -> dict[str, str]:
+    return driver.execute_script(
+        "const out = {}; for (const s of ['before', 'after', 'closeup', 'cloud'])"
+        " out[s] = document.getElementById('ov-' + s).getAttribute('src') || ''; return out;")
+
+
+def test_page_picks_the_sensor_of_a_head(browser, tmp_path, figures):
+    """A multi-camera head's version: a sensor picker beside the pair's overlays (the report's sensors, the
+    first chosen), switching before, after and the close-up to that sensor's files; the cloud stays per pair."""
+    data = tmp_path / "data"
+    dataset = write_simulated_dataset(data / "datasets" / "head", "outdoor", 2, 5, width=160, height=200,
+                                      progress=False, head=True)
+    server = Server(data).start()
+    try:
+        with server.client() as client:
+            response = client.post("/calibrate", json={"dataset": "head", "init": perturbed_truth(dataset)})
+            assert response.status_code == 202, response.text
+            assert wait_job(client, response.json()["id"], 240)["status"] == "succeeded"
+            page = client.get("/").text
+        sensors = [f"cam{k}" for k in range(5)]
+        assert f'data-sensors="{",".join(sensors)}"' in page  # from the version's report, rendered by the server
+
+        browser.get("about:blank")
+        console_errors(browser)  # drained: an earlier test's page may have polled its stopped service
+        load(browser, server.url + "/")
+        until(browser, 10, images_loaded)
+        picker = "#overlay-sensors button[data-action=sensor]"
+        assert browser.find_element(By.ID, "overlay-sensors").is_displayed()
+        assert texts(browser, picker) == sensors
+        assert texts(browser, picker + ".current") == ["cam0"]  # the first sensor by default
+        first = overlay_srcs(browser)
+        assert all("&sensor=cam0" in first[s] for s in ("before", "after", "closeup")), first
+        assert "sensor=" not in first["cloud"]
+
+        click(browser, picker + '[data-sensor="cam1"]')
+        until(browser, 10, lambda d: "&sensor=cam1" in overlay_srcs(d)["after"])
+        until(browser, 10, images_loaded)  # the files exist: 0000_cam1_*.png
+        now = overlay_srcs(browser)
+        assert all("&sensor=cam1" in now[s] for s in ("before", "after", "closeup")), now
+        assert now["cloud"] == first["cloud"]
+        assert texts(browser, picker + ".current") == ["cam1"]
+        assert "version 1, pair 0, cam1" in text(browser, "#overlay-title")
+        assert browser.find_element(By.ID, "ov-after-link").get_attribute("href").endswith("stage=after&sensor=cam1")
+
+        # The choice survives a change of pair and the page's refresh of its parts.
+        click(browser, '#overlay-pairs button[data-pair="1"]')
+        until(browser, 10, lambda d: "/overlays/1.png" in overlay_srcs(d)["after"])
+        assert "&sensor=cam1" in overlay_srcs(browser)["after"]
+        until(browser, 10, images_loaded)
+        assert console_errors(browser) == []
+        overlays = browser.find_element(By.ID, "overlays")
+        full = browser.execute_script("return document.documentElement.scrollHeight")
+        browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",  # the whole card in the viewport
+                                {"width": DESKTOP[0], "height": full, "deviceScaleFactor": 1, "mobile": False})
+        time.sleep(0.5)
+        until(browser, 10, images_loaded)
+        overlays.screenshot(str(figures / "page-head-sensors.png"))
+        browser.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
+    finally:
+        browser.get("about:blank")  # no page left polling the service stopped next
+        server.stop()
+
+
+def test_only_a_heads_report_lists_sensors():
+    """One camera's (or a manual) version has no sensors to pick; a head's are its report's, in order."""
+    from rigd.api.routes.page import report_sensors
+
+    assert report_sensors({"pairs": [{"edge_pixels": 10, "edge_points": 5}]}) == []
+    assert report_sensors({}) == []
+    head = {"pairs": [{"edge_pixels": 3, "edge_pixels_per_sensor": {"cam0": 1, "cam1": 2}}]}
+    assert report_sensors(head) == ["cam0", "cam1"]
