@@ -38,6 +38,12 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(65536, ge=1024, description="largest request body accepted")
     body_timeout_s: float = Field(10.0, gt=0, le=600, description="seconds a request body may take to arrive; "
                                   "slower ones get 408")
+    header_timeout_s: float = Field(10.0, gt=0, le=600, description="seconds a request line and its headers may "
+                                    "take to arrive (from the connection's start or its previous response); "
+                                    "slower ones get 408")
+    max_connections: int = Field(4096, ge=16, le=1_000_000, description="open client connections; beyond it a "
+                                 "new one closes the oldest still waiting for its headers (lowered to fit the "
+                                 "open-file limit)")
     max_queued_jobs: int = Field(4, ge=1, le=1000, description="calibrations that may wait behind the running "
                                  "one; more get 429")
     log_level: str = Field("info", description="uvicorn log level")

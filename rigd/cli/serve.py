@@ -8,6 +8,8 @@ from typing import Any
 
 from rigd.api.settings import Settings, check_exposure, load_settings
 
+STARTUP_FAILURE = 3  # uvicorn's exit code when the server could not start
+
 
 def _settings_help() -> str:
     lines = ["settings (option > environment > 'service:' section of the rig file > default):"]
@@ -39,6 +41,13 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     import uvicorn
 
+    from rigd.api.connections import (
+        accept_backlog,
+        connection_cap,
+        guarded_protocol,
+        quiet_accept_errors,
+        raise_fd_limit,
+    )
     from rigd.api.main import create_app
     from rigd.api.service import build_service
 
@@ -46,6 +55,17 @@ def run(args: argparse.Namespace) -> int:
                              log_level=args.log_level)
     check_exposure(settings)
     app = create_app(build_service(settings))
-    uvicorn.run(app, host=settings.host, port=settings.port, log_level=settings.log_level,
-                timeout_graceful_shutdown=5)
-    return 0
+    protocol = guarded_protocol(settings.header_timeout_s, settings.max_connections)
+    config = uvicorn.Config(app, host=settings.host, port=settings.port, log_level=settings.log_level,
+                            timeout_graceful_shutdown=5, http=protocol)
+    # After uvicorn.Config, which sets up the logging these go to (once, at startup); before it listens.
+    fd_limit = raise_fd_limit()
+    config.backlog = accept_backlog(fd_limit)
+    protocol.max_connections = connection_cap(settings.max_connections, fd_limit)
+    quiet_accept_errors()
+    server = uvicorn.Server(config)
+    try:
+        server.run()
+    except KeyboardInterrupt:  # uvicorn re-raises the Ctrl-C it handled, as uvicorn.run ignores it
+        pass
+    return 0 if server.started else STARTUP_FAILURE  # as uvicorn.run: e.g. the port is taken

@@ -69,6 +69,11 @@ def test_unit_runs_rigd_serve(unit: dict[str, dict[str, list[str]]]) -> None:
     assert unit["Install"]["WantedBy"] == ["multi-user.target"]
 
 
+def test_unit_raises_the_open_file_limit(unit: dict[str, dict[str, list[str]]]) -> None:
+    # systemd's default of 1024 open files let ~1,000 slow-header connections lock every client out (issue 33).
+    assert int(service(unit, "LimitNOFILE")) >= 65536
+
+
 def test_unit_user_data_dir_and_config(unit: dict[str, dict[str, list[str]]]) -> None:
     assert service(unit, "User") == service(unit, "Group") == "rigd"
     # StateDirectory=rigd is /var/lib/rigd, created by systemd and owned by User=.
