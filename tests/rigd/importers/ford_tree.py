@@ -11,17 +11,17 @@ import yaml
 LASER_ELEVATIONS_DEG = (-8.0, 1.5, -7.5, 2.0, -22.0, -21.5)  # an HDL-64E's order: not sorted by elevation
 HEAD_YAML = {
     "head_lidar_reference": {
-        "pose": [0.295, -0.003, -0.432, -0.0026, 0.0016, -1.5748],
+        "pose": [0.25, 0.01, -0.45, 0.004, -0.002, -1.5708],  # made-up values in the sample's form
         "covariance_order": ["x", "y", "z", "roll", "pitch", "heading"],
-        "covariance": (np.diag([0.0009, 0.0011, 0.000625, 1.2e-5, 1.0e-5, 1.2e-5])).tolist(),
+        "covariance": (np.diag([0.0004, 0.0009, 0.0016, 1.0e-5, 2.0e-5, 3.0e-5])).tolist(),
     },
     "initial_guess_head_lidar": [0.3, 0.0, -0.4, 0.0, 0.0, -90.0],
     "image_size": [48, 20],
     "cameras": {
         "cam0": {"focal_length": 20.0, "cx": 23.5, "cy": 9.5, "scale_x": 1, "scale_y": 0.5,
-                 "X_hc": [0.042, -0.002, 0.0, 172.29, 89.79, 172.15]},
+                 "X_hc": [0.04, 0.0, 0.0, 170.0, 89.5, 170.0]},
         "cam1": {"focal_length": 20.0, "cx": 23.0, "cy": 9.0, "scale_x": 1, "scale_y": 0.5,
-                 "X_hc": [0.011, -0.040, 0.0, 29.51, 89.73, -42.68]},
+                 "X_hc": [0.01, -0.04, 0.0, 30.0, 89.5, -42.0]},
     },
 }
 

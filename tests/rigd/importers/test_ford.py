@@ -39,8 +39,8 @@ def test_the_head_is_imported_with_masks_rings_and_the_reference(tmp_path: Path)
     assert cloud.ring is not None and cloud.intensity is not None
     assert int(cloud.ring.max()) == len(LASER_ELEVATIONS_DEG) - 1
     assert ds.reference is not None and ds.rig.initial_guess is not None
-    np.testing.assert_allclose(ds.reference.T_camera_lidar.rpy_deg[2], np.degrees(-1.5748), atol=1e-9)
-    np.testing.assert_allclose(ds.reference.sigma[[2, 5]], [0.025, np.degrees(np.sqrt(1.2e-5))])
+    np.testing.assert_allclose(ds.reference.T_camera_lidar.rpy_deg[2], np.degrees(-1.5708), atol=1e-9)
+    np.testing.assert_allclose(ds.reference.sigma[[2, 5]], [0.04, np.degrees(np.sqrt(3.0e-5))])
     assert rotation_angle_deg(ds.rig.initial_guess.rotation, ds.reference.T_camera_lidar.rotation) < 0.5
 
 
