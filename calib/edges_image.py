@@ -22,6 +22,7 @@ import scipy.fft
 from numpy.typing import NDArray
 
 from calib.errors import CalibError
+from calib.l0_kernel import flattened_adjoint, spectral_update
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -90,44 +91,20 @@ def l0_smooth(grey: F64, lam: float, kappa: float = 2.0, beta_max: float = 1e5) 
     fy = np.zeros((h, w), np.float32)
     fy[0, 0], fy[-1, 0] = -1.0, 1.0
     denom_grad = np.abs(scipy.fft.rfft2(fx)) ** 2 + np.abs(scipy.fft.rfft2(fy)) ** 2
-    smooth = np.asarray(grey, dtype=np.float32)
+    smooth = np.ascontiguousarray(grey, dtype=np.float32)
     f_image = scipy.fft.rfft2(smooth)
-    gx, gy, adjoint, energy = (np.empty((h, w), np.float32) for _ in range(4))
+    gx, gy, adjoint = (np.empty((h, w), np.float32) for _ in range(3))
     beta = 2.0 * lam
     while beta < beta_max:
-        _forward_difference(smooth, gx, gy)
-        np.multiply(gx, gx, out=energy)
-        energy += gy * gy
-        flat = energy < lam / beta
-        np.copyto(gx, 0.0, where=flat)
-        np.copyto(gy, 0.0, where=flat)
-        # Adjoint of the forward difference (conj(OTF) in the Fourier domain) applied in space, the
-        # backward difference, so one forward FFT per iteration instead of two.
-        _backward_difference_sum(gx, gy, adjoint)
+        # Forward differences flattened where their energy is below lam / beta, then their adjoint in space
+        # (conj(OTF) in the Fourier domain), so one forward FFT per iteration instead of two.
+        flattened_adjoint(smooth, np.float32(lam / beta), gx, gy, adjoint)
         f_adjoint = scipy.fft.rfft2(adjoint)
         f_adjoint[0, 0] = 0.0  # a difference's adjoint sums to 0; in float32, beta (up to 1e5) x rounding does not
-        numer = f_image + np.float32(beta) * f_adjoint
-        smooth = scipy.fft.irfft2(numer / (np.float32(1.0) + np.float32(beta) * denom_grad), s=(h, w))
+        spectral_update(f_image, f_adjoint, np.float32(beta), denom_grad)
+        smooth = np.ascontiguousarray(scipy.fft.irfft2(f_adjoint, s=(h, w)))
         beta *= kappa
     return np.asarray(smooth, dtype=np.float64)
-
-
-def _forward_difference(s: F32, gx: F32, gy: F32) -> None:
-    """gx, gy = periodic forward differences of ``s`` along columns and rows (written in place)."""
-    np.subtract(s[:, 1:], s[:, :-1], out=gx[:, :-1])
-    np.subtract(s[:, :1], s[:, -1:], out=gx[:, -1:])
-    np.subtract(s[1:], s[:-1], out=gy[:-1])
-    np.subtract(s[:1], s[-1:], out=gy[-1:])
-
-
-def _backward_difference_sum(gx: F32, gy: F32, out: F32) -> None:
-    """out = (gx shifted right by one column - gx) + gy shifted down by one row - gy, periodic: the adjoint
-    of :func:`_forward_difference` applied to (gx, gy)."""
-    np.subtract(gx[:, :-1], gx[:, 1:], out=out[:, 1:])
-    np.subtract(gx[:, -1:], gx[:, :1], out=out[:, :1])
-    out[1:] += gy[:-1]
-    out[:1] += gy[-1:]
-    out -= gy
 
 
 def _sobel(grey: F64, wrap_u: bool) -> tuple[F64, F64]:
