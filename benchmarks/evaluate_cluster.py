@@ -19,7 +19,8 @@ from pathlib import Path
 from distributed import Client, LocalCluster
 
 from calib.assess import TrustOptions
-from rigd.evaluate import ConvergenceRequest, EvaluationSettings, Run, run_convergence
+from rigd.evaluate.protocols import ConvergenceRequest, run_convergence
+from rigd.evaluate.trials import EvaluationSettings, Run
 
 
 def _peak_rss_mb() -> float:

@@ -19,8 +19,6 @@ from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 from rigd.store import Database, VersionStore
 
-EXIT_CODES = {"ok": 0, "drifted": 1, "unknown": 2}
-
 
 @dataclass(frozen=True)
 class CheckOutcome:

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 from calib.errors import CalibError
 from drivers.errors import DriverError
+from rigd.cli.exit_codes import ERROR, INTERRUPTED
 from rigd.cli.parser import RigdArgumentParser
 from rigd.errors import RigdError
 from rigd.version import software_version
@@ -40,10 +41,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except (RigdError, DriverError, CalibError) as exc:
         print(f"rigd: error: {exc}", file=sys.stderr)
-        return 2
+        return ERROR
     except KeyboardInterrupt:
         print("rigd: interrupted", file=sys.stderr)
-        return 130
+        return INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -10,72 +10,13 @@ from typing import Any
 
 import numpy as np
 
-from calib.assess import Status, TrustOptions
-from calib.errors import CalibError
-from calib.geometry import Transform, rpy_deg_to_matrix
+from calib.assess import Status
 from calib.methods import Method
-from calib.prior import Prior
 from rigd.calibration import CalibrationRequest, run_calibration
 from rigd.calibration.service import DEFAULT_SIGMAS_DEG, PAPER_SIGMAS_DEG
+from rigd.cli.args import parse_init, parse_prior, parse_sigmas, parse_tolerance
+from rigd.cli.exit_codes import Calibrate
 from rigd.dataset.working import WORKING_WIDTH_PX
-from rigd.errors import RigdError
-
-
-def parse_init(text: str) -> Transform:
-    """'roll,pitch,yaw,x,y,z' (degrees, metres) -> Transform."""
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError as exc:
-        raise RigdError(f"--init must be 6 comma-separated numbers 'r,p,y,x,y,z', got {text!r}") from exc
-    if len(values) != 6 or not np.all(np.isfinite(values)):
-        raise RigdError(f"--init must be 6 finite numbers 'r,p,y,x,y,z' (deg, m), got {text!r}")
-    return Transform.from_rpy_xyz(np.array(values[:3]), np.array(values[3:]))
-
-
-def parse_sigmas(text: str) -> tuple[float, ...]:
-    try:
-        return tuple(float(v) for v in text.split(","))
-    except ValueError as exc:
-        raise RigdError(f"--sigmas must be comma-separated numbers, got {text!r}") from exc
-
-
-# Exit codes of rigd calibrate by verdict (docs/trust.md); 2 is an error (bad input, featureless scene).
-EXIT_CODES = {Status.TRUSTED: 0, Status.WEAK: 3, Status.FAILED: 4, Status.NOT_ASSESSED: 5}
-
-
-def numbers(text: str, option: str, count: int) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError as exc:
-        raise RigdError(f"{option} must be {count} comma-separated numbers, got {text!r}") from exc
-    if len(values) != count or not np.all(np.isfinite(values)):
-        raise RigdError(f"{option} must be {count} finite comma-separated numbers, got {text!r}")
-    return values
-
-
-def parse_prior(xyz_text: str | None, rotation_text: str | None) -> Prior | None:
-    """--prior 'x,y,z,sigma_cm' and --prior-rotation 'roll,pitch,yaw,sigma_deg' -> Prior (or None)."""
-    if xyz_text is None and rotation_text is None:
-        return None
-    xyz = sigma_t = rotation = sigma_r = None
-    if xyz_text is not None:
-        v = numbers(xyz_text, "--prior", 4)
-        xyz, sigma_t = np.array(v[:3]), np.full(3, v[3] / 100.0)
-    if rotation_text is not None:
-        v = numbers(rotation_text, "--prior-rotation", 4)
-        rotation, sigma_r = rpy_deg_to_matrix(np.array(v[:3])), np.full(3, np.radians(v[3]))
-    try:
-        return Prior(xyz, sigma_t, rotation, sigma_r)
-    except CalibError as exc:
-        raise RigdError(str(exc)) from exc
-
-
-def parse_tolerance(text: str, option: str = "--tolerance") -> TrustOptions:
-    """'rotation_deg,translation_cm' -> the verdict's tolerance (positive numbers)."""
-    rot, trans = numbers(text, option, 2)
-    if rot <= 0 or trans <= 0:
-        raise RigdError(f"{option} must be positive 'rotation_deg,translation_cm', got {text!r}")
-    return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)
 
 
 def register(subparsers: Any) -> None:
@@ -188,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
             z = ", ".join(f"{k} {v:+.2f}" for k, v in ref["z_per_axis"].items() if v is not None)
             print(f"vs the published reference (reference.yaml): {ref['rotation_deg']:.3f} deg, "
                   f"{ref['translation_cm']:.2f} cm" + (f"; per axis in its sigmas: {z}" if z else ""))
-    return EXIT_CODES[Status(verdict["status"])]
+    return Calibrate[Status(verdict["status"]).name]
 
 
 def _fmt(values: list[float | None]) -> str:

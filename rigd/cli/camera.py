@@ -17,6 +17,7 @@ from drivers.ladybug5.usb import (
     read_usbfs_memory_mb,
     reset_camera,
 )
+from rigd.cli.exit_codes import OK, UNHEALTHY
 
 
 def _hex_int(text: str) -> int:
@@ -81,7 +82,7 @@ def run_info(args: argparse.Namespace) -> int:
     warnings = health_warnings(cameras, usbfs)
     for warning in warnings:
         print(f"warning: {warning}")
-    return 0 if cameras and not warnings else 1
+    return OK if cameras and not warnings else UNHEALTHY
 
 
 def _print_cameras(cameras: list[UsbCamera], unidentified: list[UsbCamera], match: UsbMatch) -> None:

@@ -15,6 +15,7 @@ from rigd.capture import CaptureRequest, CaptureStatus, run_capture
 from rigd.capture.config import find_config, load_settings
 from rigd.capture.errors import ConfigError
 from rigd.capture.specs import CAMERA_FORMS, LIDAR_FORMS
+from rigd.cli.exit_codes import OK, SIGNALLED
 
 LOG_PERIOD_S = 5.0  # without a terminal, a state that lasts is reported again this often
 
@@ -142,5 +143,5 @@ def run(args: argparse.Namespace) -> int:
         mean = sum(summary.seconds_per_pair) / done
         print(f"captured {done} pair(s) into {summary.out}; seconds per pair: {times} (mean {mean:.1f})")
     if stopper.signum is not None and printer.key is not None and printer.key[0] == "stopped":
-        return 128 + stopper.signum
-    return 0
+        return SIGNALLED + stopper.signum
+    return OK

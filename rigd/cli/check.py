@@ -8,10 +8,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from calib.check import DriftOptions
+from calib.check import DriftOptions, DriftStatus
 from calib.geometry import Transform
-from rigd.calibration.check import EXIT_CODES, extrinsics_from_file, extrinsics_from_store, run_check
-from rigd.cli.calibrate import parse_tolerance
+from rigd.calibration.check import extrinsics_from_file, extrinsics_from_store, run_check
+from rigd.cli.args import parse_tolerance
+from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
 from rigd.errors import RigdError
 
@@ -76,4 +77,4 @@ def run(args: argparse.Namespace) -> int:
         print(f"status: {rep['status'].upper()}{axes}; {rep['pairs']} pairs, {rep['wall_time_s']:.1f} s")
         for reason in rep["reasons"]:
             print(f"  - {reason}")
-    return EXIT_CODES[rep["status"]]
+    return Check[DriftStatus(rep["status"]).name]

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from rigd.cli.exit_codes import OK, UNHEALTHY
 from rigd.doctor import Check, DoctorOptions, Status, run_checks
 
 _WIDTH = max(len(s.value) for s in Status)
@@ -38,4 +39,4 @@ def run(args: argparse.Namespace) -> int:
         print(format_check(check), flush=True)
     counts = {s: sum(c.status is s for c in checks) for s in Status}
     print(f"doctor: {counts[Status.OK]} ok, {counts[Status.WARN]} warn, {counts[Status.FAIL]} fail")
-    return 1 if counts[Status.FAIL] else 0
+    return UNHEALTHY if counts[Status.FAIL] else OK

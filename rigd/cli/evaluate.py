@@ -1,102 +1,39 @@
-"""``rigd evaluate convergence|precision DATASET``: the paper's evaluation protocols (docs/evaluation.md)."""
+"""``rigd evaluate PROTOCOL DATASET``: the paper's convergence and precision protocols and drift here, initial and
+compare in rigd.cli.evaluate_initial and rigd.cli.evaluate_compare (docs/evaluation.md)."""
 
 from __future__ import annotations
 
 import argparse
-import math
-from pathlib import Path
 from typing import Any
 
 from calib.assess import TrustOptions
 from calib.check import DriftOptions
-from calib.evaluate import OutlierRule, Params6, PoseError
-from rigd.cli.calibrate import numbers, parse_init, parse_sigmas, parse_tolerance
-from rigd.cli.evaluate_compare import add_parser as add_compare_parser
+from calib.evaluate import Params6, PoseError
+from rigd.cli.args import (
+    add_evaluation_options,
+    evaluation_settings,
+    evaluation_trust,
+    non_negative_float,
+    numbers,
+    parse_tolerance,
+    positive_int,
+)
+from rigd.cli.evaluate_compare import register_compare
 from rigd.cli.evaluate_initial import register_initial
-from rigd.evaluate import (
+from rigd.evaluate.drift import DriftRequest, run_drift
+from rigd.evaluate.protocols import (
     ConvergenceRequest,
     EvaluationOutcome,
-    EvaluationSettings,
     PrecisionRequest,
     Source,
     run_convergence,
     run_precision,
 )
-from rigd.evaluate_drift import DriftRequest, run_drift
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
-    return value
-
-
-def _non_negative_int(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    value = float(text)
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return value
-
-
-def _settings(args: argparse.Namespace, trust: TrustOptions | None) -> EvaluationSettings:
-    return EvaluationSettings(
-        dataset=args.dataset,
-        seed=args.seed,
-        workers=args.workers,
-        out_dir=args.out,
-        sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
-        initial=parse_init(args.init) if getattr(args, "init", None) else None,
-        outlier_rule=OutlierRule(args.outlier_rule),
-        trust=trust,
-        cluster=args.cluster,
-        cluster_timeout_s=args.cluster_timeout,
-    )
 
 
 def _where(settings: dict[str, Any]) -> str:
     cluster = settings.get("cluster")
     return f"workers: {settings['workers']}" + (f" of the cluster at {cluster}" if cluster else "")
-
-
-def _common(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("dataset", type=Path, metavar="DATASET")
-    parser.add_argument("--seed", type=_non_negative_int, default=0, help="random seed (default 0)")
-    parser.add_argument("--workers", type=_positive_int, default=2,
-                        help="parallel processes, each extracts the features once (default 2)")
-    parser.add_argument("--cluster", type=str, default=None, metavar="ADDRESS",
-                        help="run the trials on the Dask scheduler at ADDRESS (tcp://host:8786) instead of local "
-                        "processes; its workers need the same rigd and the dataset at the same path "
-                        "(pip install 'rigd[cluster]', docs/evaluation.md)")
-    parser.add_argument("--cluster-timeout", type=_positive_float, default=10.0, metavar="S",
-                        help="seconds to wait for the cluster's scheduler and its first worker (default 10)")
-    parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/evaluation)")
-    parser.add_argument("--sigmas", type=str, default=None,
-                        help="sigma_in per coarse-to-fine level, degrees at 1 m (default: the calibration's)")
-    parser.add_argument("--init", type=str, default=None,
-                        help="initial guess 'roll,pitch,yaw,x,y,z' in deg and m (default: rig.yaml initial_guess)")
-    parser.add_argument("--outlier-rule", choices=[r.value for r in OutlierRule],
-                        default=OutlierRule.PER_PARAMETER.value,
-                        help="per-parameter (paper Fig. 19: any of roll/pitch/yaw > 0.5 deg or x/y/z > 2.5 cm from "
-                        "its median) or pose (rotation angle > 0.5 deg or distance > 2.5 cm from the median pose)")
-    parser.add_argument("--no-uncertainty", action="store_true",
-                        help="skip each run's uncertainty and verdict (faster; no coverage check)")
-    parser.add_argument("--tolerance", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
-                        help="field tolerance of the verdicts (default 0.2,2)")
 
 
 def register(subparsers: Any) -> None:
@@ -112,31 +49,31 @@ def register(subparsers: Any) -> None:
         description="Calibrate with all pairs from TRIALS starts drawn uniformly within +-ROT_DEG on each of "
         "roll/pitch/yaw and +-TRANS_M on each of x/y/z around the reference: the ground truth when the dataset "
         "has one, else a first calibration from --init / rig.yaml's initial_guess.")
-    _common(conv)
-    conv.add_argument("--trials", type=_positive_int, default=200, help="number of starts (default 200)")
-    conv.add_argument("--rot-deg", type=_non_negative_float, default=5.0, help="start range in degrees (default 5)")
-    conv.add_argument("--trans-m", type=_non_negative_float, default=0.1, help="start range in metres (default 0.1)")
+    add_evaluation_options(conv)
+    conv.add_argument("--trials", type=positive_int, default=200, help="number of starts (default 200)")
+    conv.add_argument("--rot-deg", type=non_negative_float, default=5.0, help="start range in degrees (default 5)")
+    conv.add_argument("--trans-m", type=non_negative_float, default=0.1, help="start range in metres (default 0.1)")
     conv.set_defaults(func=run)
     prec = protocols.add_parser(
         "precision", help="random subsets of pairs from one start (paper Table 1, Fig. 11)",
         description="Calibrate SUBSETS random subsets of SIZE pairs, all from one start (--init, else rig.yaml's "
         "initial_guess, else the ground truth), and report the per-parameter standard deviation.")
-    _common(prec)
-    prec.add_argument("--subsets", type=_positive_int, default=100, help="number of subsets (default 100)")
-    prec.add_argument("--size", type=_positive_int, default=12, help="pairs per subset (default 12)")
+    add_evaluation_options(prec)
+    prec.add_argument("--subsets", type=positive_int, default=100, help="number of subsets (default 100)")
+    prec.add_argument("--size", type=positive_int, default=12, help="pairs per subset (default 12)")
     prec.set_defaults(func=run)
     drift = protocols.add_parser(
         "drift", help="how well rigd check tells drift from none (detection and false-alarm rates)",
         description="Injects known errors into the ground truth (none, rotations of --rot-deg, translations of "
         "--trans-cm, random directions), runs rigd check's search from each and counts ok / drifted / unknown. "
         "Writes OUT/drift.yaml.")
-    _common(drift)
-    drift.add_argument("--trials", type=_positive_int, default=120, help="number of trials (default 120)")
+    add_evaluation_options(drift)
+    drift.add_argument("--trials", type=positive_int, default=120, help="number of trials (default 120)")
     drift.add_argument("--rot-deg", type=str, default="0.3,0.5,1", help="injected rotations, deg (default 0.3,0.5,1)")
     drift.add_argument("--trans-cm", type=str, default="2,5", help="injected translations, cm (default 2,5)")
     drift.set_defaults(func=run_drift_command)
-    register_initial(protocols, _common, _positive_int, _non_negative_float, _settings, _trust)
-    add_compare_parser(protocols, _positive_int, _non_negative_float)
+    register_initial(protocols)
+    register_compare(protocols)
 
 
 def _fmt_params(p: Params6 | None, digits: int) -> str:
@@ -206,7 +143,7 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
 
 
 def run_drift_command(args: argparse.Namespace) -> int:
-    settings = _settings(args, None)
+    settings = evaluation_settings(args, None)
     tol = parse_tolerance(args.tolerance) if args.tolerance else TrustOptions()
     opts = DriftOptions(threshold_rot_deg=tol.tolerance_rot_deg, threshold_trans_cm=tol.tolerance_trans_cm)
     rot = numbers(args.rot_deg, "--rot-deg", len(args.rot_deg.split(",")))
@@ -226,12 +163,8 @@ def run_drift_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def _trust(args: argparse.Namespace) -> TrustOptions | None:
-    return None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions())
-
-
 def run(args: argparse.Namespace) -> int:
-    settings = _settings(args, _trust(args))
+    settings = evaluation_settings(args, evaluation_trust(args))
     if args.protocol == "convergence":
         outcome = run_convergence(ConvergenceRequest(settings, args.trials, args.rot_deg, args.trans_m))
     else:

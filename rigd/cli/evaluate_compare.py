@@ -6,10 +6,11 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from rigd.evaluate_compare import CompareRequest, parse_methods, run_compare
+from rigd.cli.args import non_negative_float, positive_int
+from rigd.evaluate.compare import CompareRequest, parse_methods, run_compare
 
 
-def add_parser(protocols: Any, positive_int: Any, non_negative_float: Any) -> None:
+def register_compare(protocols: Any) -> None:
     """The ``compare`` protocol of ``rigd evaluate`` (registered by rigd.cli.evaluate)."""
     p = protocols.add_parser(
         "compare", help="the paper's comparison: precision and convergence of several methods side by side",

@@ -5,30 +5,36 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from rigd.evaluate_initial import InitialRequest, run_initial
+from rigd.cli.args import (
+    add_evaluation_options,
+    evaluation_settings,
+    evaluation_trust,
+    non_negative_float,
+    positive_int,
+)
+from rigd.evaluate.initial import InitialRequest, run_initial
 
 
-def register_initial(protocols: Any, common: Any, positive_int: Any, non_negative_float: Any, settings: Any,
-                     trust: Any) -> None:
-    """``rigd evaluate initial``; ``common`` adds the shared options, ``settings(args, trust(args))`` reads them."""
+def register_initial(protocols: Any) -> None:
+    """The ``initial`` protocol of ``rigd evaluate`` (registered by rigd.cli.evaluate)."""
     parser = protocols.add_parser(
         "initial", help="calibrate with no initial guess from random mounts (the global search)",
         description="Mounts the camera at random (yaw within +-YAW_DEG, roll and pitch within +-TILT_DEG, lever arm "
         "within +-LEVER_M per axis) by re-expressing the dataset's clouds, calibrates each with no initial guess, "
         "and counts the runs that end as close to their mount as a run started 5 deg / 10 cm from the ground truth "
         "(within 0.2 deg / 2 cm). Writes OUT/initial.yaml.")
-    common(parser)
+    add_evaluation_options(parser)
     parser.add_argument("--trials", type=positive_int, default=100, help="number of random mounts (default 100)")
     parser.add_argument("--yaw-deg", type=non_negative_float, default=180.0, help="yaw range, +- deg (default 180)")
     parser.add_argument("--tilt-deg", type=non_negative_float, default=30.0,
                         help="roll and pitch range, +- deg (default 30)")
     parser.add_argument("--lever-m", type=non_negative_float, default=0.3,
                         help="lever-arm range per axis, +- m (default 0.3)")
-    parser.set_defaults(func=run_initial_command, make_settings=settings, make_trust=trust)
+    parser.set_defaults(func=run_initial_command)
 
 
 def run_initial_command(args: argparse.Namespace) -> int:
-    settings = args.make_settings(args, args.make_trust(args))
+    settings = evaluation_settings(args, evaluation_trust(args))
     rep = run_initial(InitialRequest(settings, args.trials, args.yaw_deg, args.tilt_deg, args.lever_m))
     ref = rep["reference"]
     print(f"initial guess on {rep['dataset']} ({rep['pairs']} pairs): {rep['settings']['trials']} random mounts "

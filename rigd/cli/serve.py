@@ -7,8 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from rigd.api.settings import Settings, check_exposure, load_settings
-
-STARTUP_FAILURE = 3  # uvicorn's exit code when the server could not start
+from rigd.cli.exit_codes import NOT_STARTED, OK
 
 
 def _settings_help() -> str:
@@ -68,4 +67,4 @@ def run(args: argparse.Namespace) -> int:
         server.run()
     except KeyboardInterrupt:  # uvicorn re-raises the Ctrl-C it handled, as uvicorn.run ignores it
         pass
-    return 0 if server.started else STARTUP_FAILURE  # as uvicorn.run: e.g. the port is taken
+    return OK if server.started else NOT_STARTED  # as uvicorn.run: e.g. the port is taken

@@ -7,21 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from drivers.sim import SceneKind
+from rigd.cli.args import non_negative_float, positive_int
 from rigd.simulate import write_simulated_dataset
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    value = float(text)
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
-    return value
 
 
 def register(subparsers: Any) -> None:
@@ -33,13 +20,13 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("out", type=Path, metavar="OUT", help="new (or empty) dataset directory")
     parser.add_argument("--scene", choices=[k.value for k in SceneKind], default="indoor")
-    parser.add_argument("--pairs", type=_positive_int, default=12, help="number of locations (default 12)")
+    parser.add_argument("--pairs", type=positive_int, default=12, help="number of locations (default 12)")
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (>= 0, default 0)")
-    parser.add_argument("--width", type=_positive_int, default=None,
+    parser.add_argument("--width", type=positive_int, default=None,
                         help="panorama width px (default 1024); with --camera head each sensor's (default 512)")
-    parser.add_argument("--height", type=_positive_int, default=None,
+    parser.add_argument("--height", type=positive_int, default=None,
                         help="panorama height px (default width/2); with --camera head each sensor's (width x 1.25)")
-    parser.add_argument("--noise-m", type=_non_negative_float, default=0.02,
+    parser.add_argument("--noise-m", type=non_negative_float, default=0.02,
                         help="LiDAR range noise sigma in metres (default 0.02)")
     parser.add_argument("--sensor-effects", action="store_true",
                         help="what a real rig adds (docs/simulator.md): the Ladybug5's separate sensors stitched "

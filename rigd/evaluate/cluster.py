@@ -36,7 +36,7 @@ from distributed.comm.registry import get_backend
 from calib.assess import TrustOptions
 from calib.pipeline import CalibParams
 from rigd.errors import RigdError
-from rigd.evaluate import WorkerState, collect, extract_state
+from rigd.evaluate.trials import WorkerState, collect, extract_state
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -115,7 +115,7 @@ def _on_worker(key: FeatureKey, client_code: tuple[tuple[str, str], ...], fn: Ca
 
 
 class DaskCluster:
-    """The workers of the Dask scheduler at ``address`` (a :class:`rigd.evaluate.TrialRunner`)."""
+    """The workers of the Dask scheduler at ``address`` (a :class:`rigd.evaluate.runner.TrialRunner`)."""
 
     def __init__(self, address: str, timeout_s: float, root: Path, params: CalibParams,
                  trust: TrustOptions | None) -> None:

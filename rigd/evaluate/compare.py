@@ -38,11 +38,7 @@ from rigd.dataset.records import transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
-from rigd.evaluate import (
-    Run,
-    _Task,  # one calibration's start and pairs, shared with the other protocols
-    collect,
-)
+from rigd.evaluate.trials import Run, Task, collect
 
 AXES6 = ("roll_deg", "pitch_deg", "yaw_deg", "x_m", "y_m", "z_m")
 
@@ -114,7 +110,7 @@ def _release() -> None:
     _STATE = None
 
 
-def _run_task(task: _Task) -> Run:
+def _run_task(task: Task) -> Run:
     state = _STATE
     if state is None or state.error is not None:
         raise RigdError(state.error if state else "compare worker was not initialised")
@@ -130,7 +126,7 @@ def _run_task(task: _Task) -> Run:
                time.monotonic() - started)
 
 
-def _run(root: Path, method: Method, tasks: Sequence[_Task], workers: int, progress: bool) -> tuple[Run, ...]:
+def _run(root: Path, method: Method, tasks: Sequence[Task], workers: int, progress: bool) -> tuple[Run, ...]:
     """``tasks`` with ``method`` (results by task index), in one pool: the features are extracted once per worker
     for both protocols."""
     if not tasks:
@@ -141,7 +137,7 @@ def _run(root: Path, method: Method, tasks: Sequence[_Task], workers: int, progr
             return tuple(_run_task(t) for t in tasks)
         finally:
             _release()
-    ctx = multiprocessing.get_context("spawn")  # as rigd.evaluate.pool: no fork after OpenCV threads started
+    ctx = multiprocessing.get_context("spawn")  # as rigd.evaluate.runner: no fork after OpenCV threads started
     with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(root, method),
                              mp_context=ctx) as pool:
         futures = [pool.submit(_run_task, t) for t in tasks]
@@ -314,8 +310,8 @@ def run_compare(req: CompareRequest) -> CompareOutcome:
     rows: list[MethodRows] = []
     report: dict[str, Any] = {}
     for method in req.methods:
-        tasks = [_Task(i, reference, s) for i, s in enumerate(subsets)]
-        tasks += [_Task(len(subsets) + i, t, all_pairs) for i, t in enumerate(starts)]
+        tasks = [Task(i, reference, s) for i, s in enumerate(subsets)]
+        tasks += [Task(len(subsets) + i, t, all_pairs) for i, t in enumerate(starts)]
         runs = _run(dataset.root, method, tasks, req.workers, req.progress)
         prec, conv = runs[:len(subsets)], runs[len(subsets):]
         errors = [r.error for r in runs if r.error is not None]

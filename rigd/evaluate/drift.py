@@ -3,7 +3,7 @@
 Trials inject a known error into the ground truth (a random direction in rotation or in translation, at
 each magnitude of ``rot_deg`` / ``trans_cm``, and none at all), run :func:`calib.check.check_drift` from the
 erroneous extrinsics, and count the outcomes: detection rate per magnitude, and the false-alarm rate (drifted
-at zero error). The worker processes and their features are those of :mod:`rigd.evaluate`.
+at zero error). The worker processes and their features are those of :mod:`rigd.evaluate.runner`.
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from calib.geometry import Transform
 from calib.uncertainty import tau_at
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
-from rigd.evaluate import EvaluationSettings, WorkerState, calib_params, open_for, trial_runner, where_run
+from rigd.evaluate.runner import trial_runner, where_run
+from rigd.evaluate.trials import EvaluationSettings, WorkerState, calib_params, open_for
 
 
 @dataclass(frozen=True)

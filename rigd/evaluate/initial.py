@@ -34,7 +34,8 @@ from calib.initial import SearchOptions, base_rotation
 from calib.pipeline import calibrate
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
-from rigd.evaluate import EvaluationSettings, WorkerState, calib_params, open_for, trial_runner, where_run
+from rigd.evaluate.runner import trial_runner, where_run
+from rigd.evaluate.trials import EvaluationSettings, WorkerState, calib_params, open_for
 
 
 @dataclass(frozen=True)

@@ -1,37 +1,23 @@
-"""The evaluation protocols on a dataset (docs/evaluation.md): many calibrations in parallel processes (or on
-a Dask cluster, rigd.evaluate_cluster), their statistics (calib.evaluate), a YAML report and a plot.
-
-Each worker process extracts the dataset's edge features once (with the field evaluator's filtered maps about
-170 MB per 1024x512 pair: sending them with every task would cost more than a calibration), then runs
-calibrations on them. Memory therefore grows with the worker processes times the pairs.
+"""The paper's evaluation protocols on a dataset (docs/evaluation.md): convergence (Fig. 19) and precision
+(Table 1), many calibrations run where :mod:`rigd.evaluate.runner` says (worker processes or a Dask cluster),
+their statistics (calib.evaluate), a YAML report and a plot (:mod:`rigd.evaluate.plots`).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import multiprocessing
-import sys
 import time
-import typing
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
-from tqdm import tqdm
 
-from calib.assess import TrustOptions
 from calib.errors import CalibError
 from calib.evaluate import (
     Coverage,
-    OutlierRule,
     Params6,
     RunStats,
     coverage,
@@ -41,20 +27,16 @@ from calib.evaluate import (
     run_stats,
 )
 from calib.geometry import Transform
-from calib.gmm import PairFeatures
 from calib.pipeline import CalibParams, calibrate
-from calib.prior import Prior
-from rigd.calibration.service import dataset_features, of_pairs
-from rigd.dataset import Dataset, open_dataset
+from rigd.calibration.service import of_pairs
+from rigd.dataset import Dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.reference import AXES, Reference, agreement
 from rigd.dataset.store import write_yaml
-from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
-from rigd.evaluate_plots import plot_convergence, plot_precision
-
-T = TypeVar("T")
-R = TypeVar("R")
+from rigd.evaluate.plots import plot_convergence, plot_precision
+from rigd.evaluate.runner import TrialRunner, trial_runner, where_run
+from rigd.evaluate.trials import EvaluationSettings, Run, Task, WorkerState, calib_params, open_for
 
 
 class Protocol(Enum):
@@ -76,25 +58,6 @@ class Source(Enum):
 
 
 @dataclass(frozen=True)
-class EvaluationSettings:
-    """What both protocols share. ``sigmas_deg`` None: ``CalibParams()``'s schedule. ``initial``: the start
-    of the reference calibration (convergence without ground truth) or of every run (precision); None: the
-    dataset's rig.yaml initial_guess."""
-
-    dataset: Path
-    seed: int = 0
-    workers: int = 2
-    out_dir: Path | None = None  # None: DATASET/evaluation
-    sigmas_deg: tuple[float, ...] | None = None
-    initial: Transform | None = None
-    outlier_rule: OutlierRule = OutlierRule.PER_PARAMETER
-    progress: bool = True  # a tqdm bar on stderr
-    cluster: str | None = None  # a Dask scheduler's address (tcp://host:8786): run there instead of `workers`
-    cluster_timeout_s: float = 10.0  # for connecting to it and for its first worker
-    trust: TrustOptions | None = TrustOptions()  # None: no uncertainty/verdict per run (faster, no coverage check)
-
-
-@dataclass(frozen=True)
 class ConvergenceRequest:
     settings: EvaluationSettings
     trials: int = 200
@@ -110,22 +73,6 @@ class PrecisionRequest:
 
 
 @dataclass(frozen=True)
-class Run:
-    """One calibration: its pairs, start and result (None with ``error`` when it raised)."""
-
-    index: int
-    pairs: tuple[int, ...]
-    start: Transform
-    result: Transform | None
-    error: str | None
-    final_cost: float | None
-    iterations: int
-    wall_s: float
-    sigma: tuple[float, ...] | None = None  # per-axis sigma, deg x3 and cm x3 (calib.assess)
-    verdict: str | None = None
-
-
-@dataclass(frozen=True)
 class EvaluationOutcome:
     protocol: Protocol
     stats: RunStats
@@ -137,58 +84,7 @@ class EvaluationOutcome:
     plot_path: Path
 
 
-@dataclass(frozen=True)
-class _Task:
-    index: int
-    start: Transform
-    pairs: tuple[int, ...]
-
-
-@dataclass(frozen=True)
-class WorkerState:
-    """What a worker keeps for all its trials: one dataset's features, the settings they were made with, and
-    the rig file's prior, which every trial's solve uses as `rigd calibrate` does."""
-
-    feats: tuple[PairFeatures, ...]
-    params: CalibParams
-    trust: TrustOptions | None
-    error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
-    prior: Prior | None = None
-    n_pairs: int = 0  # the dataset's pairs (feats holds one per view of each, view by view)
-
-    def checked(self) -> WorkerState:
-        """``self``, or the feature extraction's error raised."""
-        if self.error is not None:
-            raise RigdError(self.error)
-        return self
-
-
-def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None) -> WorkerState:
-    """``root``'s features, or the reason there are none (raised later by the trial that needs them)."""
-    cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
-    try:
-        dataset = open_dataset(root, WORKING_WIDTH_PX)
-        feats = tuple(dataset_features(dataset, params, None))
-    except (RigdError, CalibError) as exc:
-        return WorkerState((), params, trust, f"{root}: {exc}")
-    return WorkerState(feats, params, trust, None, dataset.rig.prior, len(dataset))
-
-
-_STATE: WorkerState | None = None  # one per local pool process, set by _init_worker
-
-
-def _init_worker(root: Path, params: CalibParams, trust: TrustOptions | None) -> None:
-    global _STATE
-    _STATE = extract_state(root, params, trust)
-
-
-def _in_pool(fn: Callable[[WorkerState, T], R], task: T) -> R:
-    if _STATE is None:
-        raise RigdError("evaluation worker was not initialised")
-    return fn(_STATE.checked(), task)
-
-
-def _run_task(state: WorkerState, task: _Task) -> Run:
+def _run_task(state: WorkerState, task: Task) -> Run:
     started = time.monotonic()
     try:
         feats = of_pairs(state.feats, state.n_pairs, task.pairs)
@@ -202,101 +98,12 @@ def _run_task(state: WorkerState, task: _Task) -> Run:
                None if a is None else a.verdict.status.value)
 
 
-def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
-    """``CalibParams()`` with only the sigma schedule replaced (when given)."""
-    params = CalibParams()
-    if sigmas_deg is None:
-        return params
-    if not sigmas_deg or not all(np.isfinite(s) and s > 0 for s in sigmas_deg):
-        raise RigdError(f"sigmas must be positive angles in degrees, got {sigmas_deg}")
-    return dataclasses.replace(params, optim=dataclasses.replace(params.optim, sigmas_deg=tuple(sigmas_deg)))
-
-
-def open_for(settings: EvaluationSettings) -> Dataset:
-    if settings.workers < 1:
-        raise RigdError(f"--workers must be at least 1, got {settings.workers}")
-    dataset = open_dataset(settings.dataset, WORKING_WIDTH_PX)
-    if len(dataset) == 0:
-        raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
-    return dataset
-
-
 def _initial(settings: EvaluationSettings, dataset: Dataset) -> Transform | None:
     return settings.initial if settings.initial is not None else dataset.rig.initial_guess
 
 
-class TrialRunner(typing.Protocol):
-    """Where the trials run. Every worker holds one dataset's features (a :class:`WorkerState`, extracted once)
-    and runs ``fn(state, task)``; only tasks and results travel."""
-
-    workers: int  # how many workers, for the report
-
-    def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
-        """``fn`` over ``tasks``, results in completion order."""
-        ...
-
-    def close(self) -> None: ...
-
-
-def collect(done: Iterable[Any], total: int, desc: str, progress: bool) -> list[Any]:
-    """The results of futures as ``done`` yields them, with a progress bar on stderr."""
-    return [f.result() for f in tqdm(done, total=total, desc=desc, unit="run", file=sys.stderr,
-                                     disable=not progress)]
-
-
-class LocalPool:
-    """``workers`` processes on this machine, each extracting the features once in its initializer."""
-
-    def __init__(self, root: Path, params: CalibParams, workers: int, trust: TrustOptions | None) -> None:
-        # spawn, not fork: a child forked from a process whose OpenCV/BLAS threads hold locks can deadlock on
-        # its first cv2 call (seen: the test suite's process hung in cv2.setNumThreads in every forked worker).
-        self._executor = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                                             initargs=(root, params, trust),
-                                             mp_context=multiprocessing.get_context("spawn"))
-        self.workers = workers
-
-    def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
-        futures = [self._executor.submit(_in_pool, fn, t) for t in tasks]
-        try:
-            return collect(as_completed(futures), len(futures), desc, progress)
-        except BrokenProcessPool as exc:
-            raise RigdError(f"{desc}: a worker process died ({exc}); fewer --workers need less memory") from exc
-        finally:
-            for fut in futures:
-                fut.cancel()
-
-    def close(self) -> None:
-        self._executor.shutdown(cancel_futures=True)
-
-
-@contextmanager
-def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams,
-                 trust: TrustOptions | None) -> Iterator[TrialRunner]:
-    """The local process pool, or with ``s.cluster`` the Dask cluster at that address."""
-    runner: TrialRunner
-    if s.cluster is None:
-        runner = LocalPool(root, params, s.workers, trust)
-    else:
-        try:
-            from rigd.evaluate_cluster import DaskCluster  # distributed is the [cluster] extra: imported only here
-        except ModuleNotFoundError as exc:
-            if exc.name not in ("distributed", "dask"):
-                raise
-            raise RigdError(f"--cluster needs Dask distributed ({exc}): pip install 'rigd[cluster]'") from exc
-        runner = DaskCluster(s.cluster, s.cluster_timeout_s, root.resolve(), params, trust)
-    try:
-        yield runner
-    finally:
-        runner.close()
-
-
-def _run_all(runner: TrialRunner, tasks: Sequence[_Task], desc: str, progress: bool) -> tuple[Run, ...]:
+def _run_all(runner: TrialRunner, tasks: Sequence[Task], desc: str, progress: bool) -> tuple[Run, ...]:
     return tuple(sorted(runner.run(_run_task, tasks, desc, progress), key=lambda r: r.index))
-
-
-def where_run(s: EvaluationSettings, runner: TrialRunner) -> dict[str, Any]:
-    """The report's record of the workers: their number and the cluster's address (None: local processes)."""
-    return {"workers": runner.workers, "cluster": s.cluster}
 
 
 def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
@@ -318,12 +125,12 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
             if initial is None:
                 raise RigdError(f"{dataset.root}: no ground_truth.yaml and no initial_guess in rig.yaml; give a "
                                 "start for the reference calibration with --init 'r,p,y,x,y,z'")
-            (first,) = _run_all(workers, [_Task(-1, initial, pairs)], "reference calibration", s.progress)
+            (first,) = _run_all(workers, [Task(-1, initial, pairs)], "reference calibration", s.progress)
             if first.result is None:
                 raise RigdError(f"{dataset.root}: the reference calibration failed: {first.error}")
             reference, source = first.result, Source.CALIBRATION
         starts = random_starts(reference, request.trials, request.rot_deg, request.trans_m, s.seed)
-        runs = _run_all(workers, [_Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
+        runs = _run_all(workers, [Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
     setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m, **where}
     return _finish(Protocol.CONVERGENCE, s, dataset, params, setup, runs, stats, reference, source, started)
@@ -345,7 +152,7 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
                         "with --init 'r,p,y,x,y,z'")
     with trial_runner(s, dataset.root, params, s.trust) as workers:
         where = where_run(s, workers)
-        runs = _run_all(workers, [_Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
+        runs = _run_all(workers, [Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
     truth = dataset.ground_truth
     reference, source = (truth, Source.GROUND_TRUTH) if truth is not None else \
         (dataset.reference.T_camera_lidar, Source.REFERENCE) if dataset.reference is not None else (start, start_source)

@@ -8,8 +8,7 @@ import yaml
 
 from calib.geometry import Transform
 from rigd.cli import main
-from rigd.dataset import open_dataset, write_pair
-from rigd.dataset.pcd import Cloud
+from rigd.dataset import open_dataset
 from rigd.dataset.records import transform_to_yaml
 from rigd.simulate import write_simulated_dataset
 from rigd.store import Database, NewVersion, VersionStore
@@ -59,25 +58,3 @@ def test_version_from_the_store_and_missing_sources(dataset, tmp_path, capsys):
     assert "no rigd store" in capsys.readouterr().err
     assert main(["check", str(dataset)]) == 2  # simulated datasets carry no initial_guess
     assert "--against" in capsys.readouterr().err
-
-
-def test_evaluate_drift_counts_every_trial_by_injected_error(dataset, tmp_path, capsys):
-    code = main(["evaluate", "drift", str(dataset), "--trials", "6", "--workers", "1", "--rot-deg", "1",
-                 "--trans-cm", "5", "--out", str(tmp_path)])
-    assert code == 0
-    report = yaml.safe_load((tmp_path / "drift.yaml").read_text())
-    assert set(report["summary"]) == {"none", "rot 1 deg", "trans 5 cm"}
-    for row in report["summary"].values():
-        assert row["trials"] == 2 and row["ok"] + row["drifted"] + row["unknown"] + row["error"] == 2
-    assert report["false_alarm_rate"] == report["summary"]["none"]["drifted_share"]
-    assert [t["injected"] for t in report["trials"]] == ["none", "rot 1 deg", "trans 5 cm"] * 2
-    assert "false alarms" in capsys.readouterr().out
-
-
-def test_evaluate_drift_needs_ground_truth(tmp_path, capsys):
-    root = tmp_path / "real"
-    (root / "pairs").mkdir(parents=True)
-    (root / "rig.yaml").write_text(yaml.safe_dump({"camera": {"model": "equirectangular", "width": 64, "height": 32}}))
-    write_pair(root, 0, np.zeros((32, 64), np.uint8), Cloud(np.ones((10, 3))), {})
-    assert main(["evaluate", "drift", str(root), "--trials", "2", "--workers", "1"]) == 2
-    assert "ground_truth.yaml" in capsys.readouterr().err

@@ -20,18 +20,10 @@ import rigd
 from rigd.cli import main
 from rigd.dataset import write_pair
 from rigd.dataset.pcd import Cloud
-from rigd.evaluate_cluster import dataset_stamp, worker_counts
-from rigd.simulate import write_simulated_dataset
+from rigd.evaluate.cluster import dataset_stamp, worker_counts
 
 REPO = Path(rigd.__file__).resolve().parents[1]
 TRIALS = 3  # more trials than workers: some worker runs two, and must not extract twice
-
-
-@pytest.fixture(scope="module")
-def small_dataset(tmp_path_factory):
-    root = tmp_path_factory.mktemp("evc") / "indoor"
-    write_simulated_dataset(root, "indoor", 2, seed=5, width=512, height=256, progress=False)
-    return root
 
 
 def _wait_for(path: Path, proc: subprocess.Popen, log: Path) -> None:

@@ -9,22 +9,14 @@ import yaml
 
 import calib.methods
 import rigd.calibration.service
-import rigd.evaluate_compare
+import rigd.evaluate.compare
 from calib.methods import Method, photo_params
 from rigd.cli import main
 from rigd.dataset import open_dataset
 from rigd.errors import RigdError
-from rigd.evaluate_compare import parse_methods
-from rigd.simulate import write_simulated_dataset
+from rigd.evaluate.compare import parse_methods
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-
-
-@pytest.fixture(scope="module")
-def small_dataset(tmp_path_factory):
-    root = tmp_path_factory.mktemp("cmp") / "indoor"
-    write_simulated_dataset(root, "indoor", 2, seed=5, width=512, height=256, progress=False)
-    return root
 
 
 @pytest.fixture
@@ -34,7 +26,7 @@ def quick_photometric(monkeypatch):
     def quick(method):
         opts = photo_params(method)
         return None if opts is None else replace(opts, max_points=3000, max_evals=120, restarts=0)
-    for module in (calib.methods, rigd.evaluate_compare, rigd.calibration.service):
+    for module in (calib.methods, rigd.evaluate.compare, rigd.calibration.service):
         monkeypatch.setattr(module, "photo_params", quick)
 
 

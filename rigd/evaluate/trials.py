@@ -1,0 +1,127 @@
+"""What every evaluation protocol shares: its settings, one calibration's task and result, and the state a
+worker keeps for all its trials (one dataset's features, extracted once). Where the trials run is
+:mod:`rigd.evaluate.runner`."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from calib.assess import TrustOptions
+from calib.errors import CalibError
+from calib.evaluate import OutlierRule
+from calib.geometry import Transform
+from calib.gmm import PairFeatures
+from calib.pipeline import CalibParams
+from calib.prior import Prior
+from rigd.calibration.service import dataset_features
+from rigd.dataset import Dataset, open_dataset
+from rigd.dataset.working import WORKING_WIDTH_PX
+from rigd.errors import RigdError
+
+
+@dataclass(frozen=True)
+class EvaluationSettings:
+    """What the protocols share. ``sigmas_deg`` None: ``CalibParams()``'s schedule. ``initial``: the start
+    of the reference calibration (convergence without ground truth) or of every run (precision); None: the
+    dataset's rig.yaml initial_guess."""
+
+    dataset: Path
+    seed: int = 0
+    workers: int = 2
+    out_dir: Path | None = None  # None: DATASET/evaluation
+    sigmas_deg: tuple[float, ...] | None = None
+    initial: Transform | None = None
+    outlier_rule: OutlierRule = OutlierRule.PER_PARAMETER
+    progress: bool = True  # a tqdm bar on stderr
+    cluster: str | None = None  # a Dask scheduler's address (tcp://host:8786): run there instead of `workers`
+    cluster_timeout_s: float = 10.0  # for connecting to it and for its first worker
+    trust: TrustOptions | None = TrustOptions()  # None: no uncertainty/verdict per run (faster, no coverage check)
+
+
+@dataclass(frozen=True)
+class Task:
+    """One calibration to run: its start and the pairs it uses."""
+
+    index: int
+    start: Transform
+    pairs: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Run:
+    """One calibration: its pairs, start and result (None with ``error`` when it raised)."""
+
+    index: int
+    pairs: tuple[int, ...]
+    start: Transform
+    result: Transform | None
+    error: str | None
+    final_cost: float | None
+    iterations: int
+    wall_s: float
+    sigma: tuple[float, ...] | None = None  # per-axis sigma, deg x3 and cm x3 (calib.assess)
+    verdict: str | None = None
+
+
+@dataclass(frozen=True)
+class WorkerState:
+    """What a worker keeps for all its trials: one dataset's features, the settings they were made with, and
+    the rig file's prior, which every trial's solve uses as `rigd calibrate` does."""
+
+    feats: tuple[PairFeatures, ...]
+    params: CalibParams
+    trust: TrustOptions | None
+    error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
+    prior: Prior | None = None
+    n_pairs: int = 0  # the dataset's pairs (feats holds one per view of each, view by view)
+
+    def checked(self) -> WorkerState:
+        """``self``, or the feature extraction's error raised."""
+        if self.error is not None:
+            raise RigdError(self.error)
+        return self
+
+
+def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None) -> WorkerState:
+    """``root``'s features, or the reason there are none (raised later by the trial that needs them)."""
+    cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
+    try:
+        dataset = open_dataset(root, WORKING_WIDTH_PX)
+        feats = tuple(dataset_features(dataset, params, None))
+    except (RigdError, CalibError) as exc:
+        return WorkerState((), params, trust, f"{root}: {exc}")
+    return WorkerState(feats, params, trust, None, dataset.rig.prior, len(dataset))
+
+
+def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
+    """``CalibParams()`` with only the sigma schedule replaced (when given)."""
+    params = CalibParams()
+    if sigmas_deg is None:
+        return params
+    if not sigmas_deg or not all(np.isfinite(s) and s > 0 for s in sigmas_deg):
+        raise RigdError(f"sigmas must be positive angles in degrees, got {sigmas_deg}")
+    return dataclasses.replace(params, optim=dataclasses.replace(params.optim, sigmas_deg=tuple(sigmas_deg)))
+
+
+def open_for(settings: EvaluationSettings) -> Dataset:
+    if settings.workers < 1:
+        raise RigdError(f"--workers must be at least 1, got {settings.workers}")
+    dataset = open_dataset(settings.dataset, WORKING_WIDTH_PX)
+    if len(dataset) == 0:
+        raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
+    return dataset
+
+
+def collect(done: Iterable[Any], total: int, desc: str, progress: bool) -> list[Any]:
+    """The results of futures as ``done`` yields them, with a progress bar on stderr."""
+    return [f.result() for f in tqdm(done, total=total, desc=desc, unit="run", file=sys.stderr,
+                                     disable=not progress)]
