@@ -30,7 +30,14 @@ from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.advice import SceneFacts, next_steps
 from rigd.calibration.pool import FeaturePool
-from rigd.calibration.visuals import CLOUD_STAGE, OVERLAY_STAGES, cloud_top_view, edge_views, write_coloured_ply
+from rigd.calibration.visuals import (
+    CLOUD_STAGE,
+    OVERLAY_STAGES,
+    cloud_top_view,
+    colour_points,
+    edge_views,
+    write_coloured_ply,
+)
 from rigd.dataset import Dataset, Pair, open_dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.reference import agreement
@@ -317,8 +324,10 @@ def _write_pair_visuals(dataset: Dataset, i: int, edge_points: list[NDArray[np.f
         for name in OVERLAY_STAGES:
             cv2.imwrite(str(out / "overlays" / f"{overlay_stem(dataset, i, v)}_{name}.png"), getattr(views, name))
     seen = list(zip(pair.images, cameras, dataset.masks, strict=True))
-    write_coloured_ply(out / "clouds" / f"{i:04d}.ply", seen, T, pair.cloud.points_lidar)
-    cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"), cloud_top_view(seen, T, pair.cloud.points_lidar))
+    coloured = colour_points(seen, T, pair.cloud.points_lidar)
+    write_coloured_ply(out / "clouds" / f"{i:04d}.ply", seen, T, pair.cloud.points_lidar, coloured=coloured)
+    top = cloud_top_view(seen, T, pair.cloud.points_lidar, coloured=coloured)
+    cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"), top)
 
 
 def _write_visuals(dataset: Dataset, feats: list[PairFeatures] | None, initial: Transform, T: Transform, out: Path,

@@ -46,6 +46,8 @@ def range_scale_m(ranges_m: NDArray[np.float64]) -> float:
 
 def turbo_bgr(ranges_m: NDArray[np.float64], max_range_m: float) -> NDArray[np.uint8]:
     """(N,3) uint8 BGR turbo colours of ``ranges_m`` (N,) m: near blue, far red."""
+    if not len(ranges_m):  # cv2.applyColorMap returns None for an empty image
+        return np.zeros((0, 3), np.uint8)
     levels = np.clip(ranges_m / max_range_m * 255.0, 0, 255).astype(np.uint8)
     return cast(NDArray[np.uint8], cv2.applyColorMap(levels.reshape(-1, 1), cv2.COLORMAP_TURBO).reshape(-1, 3))
 
@@ -166,10 +168,15 @@ def colour_points(views: list[View], T_camera_lidar: Transform,
     return idx_seen, colours[idx_seen]
 
 
+Coloured = tuple[NDArray[np.intp], NDArray[np.uint8]]  # colour_points' result
+
+
 def write_coloured_ply(path: Path, views: list[View], T_camera_lidar: Transform,
-                       points_lidar: NDArray[np.float64]) -> int:
-    """Binary little-endian PLY of the points that see an image, coloured from it (paper Fig. 15)."""
-    idx, bgr = colour_points(views, T_camera_lidar, points_lidar)
+                       points_lidar: NDArray[np.float64], *, coloured: Coloured | None = None) -> int:
+    """Binary little-endian PLY of the points that see an image, coloured from it (paper Fig. 15).
+    ``coloured``: :func:`colour_points` of these arguments if already made (projecting a 64-ring cloud into
+    every sensor of a head is most of the work)."""
+    idx, bgr = colour_points(views, T_camera_lidar, points_lidar) if coloured is None else coloured
     rec = np.zeros(len(idx), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
                                     ("red", "u1"), ("green", "u1"), ("blue", "u1")])
     pts = points_lidar[idx]
@@ -188,7 +195,7 @@ def write_coloured_ply(path: Path, views: list[View], T_camera_lidar: Transform,
 
 
 def cloud_top_view(views: list[View], T_camera_lidar: Transform, points_lidar: NDArray[np.float64],
-                   size_px: int = 900) -> NDArray[np.uint8]:
+                   size_px: int = 900, *, coloured: Coloured | None = None) -> NDArray[np.uint8]:
     """(size_px, size_px, 3) uint8 BGR: the cloud (N,3) m, LiDAR frame, seen from above (x forward up the
     picture, y left to the left), each point in the colour of the pixel it projects to with
     ``T_camera_lidar`` (:func:`colour_points`), grey where no camera sees it. With wrong extrinsics the colours of walls
@@ -196,7 +203,7 @@ def cloud_top_view(views: list[View], T_camera_lidar: Transform, points_lidar: N
 
     The square spans the 95th percentile of the horizontal range (at least 2 m) around the LiDAR; higher
     points are drawn last (they are what one sees from above). 1-m grid lines every 5 m, the LiDAR at the
-    centre as a white cross."""
+    centre as a white cross. ``coloured``: as :func:`write_coloured_ply`'s."""
     canvas = np.full((size_px, size_px, 3), 24, np.uint8)
     horizontal = np.linalg.norm(points_lidar[:, :2], axis=1) if len(points_lidar) else np.zeros(0)
     extent_m = max(2.0, float(np.percentile(horizontal, 95))) if len(horizontal) else 2.0
@@ -205,7 +212,7 @@ def cloud_top_view(views: list[View], T_camera_lidar: Transform, points_lidar: N
     _grid(canvas, extent_m, px_per_m)
     colours = np.empty((len(points_lidar), 3), np.uint8)
     colours[:] = UNSEEN_BGR
-    idx, bgr = colour_points(views, T_camera_lidar, points_lidar)
+    idx, bgr = colour_points(views, T_camera_lidar, points_lidar) if coloured is None else coloured
     colours[idx] = bgr
     col = np.rint(centre - points_lidar[:, 1] * px_per_m).astype(np.int64)  # y left -> picture left
     row = np.rint(centre - points_lidar[:, 0] * px_per_m).astype(np.int64)  # x forward -> picture up

@@ -10,7 +10,7 @@ import scipy.fft
 
 from calib.edges_image import l0_smooth
 from calib.field_gather import gather
-from calib.fields import RUNGS_PER_OCTAVE, EdgeFields, _kernels, _pool, _sample_growing, sample_fields
+from calib.fields import RUNGS_PER_OCTAVE, EdgeFields, _kernels, _sample_growing, sample_fields
 from calib.gmm import Evaluator, GmmOptions, freeze, pair_terms, point_terms
 from tests.calib.synthetic import TRUTH, make_pair
 
@@ -41,11 +41,43 @@ def _whole_map(fields: EdgeFields, k: int) -> np.ndarray:
     kernels = _kernels(float(fields.sigmas_px[k]), f)
     r = kernels.shape[1] // 2
     out = []
-    for i, m in enumerate(fields._splat()[0:1] * 3 + fields._splat()[1:2] * 6):
+    score_map, mask_map = _full_resolution_splat(fields)
+    for i, m in enumerate([score_map] * 3 + [mask_map] * 6):
         pooled = _pool(m, f)
         pad = np.pad(np.pad(pooled, ((r, r), (0, 0))), ((0, 0), (r, r)), mode="wrap")
         out.append(cv2.filter2D(pad, cv2.CV_64F, kernels[i], borderType=cv2.BORDER_CONSTANT)[r:-r, r:-r])
     return np.stack(out, axis=-1)
+
+
+def _full_resolution_splat(fields: EdgeFields) -> tuple[np.ndarray, np.ndarray]:
+    """Score and mask maps (H,W): each edge pixel's score and unit mass split bilinearly over 4 pixels."""
+    score_map, mask_map = np.zeros((fields.height, fields.width)), np.zeros((fields.height, fields.width))
+    u0, v0 = np.floor(fields.uv).astype(int).T
+    au, av = (fields.uv - np.floor(fields.uv)).T
+    for du, dv, wgt in ((0, 0, (1 - au) * (1 - av)), (1, 0, au * (1 - av)), (0, 1, (1 - au) * av), (1, 1, au * av)):
+        cols, rows = np.mod(u0 + du, fields.width), v0 + dv
+        ok = (rows >= 0) & (rows < fields.height)
+        np.add.at(score_map, (rows[ok], cols[ok]), (fields.score * wgt)[ok])
+        np.add.at(mask_map, (rows[ok], cols[ok]), wgt[ok])
+    return score_map, mask_map
+
+
+def _pool(image: np.ndarray, f: int) -> np.ndarray:
+    """Sums over f x f cells (the last row and column of cells padded with zeros)."""
+    h, w = image.shape
+    padded = np.zeros((-(-h // f) * f, -(-w // f) * f))
+    padded[:h, :w] = image
+    return padded.reshape(padded.shape[0] // f, f, padded.shape[1] // f, f).sum(axis=(1, 3))
+
+
+def test_pooled_splat_equals_the_full_resolution_splat_pooled(pair):
+    fields = _fresh(pair)
+    full = _full_resolution_splat(fields)
+    for f in (1, 2, 4, 8, 16):
+        got = fields._splat(f)
+        for g, expected in zip(got, full, strict=True):
+            assert g.shape == (-(-expected.shape[0] // f), -(-expected.shape[1] // f))
+            np.testing.assert_allclose(g, _pool(expected, f), rtol=1e-12, atol=1e-12)
 
 
 def test_blocks_hold_the_whole_image_maps(pair):

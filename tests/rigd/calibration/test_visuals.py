@@ -106,3 +106,13 @@ def test_the_top_view_greys_what_the_camera_does_not_see():
     ahead, behind = view[100 - 96], view[100 + 96]  # 5 m at (200/2 - 4) px per 5 m
     assert ((ahead == (0, 200, 0)).all(axis=1)).any()
     assert ((behind == UNSEEN_BGR).all(axis=1)).any()
+
+
+def test_a_close_up_without_points_in_it_is_drawn():
+    """A solution equal to its start moves nothing; where no point lies in the chosen box, the close-up shows
+    the photo alone (OpenCV's colour map returns None for no points)."""
+    image = np.full((256, 512), 200, np.uint8)
+    points = wall(3.0, np.array([-0.5]))  # one edge, near the middle column of the panorama
+    for pose in (IDENTITY, Transform.from_rpy_xyz(np.array([0.0, 0.0, 170.0]), np.zeros(3))):
+        views = edge_views(image, CAMERA, pose, pose, points)
+        assert views.closeup.shape[0] > 0 and views.closeup.shape[1] > 2 * CLOSEUP_MIN_WIDTH_PX
