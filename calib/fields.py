@@ -113,7 +113,7 @@ class _Spectra:
         key = (int(window[0]), int(window[1]))
         if key not in self._by_shape:
             shape = (scipy.fft.next_fast_len(key[0], real=True), scipy.fft.next_fast_len(key[1], real=True))
-            padded = np.zeros((9, *shape))
+            padded = np.zeros((9, *shape), np.float32)
             size = self.flipped.shape[1]
             padded[:, :size, :size] = self.flipped
             self._by_shape[key] = (scipy.fft.rfft2(padded), shape)
@@ -228,7 +228,7 @@ class EdgeFields:
         transforms times the nine kernels' (made once per window shape), one inverse for all nine; the
         cyclic wrap of an unpadded transform only reaches the kernel margin, which is cut off."""
         r = kernels.radius
-        windows = np.stack([_window(m, lo - r, hi + r, c0 - r, c1 + r, self.wrap_u) for m in pooled])
+        windows = np.stack([_window(m, lo - r, hi + r, c0 - r, c1 + r, self.wrap_u) for m in pooled]).astype(np.float32)
         spectra, shape = kernels.spectra(windows.shape[1:])
         product = scipy.fft.rfft2(windows, s=shape)[_CHANNEL_MAP] * spectra
         maps: F64 = scipy.fft.irfft2(product, s=shape)[:, 2 * r: windows.shape[1], 2 * r: windows.shape[2]]
