@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from calib.errors import CalibError
 from calib.l0_kernel import flattened_adjoint, spectral_update
+from calib.nms_kernel import non_max
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -124,25 +125,14 @@ def _gradient_sector(gx: F64, gy: F64) -> NDArray[np.int64]:
     return np.asarray(np.rint(angle / 45.0).astype(np.int64) % 4)
 
 
-def _neighbours(magnitude: F64, du: int, dv: int, wrap_u: bool) -> tuple[F64, F64]:
-    """Magnitude one step forward (+du, +dv) and backward from every pixel."""
-    padded = np.pad(magnitude, ((1, 1), (0, 0)), mode="edge")
-    padded = np.pad(padded, ((0, 0), (1, 1)), mode="wrap" if wrap_u else "edge")
-    h, w = magnitude.shape
-    fwd = padded[1 + dv : 1 + dv + h, 1 + du : 1 + du + w]
-    bwd = padded[1 - dv : 1 - dv + h, 1 - du : 1 - du + w]
-    return fwd, bwd
-
-
 def non_max_suppression(magnitude: F64, gx: F64, gy: F64, wrap_u: bool) -> F64:
-    """Keep pixels that are maxima across the edge (gradient direction quantised to 4 directions)."""
-    sector = _gradient_sector(gx, gy)
-    keep = np.zeros_like(magnitude, dtype=bool)
-    for s, (du, dv) in enumerate(_SECTOR_STEPS):
-        fwd, bwd = _neighbours(magnitude, du, dv, wrap_u)
-        # >= on one side, > on the other: a plateau two pixels wide keeps exactly one of them.
-        keep |= (sector == s) & (magnitude >= fwd) & (magnitude > bwd)
-    return np.where(keep, magnitude, 0.0)
+    """Keep pixels that are maxima across the edge (gradient direction quantised to 4 directions, the
+    sectors of :func:`_gradient_sector`); ``>=`` on one side and ``>`` on the other, so a plateau two pixels
+    wide keeps exactly one of them. Compiled: :mod:`calib.nms_kernel`."""
+    out = np.empty_like(magnitude, dtype=np.float64)
+    non_max(np.ascontiguousarray(magnitude, dtype=np.float64), np.ascontiguousarray(gx, dtype=np.float64),
+            np.ascontiguousarray(gy, dtype=np.float64), wrap_u, out)
+    return out
 
 
 def subpixel_offsets(magnitude: F64, gx: F64, gy: F64, rows: NDArray[np.intp], cols: NDArray[np.intp],
