@@ -49,3 +49,11 @@ class StreamFormatError(Ladybug5Error):
 
 class RigFileError(Ladybug5Error):
     """A rig camera file (per-camera intrinsics and extrinsics) is missing or malformed."""
+
+
+class UnsupportedFormatError(Ladybug5Error):
+    """A data format rigd does not decode (12-bit JPEG, RAW12, half height, ...): named, never read as corrupt."""
+
+
+class HeadCalibrationError(Ladybug5Error):
+    """The head's calibration (per-sensor intrinsics, poses, rectification) cannot be read or is not usable."""

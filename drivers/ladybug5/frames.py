@@ -1,4 +1,5 @@
-"""Panorama frames and the frame-source interface shared by the sdk, replay and sim backends."""
+"""Frames and the frame-source interfaces shared by the sdk, replay and sim backends: stitched panoramas
+(:class:`PanoramaFrame`) and the six raw sensor images with the head calibration (:class:`SensorFrame`)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,13 @@ import logging
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.ladybug5.errors import CorruptFrameError
+from drivers.ladybug5.errors import Ladybug5Error
+from drivers.ladybug5.head import HeadCalibration
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +52,34 @@ class PanoramaFrame:
     time_base: TimeBase = TimeBase.CAMERA
 
 
+@dataclass(frozen=True)
+class SensorFrame:
+    """One frame as the six sensors saw it, for the head dataset format (docs/dataset.md).
+
+    ``images``: six (H, W, 3) BGR images in raw sensor orientation, border-cropped, uint8 (uint16 from a RAW16
+    camera), in the SDK's order (0-4 around, 5 up); ``head``: the calibration they go with (check
+    ``head.source``: a factory calibration, or rigd's nominal head). Times as in :class:`PanoramaFrame`.
+    """
+
+    images: tuple[NDArray[Any], ...]
+    head: HeadCalibration
+    device_time_s: float
+    host_time_s: float | None
+    sequence_id: int
+    exposure: Exposure
+    time_base: TimeBase = TimeBase.CAMERA
+
+
+class SensorFrameSource(Protocol):
+    """A stream of :class:`SensorFrame`; frames that fail are skipped and counted in ``skipped``."""
+
+    skipped: SkipCounter
+
+    def frames(self) -> Iterator[SensorFrame]: ...
+
+    def close(self) -> None: ...
+
+
 class FrameSource(Protocol):
     """A stream of panorama frames; bad frames are skipped and counted in ``skipped``."""
 
@@ -62,13 +92,14 @@ class FrameSource(Protocol):
 
 @dataclass
 class SkipCounter:
-    """Counts frames dropped as corrupt and keeps the latest reasons (for status reports)."""
+    """Counts frames dropped (corrupt, a failed grab, a failed stitch; or, as ``exposure_errors`` of the SDK
+    sources, failed exposure reads) and keeps the latest reasons (for status reports)."""
 
     count: int = 0
     reasons: list[str] = field(default_factory=list)
     keep: int = 20
 
-    def record(self, error: CorruptFrameError) -> None:
+    def record(self, error: Ladybug5Error) -> None:
         self.count += 1
         self.reasons = [*self.reasons, str(error)][-self.keep :]
         log.warning("skipped frame: %s", error)

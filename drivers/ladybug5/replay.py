@@ -23,9 +23,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.ladybug5.clock import unwrap_times
-from drivers.ladybug5.errors import CorruptFrameError, StreamFormatError
+from drivers.ladybug5.errors import CorruptFrameError, Ladybug5Error, StreamFormatError
+from drivers.ladybug5.formats import BayerPattern
 from drivers.ladybug5.frames import Exposure, PanoramaFrame, SkipCounter, TimeBase
-from drivers.ladybug5.pgr import BAYER_TO_BGR, DEFAULT_LAYOUT, PgrLayout, PgrStream
+from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrLayout, PgrStream
+from drivers.ladybug5.raw import to_uint8
 from drivers.ladybug5.stitch import Stitcher
 
 TIMESTAMPS_FILE = "timestamps.csv"
@@ -76,14 +78,14 @@ def read_timestamps(directory: Path) -> list[_Row]:
     return rows
 
 
-def _to_bgr8(image: NDArray[Any], bayer_pattern: str | None, where: str) -> NDArray[np.uint8]:
+def _to_bgr8(image: NDArray[Any], bayer_pattern: BayerPattern | None, where: str) -> NDArray[np.uint8]:
     if image.dtype == np.uint16:
-        image = (image >> 8).astype(np.uint8)
+        image = to_uint8(image)
     if image.dtype != np.uint8:
         raise CorruptFrameError(f"{where}: unsupported pixel type {image.dtype}")
     if image.ndim == 2:
         return cast(NDArray[np.uint8],
-                    cv2.cvtColor(image, BAYER_TO_BGR[bayer_pattern] if bayer_pattern else cv2.COLOR_GRAY2BGR))
+                    cv2.cvtColor(image, bayer_pattern.to_bgr if bayer_pattern else cv2.COLOR_GRAY2BGR))
     if image.ndim == 3 and image.shape[2] == 3:
         return image
     raise CorruptFrameError(f"{where}: expected a 1- or 3-channel image, got shape {image.shape}")
@@ -99,10 +101,11 @@ def _read_image(path: Path, flags: int) -> NDArray[Any]:
 class DirectoryFrameSource:
     """Frames from a replay directory (see the module docstring)."""
 
-    def __init__(self, directory: Path, stitcher: Stitcher | None = None, bayer_pattern: str | None = None) -> None:
+    def __init__(self, directory: Path, stitcher: Stitcher | None = None,
+                 bayer_pattern: BayerPattern | str | None = None) -> None:
         self.directory = Path(directory)
         self.stitcher = stitcher
-        self.bayer_pattern = bayer_pattern
+        self.bayer_pattern = BayerPattern(bayer_pattern) if isinstance(bayer_pattern, str) else bayer_pattern
         self.rows = read_timestamps(self.directory)
         self.skipped = SkipCounter()
 
@@ -153,6 +156,12 @@ class PgrFrameSource:
         time_base: TimeBase = TimeBase.CAMERA,
     ) -> None:
         self.stream = PgrStream(path, layout)
+        try:  # a format rigd cannot decode, or no Bayer pattern, is said now rather than at every frame
+            self.stream.data_format()
+            self.stream.bayer_pattern()
+        except Ladybug5Error:
+            self.stream.close()
+            raise
         self.stitcher = stitcher
         self.time_base = time_base
         raw = np.array([e.device_time_s for e in self.stream.index])
@@ -168,7 +177,7 @@ class PgrFrameSource:
             except CorruptFrameError as exc:
                 self.skipped.record(exc)
                 continue
-            pano = self.stitcher.stitch(images)
+            pano = self.stitcher.stitch([to_uint8(im) for im in images])
             yield PanoramaFrame(pano, float(device_s), None, entry.sequence_id, entry.exposure, self.time_base)
 
     def close(self) -> None:

@@ -92,7 +92,8 @@ class RigCameras:
     cameras: tuple[RigCamera, ...]
 
 
-def _transform_yaml(rotation: F64, translation_m: F64) -> dict[str, Any]:
+def transform_yaml(rotation: F64, translation_m: F64) -> dict[str, Any]:
+    """A pose in the project's four YAML forms: matrix (4x4), quaternion_xyzw, rpy_deg, xyz_m (m)."""
     matrix = np.eye(4)
     matrix[:3, :3], matrix[:3, 3] = rotation, translation_m
     return {
@@ -113,7 +114,7 @@ def rig_to_yaml(rig: RigCameras) -> dict[str, Any]:
                 "height": c.height,
                 "K": c.K.tolist(),
                 "D": c.D.tolist(),
-                "T_head_camera": _transform_yaml(c.R_head_camera, c.t_head_camera_m),
+                "T_head_camera": transform_yaml(c.R_head_camera, c.t_head_camera_m),
             }
             for c in rig.cameras
         ],
@@ -151,9 +152,33 @@ def _camera_from_yaml(data: Any, where: str) -> RigCamera:
     return camera
 
 
+def _head_sensors(data: dict[str, Any], where: str) -> list[Any] | None:
+    """The sensors of a head calibration file (``rigd camera export-head``: ``camera: {model: head, sensors}``,
+    the head dataset format's form), or None when ``data`` is not one."""
+    camera = data.get("camera")
+    if not isinstance(camera, dict) or camera.get("model") != "head":
+        return None
+    sensors = camera.get("sensors")
+    if not isinstance(sensors, list) or not sensors:
+        raise RigFileError(f"{where}: camera.sensors must be a non-empty list")
+    for i, sensor in enumerate(sensors):
+        if isinstance(sensor, dict) and sensor.get("model", "pinhole") != "pinhole":
+            raise RigFileError(f"{where}: camera.sensors[{i}] is a {sensor.get('model')} sensor; the Ladybug5 "
+                               "stitcher takes pinhole sensors")
+    return sensors
+
+
 def rig_from_yaml(data: Any, where: str) -> RigCameras:
+    """A rig camera file (``cameras: [...]``) or a head calibration file (``camera: {model: head, sensors}``)."""
+    sensors = _head_sensors(data, where) if isinstance(data, dict) else None
+    if sensors is not None:
+        head = data.get("head")
+        model = str(head.get("description", "")) if isinstance(head, dict) else "head calibration file"
+        return RigCameras(model, tuple(_camera_from_yaml(c, f"{where}: camera.sensors[{i}]")
+                                       for i, c in enumerate(sensors)))
     if not isinstance(data, dict) or not isinstance(data.get("cameras"), list) or not data["cameras"]:
-        raise RigFileError(f"{where}: expected a mapping with a non-empty 'cameras' list")
+        raise RigFileError(f"{where}: expected a mapping with a non-empty 'cameras' list (or a head calibration "
+                           "file's camera.sensors)")
     cameras = tuple(_camera_from_yaml(c, f"{where}: cameras[{i}]") for i, c in enumerate(data["cameras"]))
     return RigCameras(str(data.get("model", "")), cameras)
 
@@ -179,6 +204,7 @@ def save_rig(rig: RigCameras, path: Path) -> None:
 # monotonic at every radius so the model never folds. Sensors are mounted rotated: the image x axis
 # (2448 px) points up for the side cameras.
 LADYBUG5_SIZE_PX = (2448, 2048)
+LADYBUG5P_SIZE_PX = (2464, 2048)  # the Ladybug5+ (LADYBUG_RESOLUTION_2464x2048 in the SDK's header)
 LADYBUG5_FOCAL_PX = 4.4e-3 / 3.45e-6
 LADYBUG5_DISTORTION = (-0.2, 0.03, 0.0, 0.0, 0.0)
 LADYBUG5_CAMERA_RADIUS_M = 0.045
@@ -193,7 +219,8 @@ def _side_rotation(yaw_rad: float) -> F64:
 
 
 def default_ladybug5_rig(size_px: tuple[int, int] = LADYBUG5_SIZE_PX) -> RigCameras:
-    """A Ladybug5-like head: cameras 0-4 at 72 deg yaw steps (camera 0 looks along +x), camera 5 up."""
+    """A Ladybug5-like head of sensors ``size_px`` (width, height) px (Ladybug5+: ``LADYBUG5P_SIZE_PX``):
+    cameras 0-4 at 72 deg yaw steps (camera 0 looks along +x), camera 5 up."""
     width, height = size_px
     k = np.array([[LADYBUG5_FOCAL_PX, 0.0, (width - 1) / 2.0], [0.0, LADYBUG5_FOCAL_PX, (height - 1) / 2.0], [0, 0, 1]])
     d = np.array(LADYBUG5_DISTORTION)

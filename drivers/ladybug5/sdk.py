@@ -1,77 +1,61 @@
 """Thin ctypes binding to FLIR's Ladybug SDK (libladybug), the only documented way to stream a Ladybug5.
 
 The SDK is proprietary and not redistributable: rigd neither ships nor downloads it. With it installed,
-this module opens the camera (ladybugCreateContext, ladybugInitializeFromIndex, ladybugLoadConfig,
-ladybugStart), grabs frames (ladybugGrabImage) and closes it (ladybugStop, ladybugDestroyContext).
+:class:`SdkCamera` finds the cameras on the bus (``ladybugBusEnumerateCameras``, before initialising, as FLIR's
+examples do), opens the one asked for (``ladybugInitializeFromSerialNumber``, or ``...FromIndex`` when there is
+only one), loads its configuration (``ladybugLoadConfig``), reads its Bayer tile format
+(``ladybugGetColorTileFormat``), sets a grab timeout (``ladybugSetGrabTimeout``) and starts it
+(``ladybugStart``); it grabs (``ladybugGrabImage``), reads exposure (``ladybugGetAbsProperty``) and the factory
+head calibration (:mod:`drivers.ladybug5.sdk_head`), and stops and destroys the context.
 
-Every number this needs from the SDK's header -- the LadybugImage layout, error codes, data-format and
-property values -- differs between SDK versions, so none is written here: ``layout_probe.c`` is compiled
-against the installed ladybug.h (:func:`probe_layout`, ``rigd camera sdk-layout``) and its YAML output is
-the :class:`SdkLayout` the binding uses. Grabbed RAW8 and COLOR_SEP_JPEG8 buffers are decoded here (no
-SDK image processing); other formats need the SDK's own conversion and are refused.
+Every number the binding needs from the SDK's headers comes from ``layout_probe.c`` (:mod:`sdk_layout`).
+Grabbed RAW8, RAW16 and COLOR_SEP_JPEG8 buffers are decoded here (slicing by the full sensor size, border
+crop, the SDK's Bayer pattern); other formats are named as unsupported. The frame sources are in
+:mod:`drivers.ladybug5.sdk_source`.
 """
 
 from __future__ import annotations
 
 import ctypes
-import subprocess
-import sys
-import tempfile
+import logging
 import time
-from collections.abc import Iterator
-from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
-import cv2
-import numpy as np
-import yaml
-from numpy.typing import NDArray
-
-from drivers.ladybug5.clock import ClockSync
 from drivers.ladybug5.errors import (
     CameraNotFoundError,
     CorruptFrameError,
-    InterfaceSpeedError,
+    HeadCalibrationError,
     Ladybug5Error,
-    LibraryMissingError,
-    MissingPowerError,
     SdkError,
 )
-from drivers.ladybug5.frames import Exposure, PanoramaFrame, SkipCounter, TimeBase
-from drivers.ladybug5.pgr import BAYER_TO_BGR, DEFAULT_LAYOUT, NUM_CAMERAS, PgrLayout, frame_block_images
-from drivers.ladybug5.stitch import Stitcher
+from drivers.ladybug5.formats import BayerPattern, DataFormat, require_decoded
+from drivers.ladybug5.frames import Exposure
+from drivers.ladybug5.head import HeadCalibration
+from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrLayout, frame_block_mosaics
+from drivers.ladybug5.raw import SensorGeometry, decode_raw, demosaic, fit_mosaic
+from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, read_head
+from drivers.ladybug5.sdk_layout import PROBE_SOURCE, SdkLayout, probe_layout
+from drivers.ladybug5.sdk_library import (
+    DEFAULT_LIBRARY,
+    CameraInfo,
+    GrabbedImage,
+    LadybugLibrary,
+    sdk_status,
+)
 
-DEFAULT_LIBRARY = "libladybug.so"
-PROBE_SOURCE = Path(__file__).with_name("layout_probe.c")
+__all__ = [
+    "DEFAULT_GRAB_TIMEOUT_MS", "DEFAULT_LIBRARY", "PROBE_SOURCE", "CameraInfo", "DataFormat", "DeviceTimeField",
+    "GrabbedImage", "LadybugLibrary", "SdkCamera", "SdkLayout", "decode_grab", "enumerate_cameras", "frame_pattern",
+    "probe_layout", "read_camera_head", "sdk_status",
+]
+
+log = logging.getLogger(__name__)
 CYCLE_PERIOD_S = 128.0  # the cycle-time seconds counter has 7 bits
-CYCLES_PER_SECOND = 8000  # 125 us cycle ticks
-_FUNCTIONS = (
-    "ladybugCreateContext",
-    "ladybugBusEnumerateCameras",
-    "ladybugInitializeFromIndex",
-    "ladybugLoadConfig",
-    "ladybugStart",
-    "ladybugGrabImage",
-    "ladybugGetAbsProperty",
-    "ladybugStop",
-    "ladybugDestroyContext",
-    "ladybugErrorToString",
-)
-_CORRUPT_FRAME_ERRORS = (
-    "IMAGE_TOO_SMALL",
-    "JPEG_ERROR",
-    "JPEG_HEADER_ERROR",
-    "JPEG_INCOMPLETE_COMPRESSION",
-    "JPEG_NO_IMAGE",
-    "CORRUPTED_IMAGE_DATA",
-)
-
-
-class DataFormat(Enum):
-    RAW8 = "RAW8"  # six Bayer images, one after the other
-    COLOR_SEP_JPEG8 = "COLOR_SEP_JPEG8"  # a frame block with 24 JPEGs, as in a .pgr file
+DEFAULT_GRAB_TIMEOUT_MS = 2000  # a Ladybug5 sends 10-30 frames/s: 2 s without one is a stalled camera
+_MAX_CAMERAS = 16
+_SIZE_GRABS = 10  # frames tried to learn the sensor size
 
 
 class DeviceTimeField(Enum):
@@ -82,210 +66,107 @@ class DeviceTimeField(Enum):
     EMBEDDED = "embedded"
 
 
-@dataclass(frozen=True)
-class SdkLayout:
-    """What layout_probe.c measured in ladybug.h; fields map name -> (offset, size) in bytes."""
-
-    image_size: int
-    image_fields: dict[str, tuple[int, int]]
-    camera_info_size: int
-    camera_info_fields: dict[str, tuple[int, int]]
-    errors: dict[str, int]
-    formats: dict[str, int]
-    properties: dict[str, int]
-
-    @classmethod
-    def from_yaml(cls, data: Any, where: str) -> SdkLayout:
-        try:
-            return cls(
-                int(data["image_size"]),
-                {str(k): (int(v[0]), int(v[1])) for k, v in data["image_fields"].items()},
-                int(data["camera_info_size"]),
-                {str(k): (int(v[0]), int(v[1])) for k, v in data["camera_info_fields"].items()},
-                {str(k): int(v) for k, v in data["errors"].items()},
-                {str(k): int(v) for k, v in data["formats"].items()},
-                {str(k): int(v) for k, v in data["properties"].items()},
-            )
-        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-            raise Ladybug5Error(f"{where}: not a Ladybug SDK layout from layout_probe.c ({exc!r})") from exc
-
-    @classmethod
-    def load(cls, path: Path) -> SdkLayout:
-        try:
-            return cls.from_yaml(yaml.safe_load(Path(path).read_text()), str(path))
-        except (OSError, yaml.YAMLError) as exc:
-            raise Ladybug5Error(f"cannot read SDK layout file {path}: {exc}") from exc
+def _enumerate(lib: LadybugLibrary, context: ctypes.c_void_p) -> list[CameraInfo]:
+    buf = ctypes.create_string_buffer(lib.layout.camera_info_size * _MAX_CAMERAS)
+    size = ctypes.c_uint(_MAX_CAMERAS)
+    lib.call("ladybugBusEnumerateCameras", context, buf, ctypes.byref(size))
+    return lib.read_camera_infos(buf, min(size.value, _MAX_CAMERAS))
 
 
-def probe_layout(include_dir: Path, compiler: str = "c++", out: Path | None = None) -> SdkLayout:
-    """Compile and run layout_probe.c against ``include_dir``/ladybug.h; optionally save the YAML."""
-    with tempfile.TemporaryDirectory() as tmp:
-        exe = Path(tmp) / "ladybug_layout_probe"
-        cmd = [compiler, "-I", str(include_dir), "-o", str(exe), str(PROBE_SOURCE)]
-        try:
-            build = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        except OSError as exc:
-            raise Ladybug5Error(f"cannot run compiler {compiler!r}: {exc}") from exc
-        if build.returncode != 0:
-            raise Ladybug5Error(
-                f"layout_probe.c does not compile against {include_dir}/ladybug.h "
-                f"(is that the Ladybug SDK's include directory?):\n{build.stderr[-2000:]}"
-            )
-        text = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout
-    if out is not None:
-        Path(out).write_text(text)
-    return SdkLayout.from_yaml(yaml.safe_load(text), f"output of {PROBE_SOURCE.name}")
-
-
-@dataclass(frozen=True)
-class GrabbedImage:
-    """The fields rigd reads from a LadybugImage, with the pixel buffer copied out of the SDK."""
-
-    cols: int
-    rows: int
-    cycle_time_s: float
-    embedded_time_s: float
-    sequence_id: int
-    data_format: int
-    data: bytes
-    host_receive_s: float  # host clock right after ladybugGrabImage returned (before copying the pixels)
-
-
-def _read_uint(buf: ctypes.Array[ctypes.c_char], field: tuple[int, int]) -> int:
-    offset, size = field
-    return int.from_bytes(buf.raw[offset : offset + size], sys.byteorder)
-
-
-class LadybugLibrary:
-    """The loaded SDK library: one checked Python method per C function used."""
-
-    def __init__(self, layout: SdkLayout, library: str | Path = DEFAULT_LIBRARY) -> None:
-        self.layout = layout
-        self.name = str(library)
-        try:
-            self._lib = ctypes.CDLL(self.name)
-        except OSError as exc:
-            raise LibraryMissingError(
-                f"cannot load the Ladybug SDK library {self.name!r} ({exc}); it comes only with FLIR's "
-                "Ladybug SDK (not on PyPI): install the SDK, or set its path (--sdk-library)"
-            ) from exc
-        missing = [f for f in _FUNCTIONS if not hasattr(self._lib, f)]
-        if missing:
-            raise LibraryMissingError(f"{self.name} lacks {', '.join(missing)}: not a Ladybug SDK library")
-        self._lib.ladybugErrorToString.restype = ctypes.c_char_p
-        for name in _FUNCTIONS[:-1]:
-            getattr(self._lib, name).restype = ctypes.c_int
-
-    def error_text(self, code: int) -> str:
-        text = self._lib.ladybugErrorToString(ctypes.c_int(code))
-        return text.decode(errors="replace") if text else "no description"
-
-    def check(self, function: str, code: int) -> None:
-        """Raise the named error for an SDK error code (codes come from the probed layout)."""
-        if code == self.layout.errors["OK"]:
-            return
-        text = self.error_text(code)
-        errors = self.layout.errors
-        if code == errors.get("BAD_VOLTAGE"):
-            raise MissingPowerError(
-                f"{function}: the camera reports bad voltage ({text}); a Ladybug5+ needs 12-24 V on its GPIO connector"
-            )
-        if code == errors.get("BAD_INTERFACE"):
-            raise InterfaceSpeedError(f"{function}: the camera is not on a USB 3 SuperSpeed link ({text})")
-        if code in {errors[name] for name in _CORRUPT_FRAME_ERRORS if name in errors}:
-            raise CorruptFrameError(f"{function}: {text} (Ladybug error {code})")
-        raise SdkError(function, code, text)
-
-    def call(self, function: str, *args: Any) -> None:
-        self.check(function, getattr(self._lib, function)(*args))
-
-    def new_image_buffer(self) -> ctypes.Array[ctypes.c_char]:
-        return ctypes.create_string_buffer(self.layout.image_size)
-
-    def read_image(self, buf: ctypes.Array[ctypes.c_char], host_receive_s: float) -> GrabbedImage:
-        fields = self.layout.image_fields
-
-        def field(name: str) -> int:
-            return _read_uint(buf, fields[name])
-
-        size = field("data_size")
-        pointer = field("data")
-        if not pointer:
-            raise CorruptFrameError("ladybugGrabImage returned an image without pixel data")
-        return GrabbedImage(
-            cols=field("cols"),
-            rows=field("rows"),
-            cycle_time_s=field("cycle_seconds") + field("cycle_count") / CYCLES_PER_SECOND,
-            embedded_time_s=field("embedded_seconds") + field("embedded_microseconds") * 1e-6,
-            sequence_id=field("sequence_id"),
-            data_format=field("data_format"),
-            data=ctypes.string_at(pointer, size),
-            host_receive_s=host_receive_s,
-        )
-
-
-def sdk_status(library: str | Path = DEFAULT_LIBRARY) -> str:
-    """One line for ``rigd camera info``: whether the SDK library loads (no layout needed to tell)."""
+def enumerate_cameras(lib: LadybugLibrary) -> list[CameraInfo]:
+    """The Ladybug cameras the SDK sees on the bus (serial, model), through a context of its own."""
+    context = ctypes.c_void_p()
+    lib.call("ladybugCreateContext", ctypes.byref(context))
     try:
-        lib = ctypes.CDLL(str(library))
-    except OSError as exc:
-        return f"not available ({exc}); streaming needs FLIR's Ladybug SDK, replay and stitching do not"
-    missing = [f for f in _FUNCTIONS if not hasattr(lib, f)]
-    return f"{library} loads but lacks {', '.join(missing)}" if missing else f"{library} loads"
+        return _enumerate(lib, context)
+    finally:
+        lib.call("ladybugDestroyContext", ctypes.byref(context))
+
+
+def _select(cameras: list[CameraInfo], serial: int | None) -> CameraInfo:
+    """The camera to open: the one with ``serial``, or the only one."""
+    serials = ", ".join(str(c.serial) for c in cameras) or "none"
+    if not cameras:
+        raise CameraNotFoundError("the Ladybug SDK sees no camera on the bus (ladybugBusEnumerateCameras): check "
+                                  "the USB 3 cable and the 12-24 V power; rigd camera info")
+    if serial is not None:
+        match = [c for c in cameras if c.serial == serial]
+        if not match:
+            raise CameraNotFoundError(f"Ladybug camera {serial} is not on the bus; the SDK sees {serials}")
+        return match[0]
+    if len(cameras) > 1:
+        raise CameraNotFoundError(f"the Ladybug SDK sees {len(cameras)} cameras ({serials}): choose one (--serial)")
+    return cameras[0]
 
 
 class SdkCamera:
-    """One camera's SDK lifecycle: open() = create, initialise, load config, start; close() = stop, destroy."""
+    """One camera's SDK lifecycle: open() = create, enumerate, initialise, load config, read the Bayer tile
+    format, set the grab timeout, start; close() = stop, destroy. ``serial`` None opens the only camera;
+    ``config_path`` None loads the configuration from the head; ``grab_timeout_ms`` bounds every grab."""
 
-    def __init__(
-        self,
-        library: LadybugLibrary,
-        index: int = 0,
-        config_path: Path | None = None,
-        data_format: DataFormat = DataFormat.COLOR_SEP_JPEG8,
-    ) -> None:
+    def __init__(self, library: LadybugLibrary, serial: int | None = None, config_path: Path | None = None,
+                 data_format: DataFormat = DataFormat.COLOR_SEP_JPEG8,
+                 grab_timeout_ms: int = DEFAULT_GRAB_TIMEOUT_MS) -> None:
         self.lib = library
-        self.index = index
+        self.serial = serial
         self.config_path = config_path
-        self.data_format = data_format
+        self.data_format = require_decoded(data_format, "SdkCamera")
+        self.grab_timeout_ms = grab_timeout_ms
+        self.info: CameraInfo | None = None
+        self.tile_pattern: BayerPattern | None = None
         self._context = ctypes.c_void_p()
         self._started = False
         self._image = library.new_image_buffer()
 
+    @property
+    def describe(self) -> str:
+        return f"camera {self.info.serial} ({self.info.model})" if self.info else f"camera {self.serial or '?'}"
+
     def enumerate_serials(self) -> list[int]:
-        """Head serial numbers of the cameras the SDK sees on the bus (needs an open camera)."""
-        self._require_started("enumerate_serials")
-        info = self.lib.layout
-        capacity = 16
-        buf = ctypes.create_string_buffer(info.camera_info_size * capacity)
-        size = ctypes.c_uint(capacity)
-        self.lib.call("ladybugBusEnumerateCameras", self._context, buf, ctypes.byref(size))
-        serial = info.camera_info_fields["serial_head"]
-        return [
-            int.from_bytes(buf.raw[i * info.camera_info_size + serial[0] :][: serial[1]], sys.byteorder)
-            for i in range(min(size.value, capacity))
-        ]
+        """Head serial numbers of the cameras the SDK sees on the bus (no open camera needed)."""
+        if self._context.value:
+            return [c.serial for c in _enumerate(self.lib, self._context)]
+        return [c.serial for c in enumerate_cameras(self.lib)]
 
     def open(self) -> SdkCamera:
         self.lib.call("ladybugCreateContext", ctypes.byref(self._context))
         try:
-            try:
-                self.lib.call("ladybugInitializeFromIndex", self._context, ctypes.c_uint(self.index))
-            except SdkError as exc:
-                raise CameraNotFoundError(f"the Ladybug SDK cannot open camera {self.index}: {exc}") from exc
+            self.info = _select(_enumerate(self.lib, self._context), self.serial)
+            self._initialise(self.info)
             config = str(self.config_path).encode() if self.config_path else None
-            self.lib.call("ladybugLoadConfig", self._context, ctypes.c_char_p(config))
-            fmt = self.lib.layout.formats[self.data_format.value]
-            self.lib.call("ladybugStart", self._context, ctypes.c_int(fmt))
+            self.lib.call("ladybugLoadConfig", self._context, config)
+            self.tile_pattern = self._read_tile_pattern()
+            self.lib.call("ladybugSetGrabTimeout", self._context, self.grab_timeout_ms)  # before start (SDK docs)
+            self.lib.call("ladybugStart", self._context, self.lib.layout.formats[self.data_format.value])
             self._started = True
         except Ladybug5Error:
             self.close()
             raise
         return self
 
+    def _initialise(self, info: CameraInfo) -> None:
+        try:
+            if self.serial is not None:
+                self.lib.call("ladybugInitializeFromSerialNumber", self._context, info.serial)
+            else:
+                self.lib.call("ladybugInitializeFromIndex", self._context, 0)  # the only camera on the bus
+        except SdkError as exc:
+            raise CameraNotFoundError(f"the Ladybug SDK cannot open camera {info.serial} ({info.model}): {exc}") \
+                from exc
+
+    def _read_tile_pattern(self) -> BayerPattern | None:
+        """The camera's Bayer pattern (ladybugGetColorTileFormat); None when the SDK does not say."""
+        value = ctypes.c_int()
+        try:
+            self.lib.call("ladybugGetColorTileFormat", self._context, ctypes.byref(value))
+        except SdkError as exc:  # the pattern is also in every LadybugImage: not a reason to refuse the camera
+            log.warning("%s: no colour tile format: %s", self.describe, exc)
+            return None
+        return _pattern_of(self.lib, value.value)
+
     def _require_started(self, what: str) -> None:
         if not self._started:  # never hand the SDK a null context
-            raise Ladybug5Error(f"{what}: camera {self.index} is not open (call open() first)")
+            raise Ladybug5Error(f"{what}: {self.describe} is not open (call open() first)")
 
     def grab(self) -> GrabbedImage:
         self._require_started("grab")
@@ -293,15 +174,36 @@ class SdkCamera:
         return self.lib.read_image(self._image, time.time())
 
     def exposure(self) -> Exposure:
-        """Shutter (the SDK reports ms) and gain (dB) from ladybugGetAbsProperty."""
+        """Shutter (the SDK reports ms) and gain (dB) from ladybugGetAbsProperty; raises SdkError on a failure."""
         self._require_started("exposure")
         values = []
         for name in ("SHUTTER", "GAIN"):
             value = ctypes.c_float()
-            prop = ctypes.c_int(self.lib.layout.properties[name])
-            self.lib.call("ladybugGetAbsProperty", self._context, prop, ctypes.byref(value))
+            self.lib.call("ladybugGetAbsProperty", self._context, self.lib.layout.properties[name],
+                          ctypes.byref(value))
             values.append(float(value.value))
         return Exposure(shutter_s=values[0] * 1e-3, gain_db=values[1])
+
+    def sensor_size(self) -> tuple[int, int]:
+        """The sensors' useful (width, height) px, from the first of ``_SIZE_GRABS`` frames that arrives."""
+        last: Ladybug5Error | None = None
+        for _ in range(_SIZE_GRABS):
+            try:
+                image = self.grab()
+            except (CorruptFrameError, SdkError) as exc:  # a bad frame or a timeout: try the next one
+                last = exc
+                continue
+            return image.cols, image.rows
+        raise HeadCalibrationError(f"{self.describe}: no frame in {_SIZE_GRABS} grabs to learn the sensor size "
+                                   f"({last})")
+
+    def read_head(self, size_px: tuple[int, int], step_px: int = DEFAULT_MAP_STEP_PX) -> HeadCalibration:
+        """The factory calibration the SDK loaded for this camera; ``size_px`` the sensors' raw (width, height)."""
+        self._require_started("read_head")
+        where = "from the head" if self.config_path is None else f"from {self.config_path}"
+        serial = self.info.serial if self.info else None
+        return read_head(self.lib, self._context, size_px, f"{self.describe}, ladybugLoadConfig {where}", serial,
+                         step_px)
 
     def close(self) -> None:
         """Stop and destroy, in that order, whatever was set up; safe to call twice."""
@@ -321,82 +223,44 @@ class SdkCamera:
         self.close()
 
 
-def decode_grab(
-    image: GrabbedImage, layout: SdkLayout, bayer_pattern: str, pgr_layout: PgrLayout
-) -> list[NDArray[np.uint8]]:
-    """Six BGR images (raw sensor orientation) from a grabbed buffer."""
+def read_camera_head(lib: LadybugLibrary, serial: int | None = None, size_px: tuple[int, int] | None = None,
+                     step_px: int = DEFAULT_MAP_STEP_PX) -> HeadCalibration:
+    """Open a camera (``serial``, or the only one; RAW8: nothing to decode), learn its sensor size from a frame
+    unless given, read its factory head calibration, close it."""
+    with SdkCamera(lib, serial=serial, data_format=DataFormat.RAW8) as camera:
+        return camera.read_head(size_px or camera.sensor_size(), step_px)
+
+
+def _pattern_of(lib: LadybugLibrary, value: int) -> BayerPattern | None:
+    """The Bayer pattern of an SDK stippled-format value; None for LADYBUG_DEFAULT or an unknown value."""
+    name = next((n for n, v in lib.layout.stippled.items() if v == value), None)
+    return BayerPattern(name) if name in BayerPattern.__members__ else None
+
+
+def frame_pattern(image: GrabbedImage, lib: LadybugLibrary, tile: BayerPattern | None,
+                  override: BayerPattern | None = None) -> BayerPattern:
+    """The Bayer pattern of a grabbed frame: an explicit override, else the image's ``stippledFormat``, else the
+    camera's colour tile format; an error naming the values when none says."""
+    pattern = override or _pattern_of(lib, image.stippled_format) or tile
+    if pattern is None:
+        raise Ladybug5Error(f"grabbed frame {image.sequence_id}: the SDK reports no Bayer pattern (stippledFormat "
+                            f"{image.stippled_format}, no colour tile format); give one (bayer_pattern)")
+    return pattern
+
+
+def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
+                pgr_layout: PgrLayout = DEFAULT_LAYOUT) -> list[Any]:
+    """Six (rows, cols, 3) BGR images (raw sensor orientation, border-cropped; uint8, uint16 for RAW16)."""
     where = f"grabbed frame {image.sequence_id}"
-    if image.data_format == layout.formats["RAW8"]:
-        expected = NUM_CAMERAS * image.rows * image.cols
-        if len(image.data) < expected:
-            raise CorruptFrameError(f"{where}: RAW8 buffer has {len(image.data)} bytes, six images need {expected}")
-        mosaics = np.frombuffer(image.data, np.uint8, expected).reshape(NUM_CAMERAS, image.rows, image.cols)
-        return [cast(NDArray[np.uint8], cv2.cvtColor(m, BAYER_TO_BGR[bayer_pattern])) for m in mosaics]
-    if image.data_format == layout.formats["COLOR_SEP_JPEG8"]:
-        return frame_block_images(image.data, pgr_layout, where)
-    raise Ladybug5Error(
-        f"{where}: data format {image.data_format} needs the SDK's own image processing; start the camera in RAW8 "
-        "or COLOR_SEP_JPEG8"
-    )
-
-
-class SdkFrameSource:
-    """Live panoramas from the SDK: grab, decode, stitch, map camera time to host time.
-
-    Corrupt frames (the SDK's JPEG/corruption errors, undecodable buffers) are skipped and counted;
-    ``max_consecutive_failures`` failed grabs in a row (timeouts included) end the stream with the error.
-    """
-
-    def __init__(
-        self,
-        camera: SdkCamera,
-        stitcher: Stitcher,
-        bayer_pattern: str = "BGGR",
-        pgr_layout: PgrLayout = DEFAULT_LAYOUT,
-        time_field: DeviceTimeField = DeviceTimeField.CYCLE,
-        max_consecutive_failures: int = 30,
-    ) -> None:
-        self.camera = camera
-        self.stitcher = stitcher
-        self.bayer_pattern = bayer_pattern
-        self.pgr_layout = pgr_layout
-        self.time_field = time_field
-        self.max_failures = max_consecutive_failures
-        cycle = time_field is DeviceTimeField.CYCLE
-        self.clock = ClockSync(
-            wrap_period_s=CYCLE_PERIOD_S if cycle else None, time_base=TimeBase.CAMERA if cycle else TimeBase.GPS
-        )
-        self.skipped = SkipCounter()
-
-    def _grab_and_decode(self) -> tuple[GrabbedImage, list[NDArray[np.uint8]]]:
-        image = self.camera.grab()
-        return image, decode_grab(image, self.camera.lib.layout, self.bayer_pattern, self.pgr_layout)
-
-    def frames(self) -> Iterator[PanoramaFrame]:
-        failures = 0
-        with self.camera:
-            while True:
-                try:
-                    image, images = self._grab_and_decode()
-                except (CorruptFrameError, SdkError) as exc:
-                    failures += 1
-                    if failures >= self.max_failures:
-                        raise
-                    if isinstance(exc, CorruptFrameError):
-                        self.skipped.record(exc)
-                    continue
-                failures = 0
-                raw = image.cycle_time_s if self.time_field is DeviceTimeField.CYCLE else image.embedded_time_s
-                device_s = self.clock.add(raw, image.host_receive_s)
-                pano = self.stitcher.stitch(images)
-                yield PanoramaFrame(
-                    pano,
-                    device_s,
-                    self.clock.to_host(device_s),
-                    image.sequence_id,
-                    self.camera.exposure(),
-                    self.clock.time_base,
-                )
-
-    def close(self) -> None:
-        self.camera.close()
+    name = layout.format_name(image.data_format)
+    if name is None or name not in DataFormat.__members__:
+        raise CorruptFrameError(f"{where}: data format value {image.data_format} is none of the SDK's formats")
+    fmt = require_decoded(DataFormat(name), where)
+    geometry = SensorGeometry.from_full(image.full_cols, image.full_rows, image.border, where)
+    if (geometry.cols, geometry.rows) != (image.cols, image.rows):
+        raise CorruptFrameError(f"{where}: {image.full_cols}x{image.full_rows} minus border {image.border} is not "
+                                f"the {image.cols}x{image.rows} the frame says")
+    if fmt is DataFormat.COLOR_SEP_JPEG8:
+        mosaics = frame_block_mosaics(image.data, pgr_layout, where)
+        return [demosaic(*fit_mosaic(m, geometry, pattern, f"{where} camera {c}")) for c, m in enumerate(mosaics)]
+    return decode_raw(image.data, fmt, geometry, pattern, where)

@@ -1,4 +1,5 @@
-"""``rigd camera``: the Ladybug5 -- USB presence and health, SDK layout probe (docs/ladybug5.md)."""
+"""``rigd camera``: the Ladybug5 -- USB presence and health, SDK layout probe, the factory head calibration
+(docs/ladybug5.md)."""
 
 from __future__ import annotations
 
@@ -6,8 +7,21 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from drivers.ladybug5.errors import UsbBackendError
-from drivers.ladybug5.sdk import DEFAULT_LIBRARY, probe_layout, sdk_status
+import numpy as np
+
+from drivers.ladybug5.errors import HeadCalibrationError, UsbBackendError
+from drivers.ladybug5.head import HeadCalibration
+from drivers.ladybug5.head_file import save_head
+from drivers.ladybug5.pgr import PgrStream
+from drivers.ladybug5.sdk import (
+    DEFAULT_LIBRARY,
+    LadybugLibrary,
+    SdkLayout,
+    probe_layout,
+    read_camera_head,
+    sdk_status,
+)
+from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, head_from_config_file, head_from_pgr
 from drivers.ladybug5.usb import (
     POINT_GREY_VENDOR_ID,
     UsbCamera,
@@ -17,6 +31,7 @@ from drivers.ladybug5.usb import (
     read_usbfs_memory_mb,
     reset_camera,
 )
+from rigd.capture.config import DEFAULT_LAYOUT_FILE
 from rigd.cli.exit_codes import OK, UNHEALTHY
 
 
@@ -25,6 +40,23 @@ def _hex_int(text: str) -> int:
         return int(text, 0)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"not an integer (e.g. 0x1e10): {text}") from exc
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"not WIDTHxHEIGHT in px (e.g. 2448x2048): {text}") from exc
+    if width <= 0 or height <= 0:
+        raise argparse.ArgumentTypeError(f"the size must be positive: {text}")
+    return width, height
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
 
 
 def register(subparsers: Any) -> None:
@@ -56,6 +88,35 @@ def register(subparsers: Any) -> None:
     layout.add_argument("--out", type=Path, required=True, help="YAML file to write")
     layout.add_argument("--compiler", default="c++", help="C or C++ compiler (default c++)")
     layout.set_defaults(func=run_sdk_layout)
+    _register_export_head(sub)
+
+
+def _register_export_head(sub: Any) -> None:
+    export = sub.add_parser(
+        "export-head",
+        help="read the factory head calibration through the Ladybug SDK and write it (head dataset format)",
+        description="After ladybugLoadConfig the SDK holds the head's factory calibration: each sensor's focal "
+        "length, image centre, pose in the head and rectification. This reads it from the camera (default), a "
+        ".pgr stream's embedded configuration (--pgr) or a configuration file (--calibration), fits an OpenCV "
+        "lens model to the rectification and writes OUT (the head dataset format's camera section, usable as "
+        "camera.sdk.rig_file) and the sampled rectification maps beside it. Exit 0, or 1 when a sensor's lens "
+        "fit is poor (written anyway). Needs FLIR's SDK and the layout of `rigd camera sdk-layout`.",
+    )
+    export.add_argument("--out", type=Path, required=True, help="head file to write (YAML)")
+    export.add_argument("--maps", type=Path, default=None, help="rectification maps file (default OUT.maps.npz)")
+    source = export.add_mutually_exclusive_group()
+    source.add_argument("--serial", type=int, default=None, help="the camera's serial (default: the only camera)")
+    source.add_argument("--pgr", type=Path, default=None, help="a .pgr stream: its embedded configuration")
+    source.add_argument("--calibration", type=Path, default=None, help="a configuration file (.cal)")
+    export.add_argument("--size", type=_size, default=None, metavar="WxH",
+                        help="sensor size in px (default: a grabbed frame's, or the stream's resolution)")
+    export.add_argument("--step", type=_positive, default=DEFAULT_MAP_STEP_PX, metavar="PX",
+                        help=f"rectification sampled every PX px (default {DEFAULT_MAP_STEP_PX})")
+    export.add_argument("--layout", type=Path, default=DEFAULT_LAYOUT_FILE,
+                        help=f"SDK layout file from rigd camera sdk-layout (default {DEFAULT_LAYOUT_FILE})")
+    export.add_argument("--sdk-library", default=DEFAULT_LIBRARY,
+                        help=f"Ladybug SDK library (default {DEFAULT_LIBRARY})")
+    export.set_defaults(func=run_export_head)
 
 
 def _match(args: argparse.Namespace) -> UsbMatch:
@@ -111,3 +172,37 @@ def run_sdk_layout(args: argparse.Namespace) -> int:
     layout = probe_layout(args.include, args.compiler, args.out)
     print(f"wrote {args.out}: LadybugImage is {layout.image_size} bytes; {len(layout.errors)} error codes")
     return 0
+
+
+def _read_head(args: argparse.Namespace) -> HeadCalibration:
+    lib = LadybugLibrary(SdkLayout.load(args.layout), args.sdk_library)
+    if args.pgr is not None:
+        stream = PgrStream(args.pgr)
+        try:
+            return head_from_pgr(lib, stream, args.size, args.step)
+        finally:
+            stream.close()
+    if args.calibration is not None:
+        if args.size is None:
+            raise HeadCalibrationError(f"{args.calibration}: a configuration file does not say the sensor size: "
+                                       "give it (--size 2448x2048, Ladybug5+: 2464x2048)")
+        return head_from_config_file(lib, args.calibration, args.size, step_px=args.step)
+    return read_camera_head(lib, args.serial, args.size, args.step)
+
+
+def run_export_head(args: argparse.Namespace) -> int:
+    head = _read_head(args)
+    save_head(head, args.out, args.maps)
+    print(f"wrote {args.out}: {head.summary()}")
+    for s in head.sensors:
+        rpy = np.degrees(s.extrinsics[:3])
+        print(f"  {s.name}: {s.width}x{s.height} px, f {s.focal_px:.2f} px, centre ({s.centre_px[0]:.2f}, "
+              f"{s.centre_px[1]:.2f}), Euler ZYX [{rpy[0]:.3f} {rpy[1]:.3f} {rpy[2]:.3f}] deg, at "
+              f"[{s.extrinsics[3]:.4f} {s.extrinsics[4]:.4f} {s.extrinsics[5]:.4f}] m; lens fit rms "
+              f"{s.lens.rms_px:.3f} px, max {s.lens.max_px:.3f} px")
+    poor = head.poor_sensors()
+    if poor:
+        print(f"warning: the OpenCV lens model does not hold the SDK's rectification for {', '.join(poor)}: use the "
+              "rectification maps for those sensors (docs/ladybug5.md)")
+        return UNHEALTHY
+    return OK

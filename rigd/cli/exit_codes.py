@@ -14,7 +14,8 @@ from enum import IntEnum
 
 OK = 0
 ERROR = 2  # a RigdError, DriverError or CalibError ("rigd: error: ..."), and argparse's usage errors
-UNHEALTHY = 1  # rigd doctor: a check failed; rigd camera info: no Ladybug found, or a health warning
+UNHEALTHY = 1  # rigd doctor: a check failed; rigd camera info: no Ladybug found, or a health warning;
+#               rigd camera export-head: written, but a sensor's lens fit is poor
 NOT_STARTED = 3  # rigd serve could not start, as uvicorn.run exits (e.g. the port is taken)
 SIGNALLED = 128  # plus the signal's number: rigd capture stopped by SIGTERM exits 143
 INTERRUPTED = SIGNALLED + signal.SIGINT  # Ctrl-C: 130

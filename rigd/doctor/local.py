@@ -9,7 +9,10 @@ import shutil
 from pathlib import Path
 
 from drivers.errors import DriverError
-from drivers.ladybug5.sdk import sdk_status
+from drivers.ladybug5.errors import HeadCalibrationError
+from drivers.ladybug5.head import HeadSource
+from drivers.ladybug5.head_file import load_head
+from drivers.ladybug5.sdk import LadybugLibrary, SdkLayout, read_camera_head, sdk_status
 from drivers.ladybug5.usb import UsbMatch, find_cameras, health_warnings, read_usbfs_memory_mb
 from rigd.capture.config import CONFIG_ENV, RigSettings, find_config, load_settings
 from rigd.capture.specs import CameraKind, parse_camera
@@ -26,6 +29,9 @@ GIB = 1 << 30
 FAIL_BELOW_BYTES = 1 * GIB  # a 12-pair 2048 x 1024 dataset with its calibration outputs is about 0.1 GB
 WARN_BELOW_BYTES = 5 * GIB
 INSTALL_FIX = "reinstall rigd with its dependencies: pip install -e . (from the repository) or pip install rigd"
+HEAD_CHECK_STEP_PX = 64  # a coarse rectification sample: enough to tell the head is readable, in a moment
+EXPORT_FIX = ("export the camera's factory calibration where the SDK works: rigd camera export-head --out "
+              "/etc/rigd/ladybug_head.yaml, and set camera.sdk.rig_file to it (docs/ladybug5.md)")
 
 
 def versions_check() -> Check:
@@ -119,3 +125,48 @@ def sdk_check(settings: RigSettings, library: str | None) -> Check:
         return Check("Ladybug SDK", Status.OK, f"not needed (camera source {settings.camera_source}): {status}")
     return Check("Ladybug SDK", Status.FAIL, status,
                  "install FLIR's Ladybug SDK and set camera.sdk.library in the rig file (docs/ladybug5.md)")
+
+
+def head_check(settings: RigSettings, library: str | None) -> Check:
+    """Which Ladybug5 head capture uses: the head file of ``camera.sdk.rig_file``, or the camera's factory
+    calibration read through the SDK (tried here, briefly opening the camera); never the nominal head unnoticed."""
+    if not _camera_is_sdk(settings):
+        return Check("Ladybug5 head", Status.OK, f"not used: camera source is {settings.camera_source}")
+    if settings.sdk.rig_file is not None:
+        return _head_file_check(settings.sdk.rig_file)
+    return _camera_head_check(settings, library or settings.sdk.library)
+
+
+def _head_file_check(path: Path) -> Check:
+    try:
+        head = load_head(path)
+    except DriverError as exc:
+        return Check("Ladybug5 head", Status.FAIL, str(exc), f"correct camera.sdk.rig_file, or {EXPORT_FIX}")
+    detail = f"{path} (camera.sdk.rig_file): {head.summary()}"
+    if head.source is not HeadSource.FACTORY:
+        return Check("Ladybug5 head", Status.WARN, f"{detail}; not the camera's factory calibration", EXPORT_FIX)
+    poor = head.poor_sensors()
+    if poor:
+        return Check("Ladybug5 head", Status.WARN, f"{detail}; lens fit poor for {', '.join(poor)}",
+                     "use the rectification maps for those sensors (docs/ladybug5.md)")
+    return Check("Ladybug5 head", Status.OK, detail)
+
+
+def _camera_head_check(settings: RigSettings, library: str) -> Check:
+    nominal = "capture refuses the nominal head on a real camera unless --nominal-head"
+    status = sdk_status(library)
+    if status != f"{library} loads" or not settings.sdk.layout.exists():
+        why = status if status != f"{library} loads" else f"no SDK layout file {settings.sdk.layout}"
+        return Check("Ladybug5 head", Status.WARN, f"the factory head is read through the SDK, which is not set "
+                     f"up ({why}): only rigd's nominal head is available; {nominal}", EXPORT_FIX)
+    try:
+        head = read_camera_head(LadybugLibrary(SdkLayout.load(settings.sdk.layout), library),
+                                step_px=HEAD_CHECK_STEP_PX)
+    except HeadCalibrationError as exc:
+        return Check("Ladybug5 head", Status.FAIL, f"the camera's factory calibration cannot be read: {exc}; "
+                     f"{nominal}", "check the camera's calibration with FLIR's LadybugCapPro; " + EXPORT_FIX)
+    except DriverError as exc:  # absent, busy (a running capture holds it), unpowered: say so, do not fail on it
+        return Check("Ladybug5 head", Status.WARN, f"could not read the factory head from the camera now: {exc}",
+                     f"run rigd doctor again when no capture holds the camera, or {EXPORT_FIX}")
+    return Check("Ladybug5 head", Status.OK, f"read from the camera now (capture reads it at start): "
+                                             f"{head.summary()}")

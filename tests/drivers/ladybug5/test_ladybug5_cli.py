@@ -1,14 +1,25 @@
-"""``rigd camera info`` with no camera, with a mocked one (fake pyusb backend), and without libusb."""
+"""``rigd camera info`` with no camera, with a mocked one (fake pyusb backend), and without libusb;
+``rigd camera export-head`` through the fake Ladybug SDK."""
 
 from __future__ import annotations
 
+import shutil
+
+import numpy as np
 import pytest
 import usb.backend.libusb0
 import usb.backend.libusb1
 import usb.backend.openusb
+import yaml
+from fake_ladybug_sdk import COMPILER, build
 from ladybug5_fakes import FakeDevice, FakeUsbBackend, ladybug
 
 import rigd.cli
+from drivers.ladybug5.head import HeadSource
+from drivers.ladybug5.head_file import load_head
+from drivers.ladybug5.pgr import PgrFrameData, PgrWriteOptions, bayer_planes, write_pgr
+from rigd.dataset.records import HeadConfig
+from rigd.ladybug_head import head_config
 
 
 @pytest.fixture
@@ -58,3 +69,56 @@ def test_info_without_libusb_still_reports_the_rest(monkeypatch, capsys):
 def test_reset_without_a_camera_is_a_clean_error(usb_devices, capsys):
     assert rigd.cli.main(["camera", "info", "--reset"]) == 2
     assert "rigd: error: reset needs exactly one matching camera, found 0" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def fake_sdk(tmp_path_factory):
+    """(library, layout file) of the fake Ladybug SDK (fake_sdk/), built once."""
+    if COMPILER is None:
+        pytest.skip("no C compiler (gcc/cc) to build the fake Ladybug SDK")
+    out = tmp_path_factory.mktemp("fake_sdk")
+    library, _ = build(out)
+    return library, out / "layout.yaml"
+
+
+def export(fake_sdk, tmp_path, *extra: str) -> int:
+    library, layout = fake_sdk
+    copy = tmp_path / "libfakeladybug.so"  # a copy per test: its globals start fresh (never overwrite a loaded one)
+    if not copy.exists():
+        shutil.copy(library, copy)
+    return rigd.cli.main(["camera", "export-head", "--out", str(tmp_path / "head.yaml"), "--layout", str(layout),
+                          "--sdk-library", str(copy), "--step", "2", *extra])
+
+
+def test_export_head_from_the_camera_writes_the_head_dataset_form(fake_sdk, tmp_path, capsys):
+    assert export(fake_sdk, tmp_path) == 0
+    out = capsys.readouterr().out
+    assert "factory head of camera 17092345" in out and "cam5: 16x12 px, f 10.00 px" in out
+    data = yaml.safe_load((tmp_path / "head.yaml").read_text())
+    head = HeadConfig.from_yaml(data["camera"], "head.yaml")  # what a head dataset's rig.yaml holds
+    assert [s.name for s in head.sensors] == [f"cam{i}" for i in range(6)]
+    assert (head.sensors[0].camera.width, head.sensors[0].camera.height) == (16, 12)
+    loaded = load_head(tmp_path / "head.yaml")
+    assert loaded.source is HeadSource.FACTORY and loaded.sensors[2].maps is not None
+    np.testing.assert_allclose(head_config(loaded).sensors[2].camera.K, loaded.sensors[2].lens.K)
+    np.testing.assert_allclose(head.sensors[2].T_head_camera.matrix[:3, :3], loaded.sensors[2].R_head_camera,
+                               atol=1e-9)
+
+
+def test_export_head_from_a_stream_and_from_a_configuration_file(fake_sdk, tmp_path, capsys):
+    image = np.full((12, 16, 3), 128, np.uint8)
+    write_pgr(tmp_path / "s.pgr", [PgrFrameData(5, 0, 1, [bayer_planes(image)] * 6)],
+              calibration=b"FAKECAL -0.1 0.02 12.0", options=PgrWriteOptions(serial=17099999))
+    assert export(fake_sdk, tmp_path, "--pgr", str(tmp_path / "s.pgr"), "--size", "16x12") == 0
+    assert "factory head of camera 17099999" in capsys.readouterr().out
+    (tmp_path / "folding.cal").write_text("FAKECAL -0.9 0.0 10.0")
+    code = export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal"), "--size", "16x12")
+    assert code == 1 and "warning: the OpenCV lens model does not hold" in capsys.readouterr().out
+    assert export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal")) == 2
+    assert "does not say the sensor size: give it (--size" in capsys.readouterr().err
+
+
+def test_export_head_without_the_sdk_is_a_clear_error(tmp_path, capsys):
+    code = rigd.cli.main(["camera", "export-head", "--out", str(tmp_path / "h.yaml"), "--layout",
+                          str(tmp_path / "absent.yaml")])
+    assert code == 2 and "cannot read SDK layout file" in capsys.readouterr().err

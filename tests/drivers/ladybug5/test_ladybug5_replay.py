@@ -11,15 +11,17 @@ from ladybug5_helpers import pixel_rays_head, scaled_rig, smooth_field
 
 from drivers.ladybug5.clock import ClockSync, unwrap_times
 from drivers.ladybug5.errors import Ladybug5Error, StreamFormatError
+from drivers.ladybug5.formats import BayerPattern
 from drivers.ladybug5.frames import TimeBase
 from drivers.ladybug5.pgr import (
     DEFAULT_LAYOUT,
     PgrFrameData,
     PgrStream,
-    assemble_bayer,
+    assemble_mosaic,
     bayer_planes,
     write_pgr,
 )
+from drivers.ladybug5.raw import demosaic
 from drivers.ladybug5.replay import DirectoryFrameSource, PgrFrameSource
 from drivers.ladybug5.rig import default_ladybug5_rig
 from drivers.ladybug5.stitch import PanoramaSpec, Stitcher, panorama_rays
@@ -87,12 +89,11 @@ def test_pgr_jpeg_extraction_reassembles_the_camera_images(tmp_path, images):
         assert np.abs(got.astype(float) - want).mean() < 3.0
 
 
-@pytest.mark.parametrize("pattern", ["RGGB", "BGGR", "GRBG", "GBRG"])
+@pytest.mark.parametrize("pattern", list(BayerPattern))
 def test_bayer_reassembly_puts_colours_in_the_right_channels(pattern):
-    layout = DEFAULT_LAYOUT.__class__(bayer_pattern=pattern)
     red = np.zeros((32, 32, 3), np.uint8)
     red[..., 2] = 255
-    back = assemble_bayer(bayer_planes(red, layout, quality=100), layout, "test")
+    back = demosaic(assemble_mosaic(bayer_planes(red, quality=100, pattern=pattern), DEFAULT_LAYOUT, "test"), pattern)
     centre = back[4:-4, 4:-4].astype(int)
     assert centre[..., 2].min() > 240 and centre[..., :2].max() < 15
 

@@ -6,6 +6,7 @@ import os
 import socket
 import threading
 from collections.abc import Iterator
+from dataclasses import replace
 from importlib.metadata import version
 from pathlib import Path
 
@@ -14,12 +15,15 @@ import pytest
 import yaml
 
 from drivers.errors import DriverError
+from drivers.ladybug5.errors import CameraNotFoundError, HeadCalibrationError
+from drivers.ladybug5.head import HeadCalibration, HeadSource
+from drivers.ladybug5.head_file import save_head
 from drivers.vlp16 import encode_data_packets
 from rigd.capture import config as capture_config
-from rigd.capture.config import RigSettings
+from rigd.capture.config import RigSettings, SdkSettings
 from rigd.cli import main
 from rigd.doctor import DoctorError, DoctorOptions, Status, local
-from rigd.doctor.local import camera_usb_check, data_dir_check, rig_file_check, sdk_check
+from rigd.doctor.local import camera_usb_check, data_dir_check, head_check, rig_file_check, sdk_check
 from rigd.doctor.network import lidar_port_check
 
 MISSING_SDK = "/nonexistent/libladybug.so"
@@ -204,3 +208,49 @@ def test_version_comes_from_the_package_metadata(capsys) -> None:
         main(["--version"])
     assert exit_info.value.code == 0
     assert capsys.readouterr().out.strip() == f"rigd {version('rigd')}"
+
+
+def sdk_settings(tmp_path: Path, rig_file: Path | None = None) -> RigSettings:
+    layout = tmp_path / "layout.yaml"
+    layout.write_text("a layout\n")
+    return RigSettings(camera_source="sdk", sdk=SdkSettings(layout=layout, library="libfake.so", rig_file=rig_file))
+
+
+def test_the_head_check_names_the_head_in_a_rig_file(tmp_path: Path) -> None:
+    assert head_check(RigSettings(camera_source="sim"), None).status is Status.OK
+    nominal = HeadCalibration.nominal((16, 12))
+    save_head(replace(nominal, source=HeadSource.FACTORY, serial=17092345, description="camera 17092345 (test)"),
+              tmp_path / "factory.yaml")
+    check = head_check(sdk_settings(tmp_path, tmp_path / "factory.yaml"), None)
+    assert check.status is Status.OK and "factory head of camera 17092345" in check.detail
+    save_head(nominal, tmp_path / "nominal.yaml")
+    check = head_check(sdk_settings(tmp_path, tmp_path / "nominal.yaml"), None)
+    assert check.status is Status.WARN and "NOMINAL head" in check.detail and "export-head" in check.fix
+    check = head_check(sdk_settings(tmp_path, tmp_path / "absent.yaml"), None)
+    assert check.status is Status.FAIL and "absent.yaml" in check.detail
+
+
+def test_the_head_check_reads_the_factory_head_from_the_camera(tmp_path: Path, monkeypatch) -> None:
+    settings = sdk_settings(tmp_path)
+    missing = head_check(settings, MISSING_SDK)
+    assert missing.status is Status.WARN and "not set up" in missing.detail and "--nominal-head" in missing.detail
+    factory = replace(HeadCalibration.nominal((16, 12)), source=HeadSource.FACTORY, serial=7, description="test")
+    outcome: list = [factory]
+
+    def read(lib, step_px):
+        if isinstance(outcome[0], Exception):
+            raise outcome[0]
+        return outcome[0]
+
+    monkeypatch.setattr(local, "sdk_status", lambda library: f"{library} loads")
+    monkeypatch.setattr(local.SdkLayout, "load", lambda path: None)
+    monkeypatch.setattr(local, "LadybugLibrary", lambda layout, library: None)
+    monkeypatch.setattr(local, "read_camera_head", read)
+    check = head_check(settings, None)
+    assert check.status is Status.OK and "read from the camera now" in check.detail and "camera 7" in check.detail
+    outcome[0] = HeadCalibrationError("ladybugLoadConfig: no calibration file on the Ladybug head")
+    check = head_check(settings, None)
+    assert check.status is Status.FAIL and "no calibration file" in check.detail and "--nominal-head" in check.detail
+    outcome[0] = CameraNotFoundError("the Ladybug SDK sees no camera on the bus")
+    check = head_check(settings, None)
+    assert check.status is Status.WARN and "could not read the factory head" in check.detail

@@ -1,23 +1,38 @@
 /*
- * A fake libladybug for rigd's tests: the Ladybug SDK's function names over our own minimal structs
- * (fake_sdk/ladybug.h). It serves RAW8 frames (six Bayer images, pixel value = 40 * camera + frame) or,
- * when a frame block is loaded, COLOR_SEP_JPEG8 buffers; its camera clock starts at 127.5 s of a 128 s
- * cycle and ticks 0.1 s a frame, so it wraps. Globals let the test steer faults and see the lifecycle.
+ * A fake libladybug for rigd's tests, built from fake_sdk/ladybug.h (the real struct layouts).
+ *
+ * Frames: RAW8 / RAW16 full sensor images with a border of bright masked pixels (fake_border_*), the useful
+ * image a flat colour per camera (B = 20 + 30 cam, G = 100 + frame, R = 220 - 20 cam) mosaiced with the Bayer
+ * pattern fake_stippled (for the full image's top-left pixel); RAW16 is the same << 8. COLOR_SEP_JPEG8 serves a
+ * loaded frame block. The camera clock starts at 127.5 s of the 128 s cycle and ticks 0.1 s a frame.
+ * Geometry: per camera an OpenCV-like lens (focal fake_focal, centre, k1, k2) and Euler ZYX extrinsics; a
+ * configuration file "FAKECAL <k1> <k2> <focal>" replaces the lens. Globals steer faults and record calls.
  */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "ladybug.h"
+#include "ladybuggeom.h"
+#include "ladybugrenderer.h"
 
 int fake_cameras = 1;
-int fake_cols = 16;
-int fake_rows = 12;
-int fake_bad_frame = -1;     /* grab returns LADYBUG_JPEG_ERROR for this frame number */
-int fake_timeout_from = -1;  /* from this frame number on, grab times out */
-int fake_init_error = 0;     /* returned by ladybugInitializeFromIndex when non-zero */
+int fake_cols = 16, fake_rows = 12;
+int fake_border_top = 1, fake_border_bottom = 2, fake_border_left = 3, fake_border_right = 1;
+int fake_stippled = LADYBUG_RGGB;   /* in every LadybugImage */
+int fake_tile = LADYBUG_RGGB;       /* from ladybugGetColorTileFormat */
+int fake_bad_frame = -1;            /* grab returns LADYBUG_JPEG_ERROR for this frame number */
+int fake_timeout_from = -1;         /* from this frame number on, grab times out */
+int fake_init_error = 0;            /* returned by the initialise calls when non-zero */
+int fake_exposure_error = 0;        /* ladybugGetAbsProperty fails when non-zero */
 int fake_started = 0, fake_stopped = 0, fake_destroyed = 0, fake_contexts = 0;
+int fake_initialized_serial = -1, fake_initialized_index = -1;
+int fake_enumerated_before_init = 0; /* ladybugBusEnumerateCameras was called on a context not yet initialised */
+int fake_grab_timeout = -1, fake_timeout_set_after_start = 0;
+int fake_rect_cols = 0, fake_rect_rows = 0;
 char fake_config_path[256] = "";
+double fake_focal = 10.0, fake_k1 = -0.05, fake_k2 = 0.01;
 
 struct fake_context {
     int initialized, running, frame;
@@ -46,7 +61,7 @@ int fake_load_block(const char *path)
 LadybugError ladybugCreateContext(LadybugContext *context)
 {
     struct fake_context *c = calloc(1, sizeof *c);
-    if (!c) return LADYBUG_FAILED;
+    if (!c) return LADYBUG_MEMORY_ALLOC_ERROR;
     *context = c;
     fake_contexts++;
     return LADYBUG_OK;
@@ -54,42 +69,118 @@ LadybugError ladybugCreateContext(LadybugContext *context)
 
 LadybugError ladybugBusEnumerateCameras(LadybugContext context, LadybugCameraInfo *info, unsigned int *size)
 {
-    (void)context;
+    if (!context) return LADYBUG_INVALID_CONTEXT;
+    if (!((struct fake_context *)context)->initialized) fake_enumerated_before_init = 1;
     for (unsigned int i = 0; i < *size && i < (unsigned int)fake_cameras; i++) {
-        strcpy(info[i].model, "fake5");
-        info[i].serialHead = 17092345u + i;
+        memset(&info[i], 0, sizeof info[i]);
+        info[i].serialBase = info[i].serialHead = 17092345u + i;
+        info[i].bIsColourCamera = true;
+        info[i].deviceType = LADYBUG_DEVICE_LADYBUG5P;
+        snprintf(info[i].pszModelName, sizeof info[i].pszModelName, "Ladybug5+ (fake %u)", i);
+        info[i].interfaceType = LADYBUG_INTERFACE_USB3;
     }
     *size = (unsigned int)fake_cameras;
     return LADYBUG_OK;
 }
 
-LadybugError ladybugInitializeFromIndex(LadybugContext context, unsigned int index)
+static LadybugError initialize(LadybugContext context, int index)
 {
     if (fake_init_error) return (LadybugError)fake_init_error;
-    if (index >= (unsigned int)fake_cameras) return LADYBUG_FAILED;
+    if (index < 0 || index >= fake_cameras) return LADYBUG_FAILED;
     ((struct fake_context *)context)->initialized = 1;
     return LADYBUG_OK;
+}
+
+LadybugError ladybugInitializeFromIndex(LadybugContext context, unsigned int index)
+{
+    fake_initialized_index = (int)index;
+    return initialize(context, (int)index);
+}
+
+LadybugError ladybugInitializeFromSerialNumber(LadybugContext context, LadybugSerialNumber serial)
+{
+    fake_initialized_serial = (int)serial;
+    return initialize(context, (int)(serial - 17092345u));
 }
 
 LadybugError ladybugLoadConfig(LadybugContext context, const char *path)
 {
     (void)context;
     snprintf(fake_config_path, sizeof fake_config_path, "%s", path ? path : "(from head)");
+    if (!path) return LADYBUG_OK;
+    FILE *f = fopen(path, "r");
+    if (!f) return LADYBUG_COULD_NOT_OPEN_FILE;
+    int got = fscanf(f, "FAKECAL %lf %lf %lf", &fake_k1, &fake_k2, &fake_focal);
+    fclose(f);
+    return got == 3 ? LADYBUG_OK : LADYBUG_INVALID_CONFIG_FILE;
+}
+
+LadybugError ladybugGetColorTileFormat(LadybugContext context, LadybugStippledFormat *format)
+{
+    (void)context;
+    *format = (LadybugStippledFormat)fake_tile;
     return LADYBUG_OK;
+}
+
+LadybugError ladybugSetGrabTimeout(LadybugContext context, unsigned int timeout)
+{
+    if (((struct fake_context *)context)->running) fake_timeout_set_after_start = 1;
+    fake_grab_timeout = (int)timeout;
+    return LADYBUG_OK;
+}
+
+static size_t pixel_bytes(LadybugDataFormat format)
+{
+    return format == LADYBUG_DATAFORMAT_RAW16 ? 2 : 1;
 }
 
 LadybugError ladybugStart(LadybugContext context, LadybugDataFormat format)
 {
     struct fake_context *c = context;
-    if (!c->initialized) return LADYBUG_FAILED;
+    if (!c->initialized) return LADYBUG_NOT_INITIALIZED;
     if (format == LADYBUG_DATAFORMAT_COLOR_SEP_JPEG8 && !block) return LADYBUG_FAILED;
+    size_t full = (size_t)(fake_cols + fake_border_left + fake_border_right) *
+                  (size_t)(fake_rows + fake_border_top + fake_border_bottom);
     c->format = format;
     c->running = 1;
     c->frame = 0;
-    c->buffer_size = format == LADYBUG_DATAFORMAT_RAW8 ? (size_t)6 * fake_cols * fake_rows : block_size;
+    c->buffer_size = format == LADYBUG_DATAFORMAT_COLOR_SEP_JPEG8 ? block_size : 6 * full * pixel_bytes(format);
     c->buffer = malloc(c->buffer_size);
     fake_started++;
     return LADYBUG_OK;
+}
+
+/* The colour (0 B, 1 G, 2 R) at full-image pixel (row, col): the image's pattern, the tile format's for DEFAULT. */
+static int channel_at(int row, int col)
+{
+    static const char *patterns[] = {"BGGR", "GBRG", "GRBG", "RGGB"};
+    int pattern = fake_stippled == LADYBUG_DEFAULT ? fake_tile : fake_stippled;
+    char colour = patterns[pattern - LADYBUG_BGGR][2 * (row % 2) + col % 2];
+    return colour == 'B' ? 0 : colour == 'G' ? 1 : 2;
+}
+
+static void fill_raw(struct fake_context *c, int frame)
+{
+    int full_cols = fake_cols + fake_border_left + fake_border_right;
+    int full_rows = fake_rows + fake_border_top + fake_border_bottom;
+    size_t bytes = pixel_bytes(c->format);
+    for (int cam = 0; cam < 6; cam++) {
+        int bgr[3] = {20 + 30 * cam, 100 + frame, 220 - 20 * cam};
+        for (int r = 0; r < full_rows; r++) {
+            for (int col = 0; col < full_cols; col++) {
+                int inside = r >= fake_border_top && r < fake_border_top + fake_rows && col >= fake_border_left &&
+                             col < fake_border_left + fake_cols;
+                unsigned int value = inside ? (unsigned int)bgr[channel_at(r, col)] : 255u; /* masked: bright */
+                size_t at = ((size_t)cam * full_rows * full_cols + (size_t)r * full_cols + col) * bytes;
+                if (bytes == 1) {
+                    c->buffer[at] = (unsigned char)value;
+                } else { /* little-endian 16-bit words, the value in the top byte */
+                    c->buffer[at] = 0;
+                    c->buffer[at + 1] = (unsigned char)value;
+                }
+            }
+        }
+    }
 }
 
 LadybugError ladybugGrabImage(LadybugContext context, LadybugImage *image)
@@ -99,24 +190,30 @@ LadybugError ladybugGrabImage(LadybugContext context, LadybugImage *image)
     int k = c->frame++;
     if (fake_timeout_from >= 0 && k >= fake_timeout_from) return LADYBUG_TIMEOUT;
     if (k == fake_bad_frame) return LADYBUG_JPEG_ERROR;
-    if (c->format == LADYBUG_DATAFORMAT_RAW8) {
-        size_t per_camera = (size_t)fake_cols * fake_rows;
-        for (int cam = 0; cam < 6; cam++) memset(c->buffer + cam * per_camera, 40 * cam + k, per_camera);
-    } else {
-        memcpy(c->buffer, block, block_size);
-    }
+    if (c->format == LADYBUG_DATAFORMAT_COLOR_SEP_JPEG8) memcpy(c->buffer, block, block_size);
+    else fill_raw(c, k);
     memset(image, 0, sizeof *image);
     image->uiCols = (unsigned int)fake_cols;
     image->uiRows = (unsigned int)fake_rows;
+    image->imageBorder.uiTopRows = (unsigned int)fake_border_top;
+    image->imageBorder.uiBottomRows = (unsigned int)fake_border_bottom;
+    image->imageBorder.uiLeftCols = (unsigned int)fake_border_left;
+    image->imageBorder.uiRightCols = (unsigned int)fake_border_right;
+    image->uiFullCols = (unsigned int)(fake_cols + fake_border_left + fake_border_right);
+    image->uiFullRows = (unsigned int)(fake_rows + fake_border_top + fake_border_bottom);
+    image->resolution = LADYBUG_RESOLUTION_2464x2048;
     long ticks = 1020000L + k * 800L; /* 125 us cycles: 127.5 s + 0.1 s per frame, 128 s cycle */
     long in_cycle = ticks % (128 * 8000);
-    image->timeStamp.ulCycleSeconds = (unsigned long long)(in_cycle / 8000);
-    image->timeStamp.ulCycleCount = (unsigned short)(in_cycle % 8000);
-    image->imageInfo.ulTimeSeconds = 1700000000ull + (unsigned long long)k;
+    image->timeStamp.ulCycleSeconds = (unsigned int)(in_cycle / 8000);
+    image->timeStamp.ulCycleCount = (unsigned int)(in_cycle % 8000);
+    image->imageInfo.ulFingerprint = 0xCAFEBABE;
+    image->imageInfo.ulTimeSeconds = 1700000000u + (unsigned int)k;
     image->imageInfo.ulTimeMicroSeconds = 250000u;
     image->imageInfo.ulSequenceId = 1000u + (unsigned int)k;
     image->dataFormat = c->format;
     image->pData = c->buffer;
+    image->bStippled = true;
+    image->stippledFormat = (LadybugStippledFormat)fake_stippled;
     image->uiDataSizeBytes = (unsigned int)c->buffer_size;
     return LADYBUG_OK;
 }
@@ -124,9 +221,10 @@ LadybugError ladybugGrabImage(LadybugContext context, LadybugImage *image)
 LadybugError ladybugGetAbsProperty(LadybugContext context, LadybugProperty property, float *value)
 {
     (void)context;
+    if (fake_exposure_error) return LADYBUG_FAILED;
     if (property == LADYBUG_SHUTTER) *value = 2.5f; /* ms */
     else if (property == LADYBUG_GAIN) *value = 6.0f; /* dB */
-    else return LADYBUG_FAILED;
+    else return LADYBUG_NOT_SUPPORTED;
     return LADYBUG_OK;
 }
 
@@ -149,9 +247,96 @@ LadybugError ladybugDestroyContext(LadybugContext *context)
     return LADYBUG_OK;
 }
 
-const char *ladybugErrorToString(LadybugError error)
+const char *ladybugErrorToString(const LadybugError error)
 {
     static char text[64];
     snprintf(text, sizeof text, "fake Ladybug error %d", (int)error);
     return text;
+}
+
+/* -- geometry ------------------------------------------------------------------------------------------------ */
+
+LadybugError ladybugSetOffScreenImageSize(LadybugContext context, LadybugOutputImage type, unsigned int width,
+                                          unsigned int height)
+{
+    (void)context;
+    if (type & LADYBUG_ALL_RECTIFIED_IMAGES) {
+        fake_rect_cols = (int)width;
+        fake_rect_rows = (int)height;
+    }
+    return LADYBUG_OK;
+}
+
+static double centre_x(unsigned int cam) { return (fake_cols - 1) / 2.0 + 0.3 * cam; }
+static double centre_y(unsigned int cam) { return (fake_rows - 1) / 2.0 - 0.2 * cam; }
+static double scale(void) { return (double)fake_rect_cols / fake_cols; }
+
+LadybugError ladybugGetCameraUnitFocalLength(LadybugContext context, unsigned int cam, double *focal)
+{
+    (void)context;
+    if (!fake_rect_cols || cam >= 6) return fake_rect_cols ? LADYBUG_INVALID_ARGUMENT : LADYBUG_NEED_RECTIFY_RESOLUTION;
+    *focal = fake_focal * scale();
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugGetCameraUnitImageCenter(LadybugContext context, unsigned int cam, double *cx, double *cy)
+{
+    (void)context;
+    if (!fake_rect_cols || cam >= 6) return fake_rect_cols ? LADYBUG_INVALID_ARGUMENT : LADYBUG_NEED_RECTIFY_RESOLUTION;
+    *cx = (centre_x(cam) + 0.5) * scale() - 0.5;
+    *cy = (centre_y(cam) + 0.5) * scale() - 0.5;
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugGetCameraUnitExtrinsics(LadybugContext context, unsigned int cam, double e[6])
+{
+    (void)context;
+    if (cam >= 6) return LADYBUG_INVALID_ARGUMENT;
+    double yaw = cam < 5 ? cam * 72.0 * M_PI / 180.0 : 0.0;
+    e[0] = 0.01 * cam;                       /* rx */
+    e[1] = cam < 5 ? M_PI / 2 : 0.0;         /* ry: side sensors look sideways, the top one up */
+    e[2] = yaw;                              /* rz */
+    e[3] = 0.045 * cos(yaw) * (cam < 5);     /* m */
+    e[4] = 0.045 * sin(yaw) * (cam < 5);
+    e[5] = cam < 5 ? 0.0 : 0.045;
+    return LADYBUG_OK;
+}
+
+static double radial(double x, double y)
+{
+    double r2 = x * x + y * y;
+    return 1.0 + r2 * (fake_k1 + r2 * fake_k2);
+}
+
+LadybugError ladybugRectifyPixel(LadybugContext context, unsigned int cam, double row, double col, double *rrow,
+                                 double *rcol)
+{
+    (void)context;
+    if (!fake_rect_cols) return LADYBUG_NEED_RECTIFY_RESOLUTION;
+    double xd = (col - centre_x(cam)) / fake_focal, yd = (row - centre_y(cam)) / fake_focal, x = xd, y = yd;
+    for (int i = 0; i < 100; i++) {
+        double r = radial(x, y);
+        x = xd / r;
+        y = yd / r;
+    }
+    double cx, cy, f;
+    ladybugGetCameraUnitImageCenter(context, cam, &cx, &cy);
+    ladybugGetCameraUnitFocalLength(context, cam, &f);
+    *rcol = f * x + cx;
+    *rrow = f * y + cy;
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugUnrectifyPixel(LadybugContext context, unsigned int cam, double rrow, double rcol, double *row,
+                                   double *col)
+{
+    double cx, cy, f;
+    if (!fake_rect_cols) return LADYBUG_NEED_RECTIFY_RESOLUTION;
+    ladybugGetCameraUnitImageCenter(context, cam, &cx, &cy);
+    ladybugGetCameraUnitFocalLength(context, cam, &f);
+    double x = (rcol - cx) / f, y = (rrow - cy) / f, r = radial(x, y);
+    *col = fake_focal * x * r + centre_x(cam);
+    *row = fake_focal * y * r + centre_y(cam);
+    if (*col < 0 || *col > fake_cols - 1 || *row < 0 || *row > fake_rows - 1) *row = *col = -1.0; /* outside */
+    return LADYBUG_OK;
 }
