@@ -21,12 +21,13 @@ from calib.errors import CalibError
 from drivers.errors import DriverError
 from rigd.api.errors import QueueFullError
 from rigd.api.models import MAX_NESTING
-from rigd.api.routes import calibrate, capture, check, datasets, extrinsics, jobs, page
+from rigd.api.routes import calibrate, capture, check, datasets, extrinsics, jobs
 from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
 from rigd.errors import DatasetError, RigdError
 from rigd.store import ConflictError, NotFoundError, StoreError, StoreUnavailableError
 from rigd.store.jsonsafe import json_safe
+from rigd.web import install as install_page
 
 # Most specific first: the first class an error is an instance of decides its status.
 ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
@@ -216,5 +217,5 @@ def create_app(service: Service) -> FastAPI:
     app.add_middleware(BodyLimit, max_bytes=service.settings.max_body_bytes)  # added last: runs first
     for module in (status_routes, jobs, capture, calibrate, check, datasets, extrinsics):
         app.include_router(module.router)
-    page.install(app)
+    install_page(app)  # the operator page: rigd/web
     return app

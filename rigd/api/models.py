@@ -259,6 +259,7 @@ class PairOut(BaseModel):
 
 class DatasetDetailOut(DatasetOut):
     pairs: list[PairOut]
+    sensors: list[str] = Field(description="a multi-camera head's sensors (a pair's images), empty for one camera")
     ground_truth: TransformOut | None
 
 

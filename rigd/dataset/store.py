@@ -141,6 +141,10 @@ class Dataset:
         return [(s.camera.height, s.camera.width) for s in cam.sensors] if isinstance(cam, HeadConfig) \
             else [(cam.height, cam.width)]
 
+    def image_path(self, i: int, view: str) -> Path:
+        """The image file of pair ``i`` (an index into ``pair_dirs``) for ``view`` (one of :attr:`views`)."""
+        return _image_path(self.pair_dirs[i], view)
+
     def load_pair(self, i: int) -> Pair:
         folder = self.pair_dirs[i]
         images = []

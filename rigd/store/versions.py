@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import builtins
 import dataclasses
 import json
 import sqlite3
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 
 import numpy as np
 
@@ -87,6 +88,30 @@ class VersionStore:
     def list(self) -> list[ExtrinsicsVersion]:
         with self.db.read() as conn:
             return [_row_to_version(r) for r in conn.execute(_SELECT + " ORDER BY v.number")]
+
+    def newest(self, limit: int) -> builtins.list[ExtrinsicsVersion]:  # (``list`` is the method below)
+        """The ``limit`` newest versions, newest first (a page of the list, not all of it)."""
+        with self.db.read() as conn:
+            return [_row_to_version(r) for r in conn.execute(_SELECT + " ORDER BY v.number DESC LIMIT ?", (limit,))]
+
+    def numbered(self, numbers: Collection[int]) -> dict[int, ExtrinsicsVersion]:
+        """The versions of ``numbers`` that exist, by number."""
+        if not numbers:
+            return {}
+        marks = ", ".join("?" * len(numbers))
+        with self.db.read() as conn:
+            rows = conn.execute(_SELECT + f" WHERE v.number IN ({marks})", tuple(numbers))
+            return {row["number"]: _row_to_version(row) for row in rows}
+
+    def newest_calibration(self) -> ExtrinsicsVersion | None:
+        """The newest version a calibration job stored (one with overlays), or None."""
+        with self.db.read() as conn:
+            row = conn.execute(_SELECT + " WHERE v.job_id IS NOT NULL ORDER BY v.number DESC LIMIT 1").fetchone()
+            return _row_to_version(row) if row else None
+
+    def count(self) -> int:
+        with self.db.read() as conn:
+            return int(conn.execute("SELECT count(*) FROM versions").fetchone()[0])
 
     def active(self) -> ExtrinsicsVersion | None:
         with self.db.read() as conn:

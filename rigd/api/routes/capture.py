@@ -46,15 +46,16 @@ def capture_work(service: Service, request: CaptureRequest) -> Callable[[Job, th
 
         def progress(s: CaptureStatus) -> None:
             nonlocal last_state
-            service.jobs.progress(job.id, f"{s.state}: {s.pairs_done}/{s.pairs_wanted} pairs",
+            # the stage in rigd capture's words ("hold still 1.2 s"); the state's name goes to the log
+            words = s.message or s.state.replace("_", " ")
+            service.jobs.progress(job.id, f"{s.pairs_done}/{s.pairs_wanted} pairs: {words}",
                                   s.pairs_done / max(s.pairs_wanted, 1))
             if s.state != last_state:
                 service.jobs.log(job.id, f"{s.state}: {s.message}" if s.message else s.state)
                 last_state = s.state
             service.capture_figures.set(LidarStatus(
                 source=request.lidar, state="busy", packet_rate_hz=s.packet_rate_hz, packets_lost=s.packets_lost,
-                message=f"in use by capture job {job.id}: {s.state.replace('_', ' ')}, "
-                        f"still for {s.still_for_s:.1f} s"))
+                message=f"in use by capture job {job.id}; still for {s.still_for_s:.1f} s"))
 
         with service.sensors.lidar_lock:  # waits for a running sensor probe to release the LiDAR port
             try:

@@ -6,15 +6,14 @@ import pathlib
 from dataclasses import asdict
 from typing import Annotated, Any
 
-import cv2
 from fastapi import APIRouter, Path, Query, Response, status
 from fastapi.responses import FileResponse
 
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.exports import ExportFormat, render
+from rigd.api.images import image_response
 from rigd.api.models import ChangeOut, ErrorOut, ManualVersionIn, TransformOut, VersionOut
 from rigd.api.service import Service
-from rigd.errors import RigdError
 from rigd.store import ExtrinsicsVersion, NewVersion, NotFoundError
 
 router = APIRouter(prefix="/extrinsics", tags=["extrinsics"])
@@ -119,21 +118,5 @@ def get_overlay(service: ServiceDep, number: VersionNumber, pair: Annotated[int,
                                                    "copy for a screen; absent: full resolution")] = None,
                 sensor: Annotated[str | None, Query(pattern="^[A-Za-z0-9_-]{1,32}$", description="a multi-camera "
                                                     "head's sensor (absent: its first)")] = None) -> Response:
-    path = overlay_path(service, service.versions.get(number), pair, stage, sensor)
-    if width is None:
-        return FileResponse(path, media_type="image/png")
-    return Response(narrowed_png(path, width), media_type="image/png")
+    return image_response(overlay_path(service, service.versions.get(number), pair, stage, sensor), width)
 
-
-def narrowed_png(path: pathlib.Path, width: int) -> bytes:
-    """The PNG at ``path``, scaled down (area averaging) to ``width`` px if it is wider."""
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if image is None:
-        raise NotFoundError(f"the overlay {path.name} cannot be read as an image")
-    if image.shape[1] > width:
-        height = max(1, round(image.shape[0] * width / image.shape[1]))
-        image = cv2.resize(image, (width, height), interpolation=cv2.INTER_AREA)
-    ok, encoded = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-    if not ok:
-        raise RigdError(f"the overlay {path.name} could not be encoded")
-    return encoded.tobytes()

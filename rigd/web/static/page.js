@@ -1,0 +1,670 @@
+// rigd operator page: refreshes the server-rendered parts from GET /ui/live (only the parts that changed come
+// back) and sends the buttons' requests to the JSON API with fetch(). The bearer token (when the service has
+// one) lives in this tab's sessionStorage. The viewer shows a version's overlays or a dataset's captured pairs,
+// with zoom and pan at full resolution and a before/after switch.
+"use strict";
+
+const TOKEN_KEY = "rigd-token";
+const REQUEST_TIMEOUT_MS = 8000;  // longer without an answer: the service counts as unreachable
+const tokenRequired = document.body.dataset.tokenRequired === "true";
+const versionsPage = Number(document.body.dataset.versionsPage) || 10;
+const hashes = {};             // part name -> hash of the HTML shown (sent back: unchanged parts are not resent)
+let shownVersions = versionsPage;
+let timer = null;
+let followed = null;           // {job, label}: the job the message at the top follows
+let offlineSince = null;
+let initTouched = false;
+
+const $ = (id) => document.getElementById(id);
+
+// -- token ----------------------------------------------------------------------------------------------------
+function token() { return sessionStorage.getItem(TOKEN_KEY); }
+
+function showToken() {
+  const has = Boolean(token());
+  $("token-form").hidden = !tokenRequired || has;
+  $("token-set").hidden = !tokenRequired || !has;
+  for (const b of document.querySelectorAll("[data-needs-token]")) {
+    b.classList.toggle("locked", tokenRequired && !has);
+  }
+}
+
+// -- the message at the top -----------------------------------------------------------------------------------
+function show(text, tone) {
+  const box = $("message");
+  box.textContent = text;
+  box.className = tone || "";
+  box.hidden = !text;
+}
+
+function say(text, tone) {  // a message of its own: no job is followed any more
+  followed = null;
+  show(text, tone);
+}
+
+function follow(job, label) {
+  followed = {job: job.id, label};
+  show(label + ": job " + job.id + " " + job.status + ".", "");
+}
+
+// The followed job's row (rendered by the server) says where it stands; the message repeats it.
+function showFollowed() {
+  if (!followed) return;
+  const row = document.querySelector('.job[data-job="' + followed.job + '"]');
+  if (row) show(followed.label + ": " + row.dataset.summary, row.dataset.tone);
+}
+
+// -- requests -------------------------------------------------------------------------------------------------
+async function send(method, url, options) {
+  const controller = new AbortController();
+  const timeout = setTimeout(() => controller.abort(), REQUEST_TIMEOUT_MS);
+  try {
+    return await fetch(url, {method, ...options, signal: controller.signal});
+  } catch (err) {
+    throw new Error(err.name === "AbortError" ? "no answer within " + REQUEST_TIMEOUT_MS / 1000 + " s" : err.message);
+  } finally {
+    clearTimeout(timeout);
+  }
+}
+
+function detailText(detail) {  // a 422's list of errors as "where: why; ..."
+  if (typeof detail === "string") return detail;
+  if (Array.isArray(detail)) {
+    return detail.map((e) => (e.loc || []).filter((l) => l !== "body").join(".") + ": " + e.msg).join("; ");
+  }
+  return JSON.stringify(detail);
+}
+
+async function call(method, url, body) {
+  if (tokenRequired && !token()) {
+    say("This service needs its API token: enter it above.", "bad");
+    $("token-input").focus();
+    return null;
+  }
+  const headers = {"Accept": "application/json"};
+  if (body !== undefined) headers["Content-Type"] = "application/json";
+  if (token()) headers["Authorization"] = "Bearer " + token();
+  let response;
+  try {
+    response = await send(method, url, {headers, body: body === undefined ? undefined : JSON.stringify(body)});
+  } catch (err) {
+    setOffline(err.message);
+    return null;
+  }
+  const answer = await response.json().catch(() => ({}));
+  if (response.status === 401) {
+    sessionStorage.removeItem(TOKEN_KEY);
+    showToken();
+    say("The token was refused: enter it again.", "bad");
+    return null;
+  }
+  if (!response.ok) {
+    say(response.status + ": " + detailText(answer.detail), "bad");
+    return null;
+  }
+  refresh();
+  return answer;
+}
+
+// -- calibration options --------------------------------------------------------------------------------------
+function numberField(fields, name) {
+  const value = fields.namedItem(name).value;
+  return value === "" ? null : Number(value);
+}
+
+// [values, sigma] of a prior's group, null when all empty; an error when only some are given.
+function priorGroup(fields, names, sigmaName, what) {
+  const values = names.map((n) => numberField(fields, n));
+  const sigma = numberField(fields, sigmaName);
+  if (values.every((v) => v === null) && sigma === null) return null;
+  if (values.some((v) => v === null) || sigma === null) throw new Error(what + " needs all three values and its ±");
+  return [values, sigma];
+}
+
+function calibrationBody(dataset) {
+  const fields = $("calibrate-form").elements;
+  const body = {dataset, init: fields.namedItem("init").value, auto_activate: fields.namedItem("auto_activate").checked};
+  const lever = priorGroup(fields, ["prior-x", "prior-y", "prior-z"], "prior-sigma-cm", "the lever arm");
+  const angles = priorGroup(fields, ["prior-roll", "prior-pitch", "prior-yaw"], "prior-sigma-deg", "the mounting angles");
+  if (lever || angles) {
+    body.prior = {};
+    if (lever) Object.assign(body.prior, {xyz_m: lever[0], sigma_cm: lever[1]});
+    if (angles) Object.assign(body.prior, {rpy_deg: angles[0], sigma_deg: angles[1]});
+  }
+  if (fields.namedItem("fix-translation").checked) body.fix_translation = true;
+  const rotation = numberField(fields, "tolerance-deg");
+  const translation = numberField(fields, "tolerance-cm");
+  if (rotation !== null || translation !== null) {
+    body.tolerance = {};
+    if (rotation !== null) body.tolerance.rotation_deg = rotation;
+    if (translation !== null) body.tolerance.translation_cm = translation;
+  }
+  return body;
+}
+
+// The first calibration on a fresh install cannot start from an active version: the rig file's guess then.
+function syncInit() {
+  const active = document.querySelector("[data-part=summary] .summary").dataset.active;
+  const select = $("init-select");
+  select.querySelector('option[value="active"]').disabled = !active;
+  if (!active && select.value === "active") select.value = "rig";
+  if (active && !initTouched && select.value === "rig") select.value = "active";
+}
+
+// -- activation -----------------------------------------------------------------------------------------------
+// Anything but a trusted version is activated only after the operator has read why it is not trusted.
+function confirmActivation(row) {
+  const number = row.dataset.version;
+  const verdict = row.dataset.verdict;
+  const active = document.querySelector("[data-part=summary] .summary").dataset.active;
+  $("confirm-title").textContent = "Activate version " + number + "?";
+  $("confirm-lead").textContent = verdict === "none" ? "It has no verdict:" : "Its verdict is " + verdict + ":";
+  $("confirm-reasons").replaceChildren(...[...row.querySelectorAll(".reasons li")].map((li) => {
+    const item = document.createElement("li");
+    item.textContent = li.textContent;
+    return item;
+  }));
+  $("confirm-yes").textContent = "Activate version " + number + " anyway";
+  $("confirm-no").textContent = active ? "Keep version " + active : "Do not activate";
+  const dialog = $("confirm");
+  return new Promise((resolve) => {
+    const done = (answer) => () => { dialog.close(); resolve(answer); };
+    $("confirm-yes").onclick = done(true);
+    $("confirm-no").onclick = done(false);
+    dialog.oncancel = () => resolve(false);  // Esc
+    dialog.showModal();
+  });
+}
+
+// -- the advice's actions -------------------------------------------------------------------------------------
+function openOptions(focusName) {
+  $("calibrate-options").open = true;
+  const field = $("calibrate-form").elements.namedItem(focusName);
+  field.scrollIntoView({block: "center"});
+  field.focus();
+}
+
+function markDataset(id) {
+  for (const row of document.querySelectorAll("[data-part=datasets] .row")) {
+    row.classList.toggle("marked", row.dataset.dataset === id);
+  }
+}
+
+const advice = {
+  prior(id) {
+    openOptions("prior-x");
+    say("Type the lever arm from the rig's drawing (and how well it knows it), then Calibrate " + id + ".", "");
+  },
+  fix(id) {
+    $("calibrate-form").elements.namedItem("fix-translation").checked = true;
+    openOptions("fix-translation");
+    say("The translation will be held at the lever arm given (else the start's): Calibrate " + id + ".", "");
+  },
+  search(id) {
+    $("init-select").value = "search";
+    initTouched = true;
+    $("init-select").scrollIntoView({block: "center"});
+    say("The next calibration starts from a global search: Calibrate " + id + ".", "");
+  },
+  capture(id) {
+    const form = $("capture-form").elements;
+    form.namedItem("dataset").value = id;
+    form.namedItem("n").focus();
+    $("capture").scrollIntoView({block: "center"});
+    say("A capture into " + id + " continues it at its next pair: set the pairs it should hold in all.", "");
+  },
+};
+
+// -- buttons --------------------------------------------------------------------------------------------------
+const actions = {
+  async calibrate(el) {
+    const form = $("calibrate-form");
+    if (!form.checkValidity()) {
+      $("calibrate-options").open = true;
+      form.reportValidity();
+      return;
+    }
+    let body;
+    try {
+      body = calibrationBody(el.dataset.dataset);
+    } catch (err) {
+      $("calibrate-options").open = true;
+      say(err.message, "bad");
+      return;
+    }
+    const job = await call("POST", "/calibrate", body);
+    if (job) follow(job, "Calibration of " + body.dataset);
+  },
+  async check(el) {
+    const job = await call("POST", "/check", {dataset: el.dataset.dataset, against: "active"});
+    if (job) follow(job, "Check of the active version on " + el.dataset.dataset);
+  },
+  async activate(el) {
+    const row = el.closest(".version");
+    if (row.dataset.verdict !== "trusted" && !(await confirmActivation(row))) {
+      say("Version " + el.dataset.version + " was not activated.", "");
+      return;
+    }
+    const v = await call("POST", "/extrinsics/versions/" + el.dataset.version + "/activate");
+    if (v) say("Version " + v.number + " is " + v.status + ".", "ok");
+  },
+  async cancel(el) {
+    const job = await call("DELETE", "/jobs/" + el.dataset.job);
+    if (job) follow(job, "Cancel requested");
+  },
+  "more-versions"() {
+    shownVersions += versionsPage;
+    refresh();
+  },
+  advice(el) {
+    markDataset(el.dataset.dataset);
+    advice[el.dataset.advice](el.dataset.dataset);
+  },
+  view(el) {
+    pickVersion(Number(el.dataset.version));
+    $("viewer").scrollIntoView({behavior: "smooth"});
+  },
+  pairs(el) {
+    pickDataset(el.dataset.dataset);
+    $("viewer").scrollIntoView({behavior: "smooth"});
+  },
+  pair(el) { viewer.pair = Number(el.dataset.pair); showViewer(); },
+  sensor(el) { viewer.sensor = el.dataset.sensor; showViewer(); },
+  stage(el) { setStage(el.dataset.stage); },
+  zoom(el) { zoomButton(el.dataset.zoom); },
+  "forget-token"() {
+    sessionStorage.removeItem(TOKEN_KEY);
+    showToken();
+  },
+};
+
+document.addEventListener("click", (event) => {
+  const el = event.target.closest("[data-action]");
+  if (!el || el.disabled) return;
+  event.preventDefault();
+  actions[el.dataset.action](el);
+});
+
+$("capture-form").addEventListener("submit", async (event) => {
+  event.preventDefault();
+  const fields = event.target.elements;  // (form.dataset would be the form's data-* attributes)
+  const body = {source: fields.namedItem("source").value};
+  if (fields.namedItem("dataset").value) body.dataset = fields.namedItem("dataset").value;
+  if (fields.namedItem("n").value) body.n = Number(fields.namedItem("n").value);
+  const job = await call("POST", "/capture", body);
+  if (job) follow(job, "Capture into " + job.params.dataset);
+});
+
+$("token-form").addEventListener("submit", (event) => {
+  event.preventDefault();
+  const input = $("token-input");
+  sessionStorage.setItem(TOKEN_KEY, input.value);
+  input.value = "";
+  showToken();
+  say("");
+});
+
+$("init-select").addEventListener("change", () => { initTouched = true; });
+
+// -- the viewer: what it shows --------------------------------------------------------------------------------
+// kind "version": a calibration's overlays (before | after, close-up, cloud); kind "dataset": captured pairs.
+const viewer = {kind: null, id: null, pairs: [], sensors: [], meta: {}, pair: null, sensor: null, chosen: false,
+                stage: "after"};
+
+function csv(text) { return text ? text.split(",") : []; }
+
+function versionSource(number) {
+  const row = document.getElementById("v" + number);
+  const fallback = $("viewer-default");
+  const el = row && row.dataset.pairs ? row : fallback && Number(fallback.dataset.version) === number ? fallback : null;
+  return el ? {pairs: csv(el.dataset.pairs).map(Number), sensors: csv(el.dataset.sensors)} : null;
+}
+
+function pickVersion(number) {
+  const source = versionSource(number);
+  if (!source) return;
+  Object.assign(viewer, {kind: "version", id: number, ...source, meta: {}, pair: null, chosen: true});
+  showViewer();
+}
+
+async function pickDataset(id) {
+  let response;
+  try {
+    response = await send("GET", "/datasets/" + encodeURIComponent(id), {headers: {"Accept": "application/json"}});
+  } catch (err) {
+    setOffline(err.message);
+    return;
+  }
+  const detail = await response.json().catch(() => ({}));
+  if (!response.ok) { say(response.status + ": " + detailText(detail.detail), "bad"); return; }
+  const meta = Object.fromEntries(detail.pairs.map((p) => [p.number, p.meta]));
+  Object.assign(viewer, {kind: "dataset", id, pairs: detail.pairs.map((p) => p.number), sensors: detail.sensors,
+                         meta, pair: null, chosen: true});
+  showViewer();
+}
+
+// Until the operator picks something, the viewer follows the newest calibration.
+function followNewest() {
+  if (viewer.chosen) return;
+  const fallback = $("viewer-default");
+  const number = fallback ? Number(fallback.dataset.version) : null;
+  if (number === viewer.id && viewer.kind === "version") return;
+  Object.assign(viewer, number ? {kind: "version", id: number, ...versionSource(number)} : {kind: null, id: null});
+}
+
+function overlayUrl(stage) {
+  const base = "/extrinsics/versions/" + viewer.id + "/overlays/" + viewer.pair + ".png?stage=" + stage;
+  return viewer.sensor && stage !== "cloud" ? base + "&sensor=" + encodeURIComponent(viewer.sensor) : base;
+}
+
+function pairUrl(what) {  // what: "image" or "cloud.png"
+  const base = "/datasets/" + encodeURIComponent(viewer.id) + "/pairs/" + viewer.pair + "/" + what;
+  return viewer.sensor && what === "image" ? base + "?sensor=" + encodeURIComponent(viewer.sensor) : base;
+}
+
+function withWidth(url, width) { return url + (url.includes("?") ? "&" : "?") + "width=" + width; }
+
+// A smaller copy as wide as the screen uses (a phone need not fetch a 2048 px panorama for 360 px).
+function shownWidth(el) {
+  const wanted = Math.max(el.clientWidth, 320) * (window.devicePixelRatio || 1);
+  return Math.min(4096, Math.ceil(wanted / 256) * 256);
+}
+
+function chip(action, value, label, current) {
+  const b = document.createElement("button");
+  b.type = "button";
+  b.className = "plain";
+  b.dataset.action = action;
+  b.dataset[action] = value;
+  b.textContent = label;
+  b.classList.toggle("current", current);
+  b.setAttribute("aria-pressed", String(current));
+  return b;
+}
+
+function showChoices() {
+  if (!viewer.pairs.includes(viewer.pair)) viewer.pair = viewer.pairs.length ? viewer.pairs[0] : null;
+  if (!viewer.sensors.includes(viewer.sensor)) viewer.sensor = viewer.sensors.length ? viewer.sensors[0] : null;
+  $("viewer-pairs").replaceChildren(...viewer.pairs.map((p) => chip("pair", p, "pair " + p, p === viewer.pair)));
+  const label = document.createElement("span");
+  label.className = "muted";
+  label.textContent = "sensor";
+  $("viewer-sensors").hidden = viewer.sensors.length === 0;
+  $("viewer-sensors").replaceChildren(...(viewer.sensors.length ? [label] : []),
+                                      ...viewer.sensors.map((s) => chip("sensor", s, s, s === viewer.sensor)));
+}
+
+function pairMetaText(meta) {
+  const shown = Object.entries(meta || {}).filter(([, v]) => v !== null && typeof v !== "object").slice(0, 8);
+  return shown.map(([k, v]) => k.replaceAll("_", " ") + ": " + (typeof v === "number" ? +v.toFixed(3) : v)).join(" · ");
+}
+
+function showViewer() {
+  followNewest();
+  const on = viewer.kind !== null;
+  $("viewer-empty").hidden = on;
+  $("viewer-body").hidden = !on;
+  if (!on) { $("viewer-title").textContent = ""; return; }
+  showChoices();
+  const version = viewer.kind === "version";
+  $("viewer-title").textContent = (version ? "version " + viewer.id : "dataset " + viewer.id + " as captured")
+    + ", pair " + viewer.pair + (viewer.sensor ? ", " + viewer.sensor : "");
+  $("stage-toggle").hidden = !version;
+  $("closeup").hidden = !version;
+  $("pair-meta").hidden = version;
+  $("pair-meta").textContent = version ? "" : pairMetaText(viewer.meta[viewer.pair]);
+  $("cloud-caption").textContent = version
+    ? "the whole cloud from above (forward is up), each point in the colour of the pixel it lands on with this "
+      + "version: with wrong extrinsics, walls and cars bleed onto the ground beside them."
+    : "the cloud from above (forward is up), coloured from the image with the rig file's initial guess (grey "
+      + "without one)";
+  const figures = {closeup: version ? overlayUrl("closeup") : null, cloud: version ? overlayUrl("cloud") : pairUrl("cloud.png")};
+  for (const [name, url] of Object.entries(figures)) {
+    const img = $("ov-" + name);
+    if (!url) continue;
+    const src = withWidth(url, shownWidth(img.closest("figure")));
+    if (img.getAttribute("src") !== src) img.src = src;
+  }
+  setLens(version ? {before: overlayUrl("before"), after: overlayUrl("after")} : {after: pairUrl("image")});
+}
+
+// -- the viewer: zoom, pan, before | after --------------------------------------------------------------------
+// The images fill the lens at zoom 1 ("fit"); zoom z shows them z times larger, panned by (tx, ty) CSS px.
+// A copy as wide as the lens is loaded first; zooming past it loads the file at full resolution.
+const lens = {urls: {}, z: 1, tx: 0, ty: 0, full: false, natural: null, pointers: new Map(), gesture: null};
+const MAX_ZOOM = 16;
+
+function lensImages() { return {before: $("lens-before"), after: $("lens-after")}; }
+
+function setLens(urls) {
+  if (JSON.stringify(urls) === JSON.stringify(lens.urls)) return;
+  Object.assign(lens, {urls, z: 1, tx: 0, ty: 0, full: false, natural: null});
+  if (!urls.before) viewer.stage = "after";
+  loadLens();
+  setStage(viewer.stage);
+}
+
+function loadLens() {
+  const el = $("lens");
+  for (const [stage, img] of Object.entries(lensImages())) {
+    const url = lens.urls[stage];
+    if (!url) { img.removeAttribute("src"); continue; }
+    const src = lens.full ? url : withWidth(url, shownWidth(el));
+    if (img.getAttribute("src") !== src) img.src = src;
+  }
+  el.dataset.full = String(lens.full);
+}
+
+function setStage(stage) {
+  viewer.stage = stage;
+  const images = lensImages();
+  images.before.hidden = stage !== "before" || !lens.urls.before;
+  images.after.hidden = stage === "before" && Boolean(lens.urls.before);
+  $("lens").dataset.stage = stage;
+  for (const b of document.querySelectorAll("#stage-toggle button")) {
+    const current = b.dataset.stage === stage;
+    b.classList.toggle("current", current);
+    b.setAttribute("aria-pressed", String(current));
+  }
+}
+
+function lensShownImage() {
+  const images = lensImages();
+  return images.before.hidden ? images.after : images.before;
+}
+
+// The lens takes the image's shape, no taller than most of the screen.
+function fitLens(img) {
+  if (!img.naturalWidth) return;
+  const el = $("lens");
+  const aspect = img.naturalWidth / img.naturalHeight;
+  el.style.aspectRatio = String(aspect);
+  el.style.maxWidth = Math.round(window.innerHeight * 0.75 * aspect) + "px";
+  const asked = /[?&]width=(\d+)/.exec(img.getAttribute("src"));
+  if (!asked || img.naturalWidth < Number(asked[1])) {  // the file itself, not a smaller copy
+    lens.natural = {w: img.naturalWidth, h: img.naturalHeight};
+    lens.full = true;
+    el.dataset.full = "true";
+  }
+  applyLens();
+}
+
+function clampPan() {
+  const el = $("lens");
+  const w = el.clientWidth;
+  const h = el.clientHeight;
+  lens.tx = Math.min(0, Math.max(w - w * lens.z, lens.tx));
+  lens.ty = Math.min(0, Math.max(h - h * lens.z, lens.ty));
+}
+
+function applyLens() {
+  clampPan();
+  const el = $("lens");
+  const transform = "translate(" + lens.tx + "px, " + lens.ty + "px) scale(" + lens.z + ")";
+  const beyond = lens.z > 1 && lens.natural && lens.z * el.clientWidth > lens.natural.w;  // zoomed past 1:1
+  for (const img of Object.values(lensImages())) {
+    img.style.transform = transform;
+    img.style.imageRendering = beyond ? "pixelated" : "auto";
+  }
+  el.dataset.zoom = lens.z.toFixed(3);
+  el.classList.toggle("zoomed", lens.z > 1);
+  $("zoom-label").textContent = zoomText(el);
+  const shown = lensShownImage();
+  if (!lens.full && shown.naturalWidth && lens.z * el.clientWidth * (window.devicePixelRatio || 1) > shown.naturalWidth) {
+    lens.full = true;
+    loadLens();
+  }
+}
+
+function zoomText(el) {
+  if (!lens.natural) return lens.z === 1 ? "fit" : "×" + lens.z.toFixed(1);
+  const percent = Math.round(lens.z * el.clientWidth / lens.natural.w * 100);
+  return (lens.z === 1 ? "fit, " : "") + percent + " % of full resolution (" + lens.natural.w + "×" + lens.natural.h + " px)";
+}
+
+function zoomAt(z, x, y) {  // to zoom z, keeping the lens point (x, y) where it is
+  const next = Math.min(MAX_ZOOM, Math.max(1, z));
+  lens.tx = x - (x - lens.tx) * next / lens.z;
+  lens.ty = y - (y - lens.ty) * next / lens.z;
+  lens.z = next;
+  applyLens();
+}
+
+async function fullSize() {
+  if (!lens.full) { lens.full = true; loadLens(); }
+  const img = lensShownImage();
+  await img.decode().catch(() => null);
+  if (img.naturalWidth) lens.natural = {w: img.naturalWidth, h: img.naturalHeight};
+  return lens.natural;
+}
+
+async function zoomButton(how) {
+  const el = $("lens");
+  const cx = el.clientWidth / 2;
+  const cy = el.clientHeight / 2;
+  if (how === "fit") { lens.z = 1; lens.tx = 0; lens.ty = 0; applyLens(); return; }
+  if (how === "in" || how === "out") { zoomAt(lens.z * (how === "in" ? 1.5 : 1 / 1.5), cx, cy); return; }
+  const natural = await fullSize();  // "full": one image pixel per CSS pixel
+  if (natural) zoomAt(natural.w / el.clientWidth, cx, cy);
+}
+
+function lensPoint(event) {
+  const box = $("lens").getBoundingClientRect();
+  return {x: event.clientX - box.left, y: event.clientY - box.top};
+}
+
+function startGesture() {
+  const points = [...lens.pointers.values()];
+  if (points.length === 1) {
+    lens.gesture = {kind: "pan", x: points[0].x, y: points[0].y, tx: lens.tx, ty: lens.ty};
+  } else if (points.length === 2) {
+    const [a, b] = points;
+    lens.gesture = {kind: "pinch", d: Math.hypot(a.x - b.x, a.y - b.y) || 1, z: lens.z};
+  }
+}
+
+function moveGesture() {
+  const points = [...lens.pointers.values()];
+  const g = lens.gesture;
+  if (!g) return;
+  if (g.kind === "pan" && points.length === 1) {
+    lens.tx = g.tx + points[0].x - g.x;
+    lens.ty = g.ty + points[0].y - g.y;
+    applyLens();
+  } else if (g.kind === "pinch" && points.length === 2) {
+    const [a, b] = points;
+    zoomAt(g.z * Math.hypot(a.x - b.x, a.y - b.y) / g.d, (a.x + b.x) / 2, (a.y + b.y) / 2);
+  }
+}
+
+function lensEvents() {
+  const el = $("lens");
+  el.addEventListener("pointerdown", (e) => {
+    el.setPointerCapture(e.pointerId);
+    lens.pointers.set(e.pointerId, lensPoint(e));
+    startGesture();
+  });
+  el.addEventListener("pointermove", (e) => {
+    if (!lens.pointers.has(e.pointerId)) return;
+    lens.pointers.set(e.pointerId, lensPoint(e));
+    moveGesture();
+  });
+  for (const type of ["pointerup", "pointercancel"]) {
+    el.addEventListener(type, (e) => { lens.pointers.delete(e.pointerId); startGesture(); });
+  }
+  el.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    const p = lensPoint(e);
+    zoomAt(lens.z * Math.exp(-e.deltaY * 0.002), p.x, p.y);
+  }, {passive: false});
+  el.addEventListener("dblclick", (e) => { const p = lensPoint(e); zoomAt(lens.z * (e.shiftKey ? 0.5 : 2), p.x, p.y); });
+  for (const img of Object.values(lensImages())) img.addEventListener("load", () => fitLens(img));
+  document.addEventListener("keydown", (e) => {
+    const typing = e.target.closest && e.target.closest("input, select, textarea");
+    if (e.key.toLowerCase() !== "b" || typing || $("viewer-body").hidden || !lens.urls.before) return;
+    setStage(viewer.stage === "before" ? "after" : "before");
+  });
+  window.addEventListener("resize", () => applyLens());
+}
+
+// -- refresh and the unreachable-service banner ---------------------------------------------------------------
+function setOffline(reason) {
+  if (reason === null) {
+    if (offlineSince !== null) say("The service answers again.", "ok");
+    offlineSince = null;
+  } else if (offlineSince === null) {
+    offlineSince = new Date();
+  }
+  document.body.classList.toggle("offline", offlineSince !== null);
+  $("offline").hidden = offlineSince === null;
+  if (offlineSince !== null) {
+    $("offline-why").textContent = "Since " + offlineSince.toLocaleTimeString() + " (" + reason + "). The page "
+      + "shows what it last knew; it keeps asking every few seconds. Is rigd serve running and this computer on "
+      + "the rig's network?";
+  }
+}
+
+function liveUrl() {
+  const have = Object.entries(hashes).map(([name, hash]) => name + ":" + hash).join(",");
+  return "/ui/live?shown=" + shownVersions + "&have=" + encodeURIComponent(have);
+}
+
+function swapParts(live) {
+  for (const [name, html] of Object.entries(live.parts)) {
+    document.querySelector('[data-part="' + name + '"]').innerHTML = html;
+  }
+  Object.assign(hashes, live.hashes);
+}
+
+async function refresh() {
+  clearTimeout(timer);
+  let busy = false;
+  try {
+    const response = await send("GET", liveUrl(), {headers: {"Accept": "application/json"}});
+    const live = await response.json().catch(() => ({}));
+    if (response.status >= 500) throw new Error(response.status + ": " + detailText(live.detail));
+    if (!response.ok) throw new Error("GET /ui/live: " + response.status + " " + detailText(live.detail));
+    busy = live.busy;
+    setOffline(null);
+    swapParts(live);
+    afterParts();
+  } catch (err) {
+    setOffline(err.message);
+  }
+  // A tab in the background (a phone in a pocket) asks rarely, and at once when it is looked at again.
+  timer = setTimeout(refresh, document.hidden ? 30000 : offlineSince !== null ? 3000 : busy ? 1000 : 4000);
+}
+
+function afterParts() {
+  showToken();
+  syncInit();
+  showFollowed();
+  showViewer();
+}
+
+document.addEventListener("visibilitychange", () => { if (!document.hidden) refresh(); });
+
+for (const part of document.querySelectorAll("[data-part]")) hashes[part.dataset.part] = part.dataset.hash;
+lensEvents();
+afterParts();
+timer = setTimeout(refresh, 1000);

@@ -1,0 +1,233 @@
+"""What the operator page shows, read from the service as the open ``GET`` endpoints read it: the status, the
+latest jobs with the verdicts they produced, a page of the newest versions, the datasets."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from starlette.concurrency import run_in_threadpool
+
+from calib.uncertainty import TO_DISPLAY, xi_of
+from rigd.api.models import DatasetOut, JobOut, StatusOut, VersionOut
+from rigd.api.routes.datasets import list_datasets
+from rigd.api.routes.extrinsics import version_out
+from rigd.api.routes.jobs import list_jobs
+from rigd.api.routes.status import get_status
+from rigd.api.service import Service
+from rigd.store import ExtrinsicsVersion
+
+JOBS_SHOWN = 15
+VERSIONS_PAGE = 10  # versions on the page at first; "Show older" adds as many again
+
+# The advice's steps (rigd/calibration/advice.py) that the page can act on: (words in the step, action, label).
+ADVICE_ACTIONS = (
+    ("rig.yaml prior", "prior", "Give the lever arm"),
+    ("--fix translation", "fix", "Fix the translation"),
+    ("--search", "search", "Use the global search"),
+    ("capture more pairs", "capture", "Capture more pairs"),
+    ("rigd capture --n", "capture", "Capture more pairs"),
+)
+
+
+def advice_actions(step: str) -> list[tuple[str, str]]:
+    """(action, label) of the page's buttons for an advice step, each action once."""
+    actions: dict[str, str] = {}
+    for words, action, label in ADVICE_ACTIONS:
+        if words in step:
+            actions.setdefault(action, label)
+    return list(actions.items())
+
+
+def report_sensors(quality: dict[str, Any]) -> list[str]:
+    """A head's sensors, in the dataset's order, as the version's report lists them per pair (the overlays were
+    written per sensor under these names); empty for one camera or a version without pairs (manual)."""
+    pairs = quality.get("pairs") or []
+    per_sensor = pairs[0].get("edge_pixels_per_sensor") if pairs and isinstance(pairs[0], dict) else None
+    return [str(name) for name in per_sensor] if isinstance(per_sensor, dict) else []
+
+
+@dataclass(frozen=True)
+class VersionView:
+    """A version as the page shows it: its values, change against the active one and sigma per axis
+    (roll, pitch, yaw deg; x, y, z cm; the change in the uncertainty's local axes, as ``rigd check``), its
+    pairs with overlays and a multi-camera head's sensors (empty for one camera)."""
+
+    record: VersionOut
+    values: list[float]
+    change: list[float] | None
+    sigma: list[float | None] | None
+    pairs: list[int]
+    sensors: list[str]
+
+    @property
+    def verdict(self) -> str:
+        """trusted, weak or failed; ``none`` for a version stored by hand."""
+        return str(self.record.verdict["status"]) if self.record.verdict else "none"
+
+    @property
+    def reasons(self) -> list[str]:
+        """Why it is not trusted (what activating it asks the operator to accept); empty when trusted."""
+        if self.record.verdict is None:
+            note = self.record.parameters.get("note")
+            return [f"stored by hand ({self.record.method}): it has no verdict, nothing measured its uncertainty"
+                    + (f"; note: {note}" if note else "")]
+        return [] if self.verdict == "trusted" else [str(r) for r in self.record.verdict.get("reasons", [])]
+
+    @property
+    def steps(self) -> list[tuple[str, list[tuple[str, str]]]]:
+        """The advice's steps, each with the page's buttons for it (a button only at its first step)."""
+        seen: set[str] = set()
+        steps = []
+        for step in (self.record.verdict or {}).get("next_steps") or []:
+            actions = [(a, label) for a, label in advice_actions(str(step)) if a not in seen]
+            seen.update(a for a, _ in actions)
+            steps.append((str(step), actions))
+        return steps
+
+
+def version_view(version: ExtrinsicsVersion, active: ExtrinsicsVersion | None) -> VersionView:
+    v = version_out(version)
+    values = [*v.T_camera_lidar.rpy_deg, *(np.asarray(v.T_camera_lidar.xyz_m) * 100.0)]
+    change = None
+    if active is not None and version.number != active.number:
+        change = (xi_of(active.T_camera_lidar.tau, version.T_camera_lidar.tau) * TO_DISPLAY).tolist()
+    sigma = [*v.uncertainty["rpy_deg"], *v.uncertainty["xyz_cm"]] if v.uncertainty else None
+    pairs = [int(link.rsplit("/", 1)[1].removesuffix(".png")) for link in v.overlays]
+    return VersionView(v, [float(x) for x in values], change, sigma, pairs, report_sensors(v.quality))
+
+
+# The colour of an outcome: a verdict, a check's status.
+TONES = {"trusted": "ok", "ok": "ok", "weak": "warn", "unknown": "warn", "none": "warn", "failed": "bad",
+         "drifted": "bad"}
+
+
+@dataclass(frozen=True)
+class JobView:
+    """A job with what it produced: the verdict of the version a calibration stored (and that version's status
+    now), or a check's status."""
+
+    record: JobOut
+    version: int | None = None
+    version_status: str | None = None
+    verdict: str | None = None
+
+    @property
+    def outcome(self) -> str | None:
+        """trusted | weak | failed for a calibration, ok | drifted | unknown for a check; None before the end."""
+        if self.record.status != "succeeded" or not self.record.result:
+            return None
+        return self.verdict if self.record.kind == "calibrate" else self.record.result.get("status")
+
+    @property
+    def tone(self) -> str:
+        """ok, warn or bad: how the page colours the job's outcome; empty while it runs."""
+        status = self.record.status
+        if status in ("queued", "running"):
+            return ""
+        if status != "succeeded":
+            return "bad" if status == "failed" else "warn"
+        return TONES.get(self.outcome or "", "ok")
+
+    @property
+    def summary(self) -> str:
+        """One line on where the job stands, for the message at the top of the page."""
+        j = self.record
+        head = f"job {j.id}"
+        if j.status == "queued":
+            return f"{head} queued" + (f": {j.stage}" if j.stage else "")
+        if j.status == "running":
+            return f"{head} running: {j.stage} ({j.fraction * 100:.0f} %)"
+        if j.status == "failed":
+            return f"{head} failed: {j.error}"
+        if j.status == "cancelled":
+            return f"{head} cancelled"
+        return f"{head} done: {self._result()}"
+
+    @property
+    def options(self) -> list[str]:
+        """A calibration's start and the options it was given, in words."""
+        p = self.record.params
+        if self.record.kind != "calibrate":
+            return []
+        start = {"active": f"from version {p.get('init_version')}", "rig": "from the rig file's guess",
+                 "search": "from a global search", "explicit": "from a given transform"}
+        words = [start.get(str(p.get("init")), str(p.get("init")))]
+        prior = p.get("prior") or {}
+        if "sigma_cm" in prior:
+            words.append(f"lever arm ± {prior['sigma_cm']:g} cm")
+        if "sigma_deg" in prior:
+            words.append(f"angles ± {prior['sigma_deg']:g}°")
+        if p.get("fix_translation"):
+            words.append("translation fixed")
+        if tolerance := p.get("tolerance"):
+            words.append(f"tolerance {tolerance['rotation_deg']:g}° / {tolerance['translation_cm']:g} cm")
+        return words
+
+    def _result(self) -> str:
+        result = self.record.result or {}
+        if self.record.kind == "check":
+            reasons = result.get("reasons") or []
+            return f"{result.get('status')}" + (f" ({reasons[0]})" if reasons else "")
+        if self.record.kind == "capture":
+            return f"{result.get('pairs_written')} pairs written, {result.get('pairs_in_dataset')} in the dataset"
+        if self.version is None:
+            return "no version stored"
+        state = "active" if self.version_status == "active" else "not active: activate it below if you accept it"
+        return f"version {self.version}, verdict {self.verdict} ({state})"
+
+
+def job_views(jobs: list[JobOut], stored: dict[int, ExtrinsicsVersion]) -> list[JobView]:
+    views = []
+    for job in jobs:
+        version = stored.get(n) if (n := stored_version(job)) is not None else None
+        if version is None:
+            views.append(JobView(job, n))
+            continue
+        verdict = str((version.quality.get("verdict") or {}).get("status", "none"))
+        views.append(JobView(job, n, version.status.value, verdict))
+    return views
+
+
+@dataclass(frozen=True)
+class PageState:
+    status: StatusOut
+    jobs: list[JobView]
+    versions: list[VersionView]  # newest first
+    version_count: int
+    default_view: VersionView | None  # the newest calibration: the viewer shows it until another is picked
+    datasets: list[DatasetOut]
+
+    @property
+    def capture(self) -> JobOut | None:
+        """The running (else the latest) capture job."""
+        captures = [j.record for j in self.jobs if j.record.kind == "capture"]
+        return next((j for j in captures if j.status == "running"), captures[0] if captures else None)
+
+    @property
+    def busy(self) -> bool:
+        return any(j.record.status in ("queued", "running") for j in self.jobs)
+
+
+def stored_version(job: JobOut) -> int | None:
+    """The version a calibration job stored, if any."""
+    version = job.result.get("version") if job.kind == "calibrate" and job.result else None
+    return version if isinstance(version, int) else None
+
+
+def _read(service: Service, shown: int) -> tuple[list[JobView], list[VersionView], int, VersionView | None,
+                                                  list[DatasetOut]]:
+    jobs = list_jobs(service, JOBS_SHOWN, None, None)
+    stored = service.versions.numbered({n for j in jobs if (n := stored_version(j)) is not None})
+    active = service.versions.active()
+    versions = [version_view(v, active) for v in service.versions.newest(shown)]
+    newest_calibration = service.versions.newest_calibration()
+    default_view = version_view(newest_calibration, active) if newest_calibration else None
+    return job_views(jobs, stored), versions, service.versions.count(), default_view, list_datasets(service)
+
+
+async def page_state(service: Service, shown: int) -> PageState:
+    """The page's state with the ``shown`` newest versions."""
+    status = await get_status(service)
+    return PageState(status, *await run_in_threadpool(_read, service, shown))
