@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from enum import Enum
 from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PrivateAttr, StrictInt, model_validator
@@ -10,6 +11,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PrivateAttr, 
 from calib.errors import CalibError
 from calib.geometry import Transform
 from rigd.dataset.records import transform_to_yaml
+from rigd.report import NoQuality, StoredQuality, Uncertainty, Verdict
 from rigd.store.datasets import DATASET_ID_PATTERN
 from rigd.store.jsonsafe import unicode_safe
 
@@ -144,10 +146,18 @@ class ToleranceIn(Request):
     translation_cm: ToleranceCm = Field(default=2.0, description="per translation axis, cm (0.01 .. 100)")
 
 
+class InitMode(Enum):
+    """Where a calibration starts, short of an explicit transform (``CalibrateIn.init``)."""
+
+    ACTIVE = "active"  # the active extrinsics version
+    RIG = "rig"  # the rig file's initial guess
+    SEARCH = "search"  # a global search over the mounts
+
+
 class CalibrateIn(Request):
     dataset: DatasetId
-    init: Literal["active", "rig", "search"] | TransformIn = Field(
-        "active", description="initial guess: the active extrinsics version, the rig file's (the dataset's "
+    init: InitMode | TransformIn = Field(
+        InitMode.ACTIVE, description="initial guess: the active extrinsics version, the rig file's (the dataset's "
         "rig.yaml, else the service's rig file; neither has one: the global search), 'search' (a global search, "
         "after a reassembly), or an explicit transform")
     sigmas_deg: Annotated[list[SigmaIn], Field(min_length=1, max_length=6)] | None = (
@@ -202,11 +212,13 @@ class VersionOut(BaseModel):
     created_at: str
     activated_at: str | None
     T_camera_lidar: TransformOut
-    verdict: dict[str, Any] | None = Field(description="trusted | weak | failed with the weak axes and the reasons "
-                                           "(docs/trust.md); null for a manual version")
-    uncertainty: dict[str, Any] | None = Field(description="per-axis sigma (rpy_deg, xyz_cm), 6x6 covariance in "
-                                               "deg/cm and the weakest direction; null for a manual version")
-    quality: dict[str, Any]
+    verdict: Verdict | None = Field(description="trusted | weak | failed with the weak axes and the reasons "
+                                    "(docs/trust.md); null for a manual version")
+    uncertainty: Uncertainty | None = Field(description="per-axis sigma (rpy_deg, xyz_cm), 6x6 covariance in "
+                                            "deg/cm and the weakest direction; null for a manual version")
+    quality: StoredQuality | NoQuality = Field(description="the calibration's quality figures with its pairs used, "
+                                               "error vs ground truth, uncertainty, verdict and initial search; "
+                                               "{} for a manual version")
     method: str
     parameters: dict[str, Any]
     code_version: str

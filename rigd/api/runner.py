@@ -20,6 +20,7 @@ import time
 import traceback
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,7 @@ from drivers.errors import DriverError
 from rigd.api.errors import QueueFullError
 from rigd.dataset.records import transform_to_yaml
 from rigd.errors import RigdError
+from rigd.report import CalibrationReport, StoredQuality, stored_quality, verdict_of
 from rigd.store import (
     Change,
     ConflictError,
@@ -62,12 +64,13 @@ class ActivationBounds:
     max_rotation_deg: float = 5.0
     max_translation_cm: float = 10.0
 
-    def failures(self, quality: dict[str, Any], pairs: int, change: Change | None) -> list[str]:
+    def failures(self, quality: StoredQuality, pairs: int, change: Change | None) -> list[str]:
         reasons = []
-        verdict = (quality.get("verdict") or {}).get("status")
-        if verdict != "trusted":  # never activate what the calibration itself does not trust (docs/trust.md)
-            reasons.append(f"the calibration's verdict is {verdict or 'missing'}, not trusted")
-        if self.require_converged and not quality.get("converged"):
+        verdict = verdict_of(quality)
+        status = verdict["status"] if verdict else "missing"
+        if status != "trusted":  # never activate what the calibration itself does not trust (docs/trust.md)
+            reasons.append(f"the calibration's verdict is {status}, not trusted")
+        if self.require_converged and not quality["converged"]:
             reasons.append("the optimisation did not converge")
         if pairs < self.min_pairs:
             reasons.append(f"{pairs} pairs, at least {self.min_pairs} needed")
@@ -80,13 +83,22 @@ class ActivationBounds:
         return reasons
 
 
+class Start(Enum):
+    """Where a planned calibration starts: ``init`` of its job's parameters."""
+
+    ACTIVE = "active"  # the active version
+    RIG = "rig"  # the rig file's guess
+    SEARCH = "search"  # the global search (asked for, or no rig file has a guess)
+    EXPLICIT = "explicit"  # a transform in the request
+
+
 @dataclass(frozen=True)
 class CalibrationPlan:
     """A validated calibration request: the dataset and the resolved initial guess."""
 
     dataset_id: str
     initial: Transform | None  # None: the global search for a start (init "search")
-    init: str  # active | rig | search | explicit
+    init: Start
     init_version: int | None
     sigmas_deg: tuple[float, ...] | None  # None: the calibration's default schedule
     auto_activate: bool
@@ -95,7 +107,7 @@ class CalibrationPlan:
     tolerance: dict[str, float] | None = None  # rig.yaml's tolerance form; None: the dataset's or the default
 
     def params(self) -> dict[str, Any]:
-        return {"dataset": self.dataset_id, "init": self.init, "init_version": self.init_version,
+        return {"dataset": self.dataset_id, "init": self.init.value, "init_version": self.init_version,
                 "initial": transform_to_yaml(self.initial) if self.initial is not None else None,
                 "sigmas_deg": list(self.sigmas_deg) if self.sigmas_deg is not None else None,
                 "auto_activate": self.auto_activate, "prior": self.prior, "fix_translation": self.fix_translation,
@@ -223,7 +235,7 @@ class JobRunner:
         """The job calibrating ``plan`` and whether it is new: the job of an identical calibration that is queued
         or running is returned rather than queuing it twice. QueueFullError when ``max_queued`` jobs wait."""
         return self._submit(JobKind.CALIBRATE, plan.dataset_id, plan.params(),
-                            f"queued: calibrate dataset {plan.dataset_id} from {plan.init} guess")
+                            f"queued: calibrate dataset {plan.dataset_id} from {plan.init.value} guess")
 
     def submit_check(self, plan: CheckPlan) -> tuple[Job, bool]:
         """Like :meth:`submit_calibration`, for a check (same queue, bound and de-duplication)."""
@@ -391,12 +403,9 @@ class JobRunner:
         return code
 
     def _store_result(self, job: Job, result: dict[str, Any]) -> None:
-        params, report = job.params, result["report"]
-        pairs = result["pair_numbers"]
-        quality = {**report["quality"], "pairs_used": len(pairs)}
-        for key in ("error_vs_ground_truth", "uncertainty", "verdict", "initial_search"):
-            if key in report:
-                quality[key] = report[key]
+        params, pairs = job.params, result["pair_numbers"]
+        report: CalibrationReport = result["report"]  # the worker's run_calibration report, through JSON
+        quality = stored_quality(report, len(pairs))
         decision: dict[str, Any] = {"requested": params["auto_activate"]}
 
         def policy(change: Change | None) -> bool:

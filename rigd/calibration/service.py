@@ -10,7 +10,7 @@ from concurrent.futures import Executor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import NotRequired, TypedDict, TypeVar
 
 import cv2
 import numpy as np
@@ -44,6 +44,21 @@ from rigd.dataset.reference import agreement
 from rigd.dataset.store import write_yaml
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
+from rigd.report import (
+    Assessed,
+    CalibrationReport,
+    GroundTruthError,
+    InitialSearch,
+    Level,
+    MethodSettings,
+    PairQuality,
+    PriorYaml,
+    Quality,
+    ReferenceAgreement,
+    Restart,
+    Tolerance,
+    Uncertainty,
+)
 
 # Paper defaults: sigma_in = 15, 10, 5 px of a 1024-wide panorama, as angles at 1 m.
 PAPER_SIGMAS_DEG = paper_params().optim.sigmas_deg
@@ -70,7 +85,7 @@ class CalibrationRequest:
 class CalibrationOutcome:
     T_camera_lidar: Transform
     initial: Transform
-    report: dict[str, Any]
+    report: CalibrationReport
     out_dir: Path
 
 
@@ -84,7 +99,7 @@ def _initial(request: CalibrationRequest, dataset: Dataset) -> Transform | None:
     return request.initial if request.initial is not None else dataset.rig.initial_guess
 
 
-def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> dict[str, Any]:
+def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> InitialSearch:
     """The ``initial_search`` section of a report: which grid mount won and where the runners-up ended."""
     best = Transform.from_tau(found.best.tau)
     return {
@@ -203,11 +218,10 @@ def dataset_photo_pairs(dataset: Dataset, params: PhotoParams, progress: Progres
     return [views[v] for v in range(len(cameras)) for views in per_pair]
 
 
-def not_assessed_yaml(method: Method) -> dict[str, Any]:
+def not_assessed_yaml(method: Method) -> Assessed:
     """The ``uncertainty`` and ``verdict`` of a method without an assessment: nothing is claimed."""
-    unknown = [None, None, None]
     return {
-        "uncertainty": {"rpy_deg": unknown, "xyz_cm": unknown, "covariance": None,
+        "uncertainty": {"rpy_deg": [None, None, None], "xyz_cm": [None, None, None], "covariance": None,
                         "weakest": "not assessed: the uncertainty of docs/trust.md is defined for the GMM cost"},
         "verdict": {"status": Status.NOT_ASSESSED.value, "weak_axes": [],
                     "reasons": [f"method {method.value} has no trust assessment (restarts, uncertainty, verdict are "
@@ -215,30 +229,34 @@ def not_assessed_yaml(method: Method) -> dict[str, Any]:
     }
 
 
-def _finite(values: Any) -> Any:
-    """Nested lists of numbers with non-finite entries as None (JSON has no infinity)."""
-    arr = np.asarray(values, dtype=np.float64)
-    return [_finite(v) for v in arr] if arr.ndim else (float(arr) if np.isfinite(arr) else None)
+def _finite(values: NDArray[np.float64]) -> list[float | None]:
+    """A vector with non-finite entries as None (JSON has no infinity)."""
+    return [float(v) if np.isfinite(v) else None for v in np.asarray(values, dtype=np.float64)]
 
 
-def assessment_yaml(a: Assessment, steps: tuple[str, ...] = ()) -> dict[str, Any]:
+def _uncertainty_yaml(a: Assessment) -> Uncertainty:
+    u = a.uncertainty
+    restarts: list[Restart] = [{"offset_rpy_deg": _finite(r.offset[:3]), "offset_xyz_cm": _finite(r.offset[3:]),
+                                "delta_nll": r.delta_nll} for r in a.restarts]
+    return {
+        "rpy_deg": _finite(u.sigma[:3]),
+        "xyz_cm": _finite(u.sigma[3:]),
+        "covariance": [_finite(row) for row in u.covariance * np.outer(TO_DISPLAY, TO_DISPLAY)],
+        "weakest": u.weakest,
+        "laplace": {"rpy_deg": _finite(u.laplace[:3]), "xyz_cm": _finite(u.laplace[3:]), "nll_scale": u.kappa},
+        "jackknife": None if u.jackknife is None else {
+            "rpy_deg": _finite(u.jackknife[:3]), "xyz_cm": _finite(u.jackknife[3:]), "groups": u.jackknife_groups},
+        "matched_share": u.matched_share,
+        "restarts": restarts,
+    }
+
+
+def assessment_yaml(a: Assessment, steps: tuple[str, ...] = ()) -> Assessed:
     """The ``uncertainty`` and ``verdict`` sections of a report (docs/trust.md); ``steps``: what to do next
     (rigd.calibration.advice)."""
-    u, v = a.uncertainty, a.verdict
-    cov_display = u.covariance * np.outer(TO_DISPLAY, TO_DISPLAY)
+    v = a.verdict
     return {
-        "uncertainty": {
-            "rpy_deg": _finite(u.sigma[:3]),
-            "xyz_cm": _finite(u.sigma[3:]),
-            "covariance": _finite(cov_display),
-            "weakest": u.weakest,
-            "laplace": {"rpy_deg": _finite(u.laplace[:3]), "xyz_cm": _finite(u.laplace[3:]), "nll_scale": u.kappa},
-            "jackknife": None if u.jackknife is None else {
-                "rpy_deg": _finite(u.jackknife[:3]), "xyz_cm": _finite(u.jackknife[3:]), "groups": u.jackknife_groups},
-            "matched_share": u.matched_share,
-            "restarts": [{"offset_rpy_deg": _finite(r.offset[:3]), "offset_xyz_cm": _finite(r.offset[3:]),
-                          "delta_nll": r.delta_nll} for r in a.restarts],
-        },
+        "uncertainty": _uncertainty_yaml(a),
         "verdict": {"status": v.status.value, "weak_axes": list(v.weak_axes), "reasons": list(v.reasons),
                     "next_steps": list(steps), "moved_from_start_deg": a.moved_deg},
     }
@@ -249,57 +267,96 @@ def _scene_facts(dataset: Dataset, feats: list[PairFeatures], prior: Prior | Non
                       prior is not None and (prior.xyz_m is not None or prior.fix_translation))
 
 
-def _pairs_yaml(result: CalibResult, dataset: Dataset) -> list[dict[str, Any]]:
+def _pairs_yaml(result: CalibResult, dataset: Dataset) -> list[PairQuality]:
     """Edge pixels and points per pair (a head's pixels summed over its sensors, and per sensor)."""
     out = []
     for i in range(len(dataset)):
         stats = [result.pairs[v * len(dataset) + i] for v in range(len(dataset.views))]
-        entry: dict[str, Any] = {"edge_pixels": sum(p.edge_pixels for p in stats), "edge_points": stats[0].edge_points}
+        entry: PairQuality = {"edge_pixels": sum(p.edge_pixels for p in stats), "edge_points": stats[0].edge_points}
         if len(stats) > 1:
             entry["edge_pixels_per_sensor"] = dict(zip(dataset.views, [p.edge_pixels for p in stats], strict=True))
         out.append(entry)
     return out
 
 
-def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: float,
-            steps: tuple[str, ...]) -> dict[str, Any]:
+def _quality_yaml(result: CalibResult, dataset: Dataset, wall_s: float) -> Quality:
+    levels: list[Level] = [{"sigma_in_deg": lv.sigma_in_deg, "iterations": lv.iterations, "converged": lv.converged,
+                            "final_cost": lv.costs[-1]} for lv in result.optim.levels]
+    return {
+        "final_cost": result.optim.final_cost,
+        "converged": result.optim.converged,
+        "levels": levels,
+        "pairs": _pairs_yaml(result, dataset),
+        # the initial guess's lever arm as a weak prior of the solve (docs/method.md), not of the uncertainty
+        "guess_prior_sigma_cm": None if result.guess_sigma_m is None else result.guess_sigma_m * 100.0,
+        "wall_time_s": round(wall_s, 3),
+        # the images as solved on (rigd.dataset.working) and as on disk
+        "image_size_px": [dataset.rig.camera.width, dataset.rig.camera.height],
+        "source_image_size_px": [dataset.source_camera.width, dataset.source_camera.height],
+    }
+
+
+def _truth_yaml(gt: Transform, T: Transform) -> GroundTruthError:
+    return {
+        "rotation_deg": rotation_angle_deg(gt.rotation, T.rotation),
+        "translation_cm": float(np.linalg.norm(T.translation_m - gt.translation_m) * 100.0),
+        "rpy_deg": (T.rpy_deg - gt.rpy_deg).tolist(),
+        "xyz_cm": ((T.translation_m - gt.translation_m) * 100.0).tolist(),
+        # the same error in the uncertainty's axes (rotation about the LiDAR's x, y, z: docs/trust.md)
+        "local_deg_cm": (xi_of(gt.tau, T.tau) * TO_DISPLAY).tolist(),
+    }
+
+
+# The report's parts around the assessment, each with the optional sections it may hold: unpacked into one
+# literal, they keep the sections in extrinsics.yaml's order and mypy checks every key.
+class _Compared(TypedDict, total=False):
+    error_vs_ground_truth: GroundTruthError  # simulated datasets
+    agreement_with_reference: ReferenceAgreement  # imported datasets with a reference.yaml
+
+
+class _Searched(TypedDict, total=False):
+    initial_search: InitialSearch
+
+
+class _Settings(TypedDict):
+    method: MethodSettings
+    prior: NotRequired[PriorYaml]
+    tolerance: Tolerance
+
+
+def _compared(dataset: Dataset, T: Transform) -> _Compared:
+    out: _Compared = {}
+    if dataset.ground_truth is not None:
+        out["error_vs_ground_truth"] = _truth_yaml(dataset.ground_truth, T)
+    if dataset.reference is not None:
+        out["agreement_with_reference"] = agreement(dataset.reference, T).to_yaml()
+    return out
+
+
+def _settings(method: MethodSettings, prior: Prior | None, trust: TrustOptions) -> _Settings:
+    tolerance: Tolerance = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm}
+    if prior is None:
+        return {"method": method, "tolerance": tolerance}
+    return {"method": method, "prior": prior_to_yaml(prior), "tolerance": tolerance}
+
+
+def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: float, assessed: Assessed,
+            searched: _Searched, settings: _Settings) -> CalibrationReport:
+    """The whole report, its sections in the order extrinsics.yaml lists them."""
     T = result.T_camera_lidar
-    report: dict[str, Any] = {
+    return {
         "T_camera_lidar": transform_to_yaml(T),
-        "quality": {
-            "final_cost": result.optim.final_cost,
-            "converged": result.optim.converged,
-            "levels": [{"sigma_in_deg": lv.sigma_in_deg, "iterations": lv.iterations, "converged": lv.converged,
-                        "final_cost": lv.costs[-1]} for lv in result.optim.levels],
-            "pairs": _pairs_yaml(result, dataset),
-            # the initial guess's lever arm as a weak prior of the solve (docs/method.md), not of the uncertainty
-            "guess_prior_sigma_cm": None if result.guess_sigma_m is None else result.guess_sigma_m * 100.0,
-            "wall_time_s": round(wall_s, 3),
-            # the images as solved on (rigd.dataset.working) and as on disk
-            "image_size_px": [dataset.rig.camera.width, dataset.rig.camera.height],
-            "source_image_size_px": [dataset.source_camera.width, dataset.source_camera.height],
-        },
+        "quality": _quality_yaml(result, dataset, wall_s),
         "change_from_initial": {
             "rotation_deg": rotation_angle_deg(initial.rotation, T.rotation),
             "translation_cm": float(np.linalg.norm(T.translation_m - initial.translation_m) * 100.0),
         },
         "dataset": str(dataset.root),
+        **_compared(dataset, T),
+        **assessed,
+        **searched,
+        **settings,
     }
-    if dataset.ground_truth is not None:
-        gt = dataset.ground_truth
-        report["error_vs_ground_truth"] = {
-            "rotation_deg": rotation_angle_deg(gt.rotation, T.rotation),
-            "translation_cm": float(np.linalg.norm(T.translation_m - gt.translation_m) * 100.0),
-            "rpy_deg": (T.rpy_deg - gt.rpy_deg).tolist(),
-            "xyz_cm": ((T.translation_m - gt.translation_m) * 100.0).tolist(),
-            # the same error in the uncertainty's axes (rotation about the LiDAR's x, y, z: docs/trust.md)
-            "local_deg_cm": (xi_of(gt.tau, T.tau) * TO_DISPLAY).tolist(),
-        }
-    if dataset.reference is not None:
-        report["agreement_with_reference"] = agreement(dataset.reference, T).to_yaml()
-    if result.assessment is not None:
-        report.update(assessment_yaml(result.assessment, steps))
-    return report
 
 
 def overlay_stem(dataset: Dataset, pair: int, view: int) -> str:
@@ -355,8 +412,8 @@ def _search_photo(dataset: Dataset, progress: Progress | None) -> list[PhotoPair
         return None
 
 
-def _method_yaml(method: Method, params: CalibParams, photo: PhotoParams | None) -> dict[str, Any]:
-    out: dict[str, Any] = {"name": method.value}
+def _method_yaml(method: Method, params: CalibParams, photo: PhotoParams | None) -> MethodSettings:
+    out: MethodSettings = {"name": method.value}
     if method.uses_gmm:
         out["sigmas_deg"] = list(params.optim.sigmas_deg)
     if photo is not None:
@@ -386,7 +443,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
         if progress:
             progress(f"no initial guess: global search over the mounts, pair {done}/{total}", 0.5 + 0.2 * done / total)
 
-    searched = time.monotonic()
+    searched_at = time.monotonic()
     with worker_pool(request.workers) as pool:
         try:
             feats = dataset_features(dataset, params, progress, pool) if method.uses_gmm else None
@@ -403,15 +460,12 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
         assert initial is not None
         steps = () if result.assessment is None or feats is None else next_steps(
             result.assessment, _scene_facts(dataset, feats, prior), trust)
-        report = _report(result, initial, dataset, time.monotonic() - started, steps)
-        if result.search is not None:
-            report["initial_search"] = search_yaml(result.search, search, time.monotonic() - searched)
-        if result.assessment is None:
-            report.update(not_assessed_yaml(method))
-        report["method"] = _method_yaml(method, params, photo)
-        if prior is not None:
-            report["prior"] = prior_to_yaml(prior)
-        report["tolerance"] = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm}
+        assessed = (not_assessed_yaml(method) if result.assessment is None
+                    else assessment_yaml(result.assessment, steps))
+        searched: _Searched = {} if result.search is None else {
+            "initial_search": search_yaml(result.search, search, time.monotonic() - searched_at)}
+        settings = _settings(_method_yaml(method, params, photo), prior, trust)
+        report = _report(result, initial, dataset, time.monotonic() - started, assessed, searched, settings)
         out = Path(request.out_dir)
         out.mkdir(parents=True, exist_ok=True)
         write_yaml(out / "extrinsics.yaml", report)

@@ -17,6 +17,7 @@ from rigd.calibration.service import DEFAULT_SIGMAS_DEG, PAPER_SIGMAS_DEG
 from rigd.cli.args import parse_init, parse_prior, parse_sigmas, parse_tolerance
 from rigd.cli.exit_codes import Calibrate
 from rigd.dataset.working import WORKING_WIDTH_PX
+from rigd.report import InitialSearch, ReferenceAgreement, Uncertainty, Verdict
 
 
 def register(subparsers: Any) -> None:
@@ -111,43 +112,49 @@ def run(args: argparse.Namespace) -> int:
         max_width=args.max_width or None,
     )
     outcome = run_calibration(request, _progress, _on_iter)
-    verdict = outcome.report["verdict"]
+    report = outcome.report
     if args.json:
-        print(json.dumps(outcome.report))
+        print(json.dumps(report))
     else:
         T = outcome.T_camera_lidar
         print(f"T_camera_lidar rpy_deg {np.round(T.rpy_deg, 3).tolist()} xyz_m {np.round(T.translation_m, 4).tolist()}")
         print(f"written: {outcome.out_dir / 'extrinsics.yaml'}")
-        if "initial_search" in outcome.report:
-            print_search(outcome.report["initial_search"])
-        print_trust(outcome.report)
-        err = outcome.report.get("error_vs_ground_truth")
-        if err:
+        if "initial_search" in report:
+            print_search(report["initial_search"])
+        print_trust(report["uncertainty"], report["verdict"])
+        if "error_vs_ground_truth" in report:
+            err = report["error_vs_ground_truth"]
             print(f"error vs ground truth: {err['rotation_deg']:.3f} deg, {err['translation_cm']:.2f} cm")
-        ref = outcome.report.get("agreement_with_reference")
-        if ref:
-            z = ", ".join(f"{k} {v:+.2f}" for k, v in ref["z_per_axis"].items() if v is not None)
-            print(f"vs the published reference (reference.yaml): {ref['rotation_deg']:.3f} deg, "
-                  f"{ref['translation_cm']:.2f} cm" + (f"; per axis in its sigmas: {z}" if z else ""))
-    return Calibrate[Status(verdict["status"]).name]
+        if "agreement_with_reference" in report:
+            print_reference(report["agreement_with_reference"])
+    return Calibrate[Status(report["verdict"]["status"]).name]
 
 
 def _fmt(values: list[float | None]) -> str:
     return ", ".join("unknown" if v is None else (">1000" if v > 1e3 else f"{v:.3g}") for v in values)
 
 
-def print_search(section: dict[str, Any]) -> None:
+def print_search(section: InitialSearch) -> None:
     start = section["start"]
-    scores = " and ".join(section["grid"].get("scores", ["edges"]))
+    scores = " and ".join(section["grid"]["scores"])
     print(f"initial guess by global search ({section['grid']['mounts']} mounts scored by {scores}, "
           f"{section['wall_time_s']:.0f} s): start rpy_deg {np.round(start['rpy_deg'], 1).tolist()} from grid "
           f"mount {start['grid_rpy_deg']}")
     for c in section["candidates"][1:]:
-        print(f"  runner-up by {c.get('score', 'edges')}: {c['from_start_deg']:.1f} deg away, cost {c['cost']:.4f}")
+        print(f"  runner-up by {c['score']}: {c['from_start_deg']:.1f} deg away, cost {_cost(c['cost'])}")
 
 
-def print_trust(report: dict[str, Any]) -> None:
-    u, v = report["uncertainty"], report["verdict"]
+def _cost(value: float | None) -> str:
+    return "unknown" if value is None else f"{value:.4f}"
+
+
+def print_reference(ref: ReferenceAgreement) -> None:
+    z = ", ".join(f"{k} {v:+.2f}" for k, v in ref["z_per_axis"].items() if v is not None)
+    print(f"vs the published reference (reference.yaml): {ref['rotation_deg']:.3f} deg, "
+          f"{ref['translation_cm']:.2f} cm" + (f"; per axis in its sigmas: {z}" if z else ""))
+
+
+def print_trust(u: Uncertainty, v: Verdict) -> None:
     print(f"sigma roll, pitch, yaw: {_fmt(u['rpy_deg'])} deg; x, y, z: {_fmt(u['xyz_cm'])} cm")
     print(f"weakest: {u['weakest']}")
     axes = f" ({', '.join(v['weak_axes'])})" if v["weak_axes"] else ""
@@ -156,5 +163,5 @@ def print_trust(report: dict[str, Any]) -> None:
         print(f"  - {reason}")
     if v.get("next_steps"):
         print("what to do:")
-        for step in v["next_steps"]:
+        for step in v.get("next_steps", []):
             print(f"  - {step}")

@@ -74,11 +74,11 @@ def run(args: argparse.Namespace) -> int:
     outcome = run_calibration(request, lambda s, f: print(f"[{f * 100:5.1f} %] {s}", file=sys.stderr))
     rep = outcome.report
     init = rep["change_from_initial"]
-    err = rep["error_vs_ground_truth"]
+    err = rep["error_vs_ground_truth"]  # the simulated dataset has its ground truth (asserted above)
     print(f"initial guess moved by {init['rotation_deg']:.2f} deg, {init['translation_cm']:.1f} cm")
     print(f"error vs ground truth: {err['rotation_deg']:.3f} deg, {err['translation_cm']:.2f} cm "
           f"(rpy {np.round(err['rpy_deg'], 3).tolist()} deg, xyz {np.round(err['xyz_cm'], 2).tolist()} cm)")
-    print_trust(rep)
+    print_trust(rep["uncertainty"], rep["verdict"])
     print(f"wall time {rep['quality']['wall_time_s']:.1f} s; extrinsics: {outcome.out_dir / 'extrinsics.yaml'}")
     print(f"overlays (before/after): {outcome.out_dir / 'overlays'}")
     return 0

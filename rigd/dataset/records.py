@@ -17,6 +17,7 @@ from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.initial import SearchOptions
 from calib.prior import Prior
 from rigd.errors import DatasetError
+from rigd.report import PriorYaml, TransformYaml
 
 
 class CameraKind(Enum):
@@ -179,7 +180,7 @@ def camera_from_yaml(data: Any, where: str) -> CameraConfig | HeadConfig:
     return CameraConfig.from_yaml(data, where)
 
 
-def transform_to_yaml(transform: Transform) -> dict[str, Any]:
+def transform_to_yaml(transform: Transform) -> TransformYaml:
     """The project's YAML form of a transform: matrix, quaternion_xyzw, rpy_deg, xyz_m."""
     return {
         "matrix": transform.matrix.tolist(),
@@ -229,9 +230,9 @@ def prior_from_yaml(data: Any, where: str) -> Prior:
         raise DatasetError(f"{where}: {exc}") from exc
 
 
-def prior_to_yaml(prior: Prior) -> dict[str, Any]:
+def prior_to_yaml(prior: Prior) -> PriorYaml:
     """The ``prior`` section of rig.yaml (inverse of :func:`prior_from_yaml`)."""
-    out: dict[str, Any] = {}
+    out: PriorYaml = {}
     if prior.xyz_m is not None:
         out["xyz_m"] = prior.xyz_m.tolist()
     if prior.sigma_xyz_m is not None:

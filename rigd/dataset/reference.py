@@ -20,6 +20,7 @@ from calib.geometry import Transform, rotation_angle_deg
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.dataset.records import transform_from_yaml, transform_to_yaml
 from rigd.errors import DatasetError
+from rigd.report import ReferenceAgreement
 
 AXES = ("x", "y", "z", "roll", "pitch", "heading")
 
@@ -101,7 +102,7 @@ class Agreement:
         sigmas_agree = bool(np.all(np.isnan(self.z)) or np.all(np.abs(self.z) <= z_max))
         return sigmas_agree and self.rotation_deg <= rotation_deg and self.translation_cm <= translation_cm
 
-    def to_yaml(self) -> dict[str, Any]:
+    def to_yaml(self) -> ReferenceAgreement:
         z = [None if np.isnan(v) else float(v) for v in self.z]
         return {"z_per_axis": dict(zip(AXES, z, strict=True)), "rotation_deg": self.rotation_deg,
                 "translation_cm": self.translation_cm, "within_2_5_sigma_0_6_deg_10_cm": self.within()}

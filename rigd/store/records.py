@@ -7,6 +7,7 @@ from enum import Enum
 from typing import Any
 
 from calib.geometry import Transform
+from rigd.report import VersionQuality
 
 
 class VersionStatus(Enum):
@@ -29,7 +30,7 @@ class NewVersion:
     """What a caller stores; the store adds number, times, supersedes, change and status."""
 
     T_camera_lidar: Transform
-    quality: dict[str, Any]
+    quality: VersionQuality
     method: str
     parameters: dict[str, Any]
     code_version: str
@@ -43,7 +44,7 @@ class ExtrinsicsVersion:
     number: int
     created_at: str
     T_camera_lidar: Transform
-    quality: dict[str, Any]
+    quality: VersionQuality
     method: str
     parameters: dict[str, Any]
     code_version: str

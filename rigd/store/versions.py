@@ -12,6 +12,7 @@ import numpy as np
 
 from calib.geometry import Transform, rotation_angle_deg
 from rigd.dataset.records import transform_to_yaml
+from rigd.report import verdict_of
 from rigd.store.db import Database, utc_now
 from rigd.store.errors import NotFoundError
 from rigd.store.jsonsafe import json_safe
@@ -76,8 +77,9 @@ class VersionStore:
                  new.job_id, VersionStatus.CANDIDATE.value),
             )
             number = int(cursor.lastrowid or 0)
-            verdict = (new.quality.get("verdict") or {}).get("status", "trusted")
-            if (active is None and verdict == "trusted") or activate(change):
+            verdict = verdict_of(new.quality)
+            trusted = verdict is None or verdict["status"] == "trusted"  # a manual version has no verdict
+            if (active is None and trusted) or activate(change):
                 self._activate(conn, number)
             return self._get(conn, number)
 

@@ -4,7 +4,6 @@ latest jobs with the verdicts they produced, a page of the newest versions, the 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from starlette.concurrency import run_in_threadpool
@@ -15,7 +14,9 @@ from rigd.api.routes.datasets import list_datasets
 from rigd.api.routes.extrinsics import version_out
 from rigd.api.routes.jobs import list_jobs
 from rigd.api.routes.status import get_status
+from rigd.api.runner import Start
 from rigd.api.service import Service
+from rigd.report import VersionQuality, calibrated, verdict_of
 from rigd.store import ExtrinsicsVersion
 
 JOBS_SHOWN = 15
@@ -40,12 +41,11 @@ def advice_actions(step: str) -> list[tuple[str, str]]:
     return list(actions.items())
 
 
-def report_sensors(quality: dict[str, Any]) -> list[str]:
+def report_sensors(quality: VersionQuality) -> list[str]:
     """A head's sensors, in the dataset's order, as the version's report lists them per pair (the overlays were
     written per sensor under these names); empty for one camera or a version without pairs (manual)."""
-    pairs = quality.get("pairs") or []
-    per_sensor = pairs[0].get("edge_pixels_per_sensor") if pairs and isinstance(pairs[0], dict) else None
-    return [str(name) for name in per_sensor] if isinstance(per_sensor, dict) else []
+    pairs = quality["pairs"] if calibrated(quality) else []
+    return list(pairs[0].get("edge_pixels_per_sensor", {})) if pairs else []
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,7 @@ class VersionView:
     @property
     def verdict(self) -> str:
         """trusted, weak or failed; ``none`` for a version stored by hand."""
-        return str(self.record.verdict["status"]) if self.record.verdict else "none"
+        return self.record.verdict["status"] if self.record.verdict else "none"
 
     @property
     def reasons(self) -> list[str]:
@@ -73,17 +73,17 @@ class VersionView:
             note = self.record.parameters.get("note")
             return [f"stored by hand ({self.record.method}): it has no verdict, nothing measured its uncertainty"
                     + (f"; note: {note}" if note else "")]
-        return [] if self.verdict == "trusted" else [str(r) for r in self.record.verdict.get("reasons", [])]
+        return [] if self.verdict == "trusted" else list(self.record.verdict["reasons"])
 
     @property
     def steps(self) -> list[tuple[str, list[tuple[str, str]]]]:
         """The advice's steps, each with the page's buttons for it (a button only at its first step)."""
         seen: set[str] = set()
         steps = []
-        for step in (self.record.verdict or {}).get("next_steps") or []:
-            actions = [(a, label) for a, label in advice_actions(str(step)) if a not in seen]
+        for step in self.record.verdict.get("next_steps", []) if self.record.verdict else []:
+            actions = [(a, label) for a, label in advice_actions(step) if a not in seen]
             seen.update(a for a, _ in actions)
-            steps.append((str(step), actions))
+            steps.append((step, actions))
         return steps
 
 
@@ -151,8 +151,8 @@ class JobView:
         p = self.record.params
         if self.record.kind != "calibrate":
             return []
-        start = {"active": f"from version {p.get('init_version')}", "rig": "from the rig file's guess",
-                 "search": "from a global search", "explicit": "from a given transform"}
+        start = {Start.ACTIVE.value: f"from version {p.get('init_version')}", Start.RIG.value: "from the rig file's "
+                 "guess", Start.SEARCH.value: "from a global search", Start.EXPLICIT.value: "from a given transform"}
         words = [start.get(str(p.get("init")), str(p.get("init")))]
         prior = p.get("prior") or {}
         if "sigma_cm" in prior:
@@ -185,8 +185,8 @@ def job_views(jobs: list[JobOut], stored: dict[int, ExtrinsicsVersion]) -> list[
         if version is None:
             views.append(JobView(job, n))
             continue
-        verdict = str((version.quality.get("verdict") or {}).get("status", "none"))
-        views.append(JobView(job, n, version.status.value, verdict))
+        verdict = verdict_of(version.quality)
+        views.append(JobView(job, n, version.status.value, verdict["status"] if verdict else "none"))
     return views
 
 

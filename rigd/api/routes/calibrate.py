@@ -6,9 +6,9 @@ from fastapi import APIRouter, Response, status
 
 from calib.geometry import Transform
 from rigd.api.deps import Authorized, ServiceDep
-from rigd.api.models import CalibrateIn, ErrorOut, JobOut
+from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut
 from rigd.api.routes.jobs import queued_out
-from rigd.api.runner import CalibrationPlan
+from rigd.api.runner import CalibrationPlan, Start
 from rigd.api.service import Service
 from rigd.errors import RigdError
 from rigd.store import ConflictError
@@ -25,23 +25,23 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
         raise RigdError(f"dataset {body.dataset} has no pairs yet")
     initial: Transform | None
     init_version = None
-    if body.init == "active":
+    if body.init is InitMode.ACTIVE:
         active = service.versions.active()
         if active is None:
             raise ConflictError("there is no active extrinsics version yet; start from init 'rig' or a transform")
-        initial, init_version, init = active.T_camera_lidar, active.number, "active"
-    elif body.init == "rig":
+        initial, init_version, start = active.T_camera_lidar, active.number, Start.ACTIVE
+    elif body.init is InitMode.RIG:
         guess = dataset.rig.initial_guess or service.rig.initial_guess
         # no guess in either rig file: the global search finds the start
-        initial, init = guess, "rig" if guess is not None else "search"
-    elif body.init == "search":
-        initial, init = None, "search"
+        initial, start = guess, Start.RIG if guess is not None else Start.SEARCH
+    elif body.init is InitMode.SEARCH:
+        initial, start = None, Start.SEARCH
     else:
-        initial, init = body.init.transform, "explicit"
+        initial, start = body.init.transform, Start.EXPLICIT
     sigmas = tuple(body.sigmas_deg) if body.sigmas_deg is not None else None
     prior = body.prior.model_dump(exclude_none=True) if body.prior is not None else None
     tolerance = body.tolerance.model_dump() if body.tolerance is not None else None
-    return CalibrationPlan(body.dataset, initial, init, init_version, sigmas, body.auto_activate, prior,
+    return CalibrationPlan(body.dataset, initial, start, init_version, sigmas, body.auto_activate, prior,
                            body.fix_translation, tolerance)
 
 

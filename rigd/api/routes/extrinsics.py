@@ -14,6 +14,7 @@ from rigd.api.exports import ExportFormat, render
 from rigd.api.images import image_response
 from rigd.api.models import ChangeOut, ErrorOut, ManualVersionIn, TransformOut, VersionOut
 from rigd.api.service import Service
+from rigd.report import uncertainty_of, verdict_of
 from rigd.store import ExtrinsicsVersion, NewVersion, NotFoundError
 
 router = APIRouter(prefix="/extrinsics", tags=["extrinsics"])
@@ -32,7 +33,7 @@ def version_out(version: ExtrinsicsVersion) -> VersionOut:
     return VersionOut(
         number=version.number, status=version.status.value, created_at=version.created_at,
         activated_at=version.activated_at, T_camera_lidar=TransformOut.of(version.T_camera_lidar),
-        verdict=version.quality.get("verdict"), uncertainty=version.quality.get("uncertainty"),
+        verdict=verdict_of(version.quality), uncertainty=uncertainty_of(version.quality),
         quality=version.quality, method=version.method, parameters=version.parameters,
         code_version=version.code_version, dataset_id=version.dataset_id, dataset_hash=version.dataset_hash,
         job_id=version.job_id, supersedes=version.supersedes,

@@ -15,12 +15,12 @@ import pytest
 from api_helpers import RIG_GUESS, process_group, simulated_dataset, worker_pid
 
 from calib.geometry import Transform
-from rigd.api.runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.api.runner import ActivationBounds, CalibrationPlan, JobRunner, Start
 from rigd.store import Database, Job, JobStatus, JobStore, VersionStore
 from rigd.store.datasets import DatasetCatalog
 
 GUESS = Transform.from_rpy_xyz(np.array(RIG_GUESS["rpy_deg"]), np.array(RIG_GUESS["xyz_m"]))
-PLAN = CalibrationPlan(dataset_id="ds", initial=GUESS, init="explicit", init_version=None, sigmas_deg=None,
+PLAN = CalibrationPlan(dataset_id="ds", initial=GUESS, init=Start.EXPLICIT, init_version=None, sigmas_deg=None,
                        auto_activate=False)
 
 
