@@ -154,23 +154,49 @@ def beam_directions_lidar(azimuth_deg: F64, elevation_deg: F64) -> F64:
     return np.stack([np.cos(w) * np.cos(a), -np.cos(w) * np.sin(a), np.sin(w)], axis=-1)
 
 
-def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config: LidarConfig | None = None) -> Sweep:
-    """Simulate one sweep from ``pose_world_lidar`` (LiDAR frame -> world)."""
+@dataclass(frozen=True)
+class BeamReturns:
+    """What every beam of one turn hits before any noise: ``depth_m`` (M,) m from its laser's origin (inf:
+    nothing) and ``bright`` (M,) ``albedo * cos(incidence)``, M = 1800 x lasers, firing-major."""
+
+    depth_m: F64
+    bright: F64
+
+
+def beam_returns(scene: Scene, pose_world_lidar: Pose, config: LidarConfig | None = None) -> BeamReturns:
+    """The noiseless part of :func:`scan` (the costly ray casting): a rig that stands still hits the same
+    surfaces turn after turn, so a caller may reuse it and draw only the noise anew."""
+    cfg = config or LidarConfig()
+    elevation_deg, offsets_m, _ = _lasers(cfg)
+    beams, laser_origins = _beams(elevation_deg, offsets_m)
+    if cfg.footprint is None:
+        beams_world = rotate(beams, pose_world_lidar.rotation)
+        hits = cast(scene, pose_world_lidar.apply(laser_origins), beams_world)
+        return BeamReturns(hits.depth_m, hits.albedo * np.abs(np.sum(hits.normal * beams_world, axis=1)))
+    return BeamReturns(*_footprint_returns(scene, pose_world_lidar, laser_origins, beams, cfg.footprint))
+
+
+def _beams(elevation_deg: F64, offsets_m: F64) -> tuple[F64, F64]:
+    """Unit beam directions (M,3) and laser origins (M,3) m in the LiDAR frame, firing-major."""
+    n_lasers = len(elevation_deg)
+    _, azimuth_deg = firing_grid(n_lasers)
+    beams = beam_directions_lidar(azimuth_deg, np.broadcast_to(elevation_deg, azimuth_deg.shape)).reshape(-1, 3)
+    laser_origins = np.zeros_like(beams)
+    laser_origins[:, 2] = np.tile(offsets_m, FIRINGS_PER_TURN)
+    return beams, laser_origins
+
+
+def scan(scene: Scene, pose_world_lidar: Pose, rng: np.random.Generator, config: LidarConfig | None = None,
+         returns: BeamReturns | None = None) -> Sweep:
+    """Simulate one sweep from ``pose_world_lidar`` (LiDAR frame -> world); ``returns``: this pose's
+    :func:`beam_returns` when the caller has them already (only the noise is drawn then)."""
     cfg = config or LidarConfig()
     elevation_deg, offsets_m, ring_of_laser = _lasers(cfg)
     n_lasers = len(elevation_deg)
     time_s, azimuth_deg = firing_grid(n_lasers)
-    beams = beam_directions_lidar(azimuth_deg, np.broadcast_to(elevation_deg, azimuth_deg.shape))
-    beams = beams.reshape(-1, 3)
-    laser_origins = np.zeros_like(beams)  # (1800*lasers, 3) m in the LiDAR frame, firing-major like the beams
-    laser_origins[:, 2] = np.tile(offsets_m, FIRINGS_PER_TURN)
-    if cfg.footprint is None:
-        beams_world = rotate(beams, pose_world_lidar.rotation)
-        hits = cast(scene, pose_world_lidar.apply(laser_origins), beams_world)
-        depth_m = hits.depth_m
-        bright = hits.albedo * np.abs(np.sum(hits.normal * beams_world, axis=1))
-    else:
-        depth_m, bright = _footprint_returns(scene, pose_world_lidar, laser_origins, beams, cfg.footprint)
+    beams, laser_origins = _beams(elevation_deg, offsets_m)
+    hit = returns if returns is not None else beam_returns(scene, pose_world_lidar, cfg)
+    depth_m, bright = hit.depth_m, hit.bright
     noisy = depth_m + rng.normal(0.0, cfg.range_noise_m, size=len(beams))
     ranges = np.round(noisy / RANGE_RESOLUTION_M) * RANGE_RESOLUTION_M
     valid = np.isfinite(depth_m) & (ranges >= cfg.min_range_m) & (ranges <= cfg.max_range_m)

@@ -9,7 +9,8 @@ stays at the last place for good. A drive eases in and out (``s = (1 - cos(pi ta
 fraction of the drive) as a carried or driven rig does, so speed is zero at both ends; positions and
 roll/pitch/yaw are interpolated (yaw the short way round). The path is a straight line between places
 and may cross furniture: the sensors then see the inside of a box for a moment, which only makes the
-motion more obvious.
+motion more obvious. A :class:`drivers.sim.disturbance.Disturbance` (vibration, creep) may move the rig a
+little all the time, stops included: a rig that never stands quite still.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from drivers.sim.disturbance import Disturbance
 from drivers.sim.errors import SimError
 from drivers.sim.pose import Pose
 from drivers.sim.rig import PAPER_T_CAMERA_LIDAR, make_scene, place_rig, rng_for, scene_kind
@@ -33,11 +35,13 @@ _SPACING_TRIES = 200
 
 @dataclass(frozen=True)
 class Trajectory:
-    """Stops at ``places`` (T_world_camera poses), ``still_s`` at each, drives of ``move_s`` between."""
+    """Stops at ``places`` (T_world_camera poses), ``still_s`` at each, drives of ``move_s`` between, the
+    whole moved by ``disturbance`` (none by default)."""
 
     places: tuple[Pose, ...]
     still_s: float
     move_s: float
+    disturbance: Disturbance = Disturbance()
 
     def __post_init__(self) -> None:
         if not self.places:
@@ -63,7 +67,11 @@ class Trajectory:
         return leg if start <= t < end else None
 
     def pose_at(self, t: float) -> Pose:
-        """T_world_camera at time ``t`` s (the first place before 0, the last one after the end)."""
+        """T_world_camera at time ``t`` s (the first place before 0, the last one after the end), disturbed."""
+        return self.disturbance.apply(self.planned_pose_at(t), t)
+
+    def planned_pose_at(self, t: float) -> Pose:
+        """T_world_camera at time ``t`` s as planned, without the disturbance."""
         if t <= 0:
             return self.places[0]
         leg = int(t // self.leg_s)
@@ -121,7 +129,8 @@ class MotionRigSpec:
     ``stops`` places from place ``first_place``; ``still_s``/``move_s`` s; panorama ``width`` x ``height``
     px rendered every ``frame_period_s`` s at most (the simulator renders slower than a Ladybug5 streams:
     a 1024x512 panorama takes 1-2 s); noise figures as in :class:`drivers.sim.SimConfig`;
-    ``start_host_s``: UNIX time of trajectory time 0, None until the rig is started.
+    ``start_host_s``: UNIX time of trajectory time 0, None until the rig is started; ``disturbance``: vibration
+    and creep on top of the trajectory (drivers.sim.disturbance).
     """
 
     scene: str = "indoor"
@@ -137,6 +146,7 @@ class MotionRigSpec:
     image_noise_grey: float = 1.5
     T_camera_lidar: Pose = field(default_factory=lambda: PAPER_T_CAMERA_LIDAR)
     start_host_s: float | None = None
+    disturbance: Disturbance = Disturbance()
 
     def __post_init__(self) -> None:
         scene_kind(self.scene)
@@ -155,7 +165,7 @@ class MotionRigSpec:
     def build(self) -> tuple[Scene, Trajectory]:
         scene = make_scene(self.scene, self.seed, 0)
         places = plan_places(scene, self.seed, self.stops, self.first_place, self.T_camera_lidar)
-        return scene, Trajectory(places, self.still_s, self.move_s)
+        return scene, Trajectory(places, self.still_s, self.move_s, self.disturbance)
 
     def to_yaml(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -166,6 +176,8 @@ class MotionRigSpec:
         }
         if self.start_host_s is not None:
             out["start_host_s"] = self.start_host_s
+        if self.disturbance.active:
+            out["disturbance"] = self.disturbance.to_yaml()
         return out
 
     @classmethod
@@ -181,6 +193,8 @@ class MotionRigSpec:
                 t = values["T_camera_lidar"]
                 values["T_camera_lidar"] = Pose.from_rpy_xyz(np.asarray(t["rpy_deg"], float),
                                                              np.asarray(t["xyz_m"], float))
+            if "disturbance" in values:
+                values["disturbance"] = Disturbance.from_yaml(values["disturbance"], where)
             for key, kind in (("seed", int), ("stops", int), ("first_place", int), ("width", int), ("height", int)):
                 if key in values:
                     values[key] = kind(values[key])

@@ -5,7 +5,10 @@
 one turn per 1800 firing sequences = 99.53 ms), plus one position packet per turn (PPS absent, as a
 VLP-16 without GPS reports). Its device clock is the host clock (only microseconds past the hour are in
 the packets), as on a sensor synchronised by PTP or GPS. A turn is scanned from one pose, the rig's pose
-at the middle of the turn: there is no motion distortion within a turn (0.1 s).
+at the middle of the turn: there is no motion distortion within a turn (0.1 s). Turns are scanned ahead in a
+thread; one that would leave more than a turn late (a busy machine) is dropped, as a real sensor's packets
+are lost but never sent much later than their time (that would look like a clock running behind:
+drivers.vlp16.clock); one less late leaves at once and the sender catches up within the turn.
 
 :class:`CameraStream` renders the panorama seen at the rig's pose at the instant the frame starts, as
 often as ``frame_period_s`` allows (rendering is slower than a real camera: see MotionRigSpec). Frames
@@ -22,6 +25,7 @@ import contextlib
 import math
 import multiprocessing
 import os
+import queue
 import signal
 import threading
 import time
@@ -34,7 +38,7 @@ from numpy.typing import NDArray
 
 from drivers.sim.camera import render_panorama
 from drivers.sim.errors import SimError
-from drivers.sim.lidar import FIRINGS_PER_TURN, LidarConfig, scan
+from drivers.sim.lidar import FIRINGS_PER_TURN, BeamReturns, LidarConfig, beam_returns, scan
 from drivers.sim.motion import MotionRigSpec
 from drivers.vlp16 import PpsStatus, encode_data_packets, encode_position_packet, send_datagrams
 from drivers.vlp16.layout import HOUR_US, SEQUENCE_US
@@ -42,7 +46,11 @@ from drivers.vlp16.layout import HOUR_US, SEQUENCE_US
 TURN_S = FIRINGS_PER_TURN * SEQUENCE_US * 1e-6  # one simulated turn: 1800 firing sequences
 FIRING_AZIMUTH_DEG = 360.0 * np.arange(FIRINGS_PER_TURN) / FIRINGS_PER_TURN  # as drivers.sim.lidar fires
 START_LEAD_S = 0.2  # time 0 is set this far ahead, so the first turn is ready when it is due
-_SCAN_ALLOWANCE_S = 0.2  # time to scan and encode the first turn before it is due
+_SCAN_ALLOWANCE_S = 0.2  # time to scan and encode a turn before it is due
+_TURNS_AHEAD = 2  # turns scanned ahead of the sender
+# A turn whose first packet would leave more than a turn late is dropped. Less late, the sender catches up
+# within the turn (its later packets leave on time), as a sensor's packets delayed in a switch would.
+_LATE_S = TURN_S
 _STREAM_LIDAR, _STREAM_CAMERA = 7, 11  # random streams of the moving rig's noise
 
 
@@ -63,6 +71,7 @@ class LidarEmitter:
         self.data_port = data_port
         self.position_port = position_port
         self.lidar = LidarConfig(range_noise_m=spec.range_noise_m)
+        self._returns: tuple[bytes, BeamReturns] | None = None  # the last pose scanned and what its beams hit
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -87,22 +96,53 @@ class LidarEmitter:
         self.close()
 
     def _run(self) -> None:
-        send_datagrams(self._datagrams(), self.host, speed=1.0)
+        ahead: queue.Queue[tuple[int, list[tuple[float, int, bytes]]]] = queue.Queue(maxsize=_TURNS_AHEAD)
+        scanner = threading.Thread(target=self._scan_ahead, args=(ahead,), name="sim-vlp16-scanner", daemon=True)
+        scanner.start()
+        try:
+            send_datagrams(self._datagrams(ahead), self.host, speed=1.0)
+        finally:
+            self._stop.set()
+            scanner.join()
 
-    def _datagrams(self) -> Iterator[tuple[float, int, bytes]]:
+    def _due_turn(self) -> int:
+        """The first turn that a scan started now can still send on time."""
+        start = _require_started(self.spec)
+        return max(0, math.ceil((time.time() + _SCAN_ALLOWANCE_S - start) / TURN_S))
+
+    def _scan_ahead(self, ahead: queue.Queue[tuple[int, list[tuple[float, int, bytes]]]]) -> None:
+        """Scan turns ahead of the sender. A scan that falls behind (a busy machine) skips to a turn it can
+        still deliver on time: a real sensor loses packets, it never sends them late."""
+        start = _require_started(self.spec)
+        turn = self._due_turn()
+        while not self._stop.is_set():
+            if time.time() > start + turn * TURN_S + _LATE_S:  # too late already: skip to what can be on time
+                turn = self._due_turn()
+            item = (turn, self.turn_datagrams(turn))
+            while not self._stop.is_set():
+                with contextlib.suppress(queue.Full):
+                    ahead.put(item, timeout=0.1)
+                    break
+            turn += 1
+
+    def _datagrams(self, ahead: queue.Queue[tuple[int, list[tuple[float, int, bytes]]]]
+                   ) -> Iterator[tuple[float, int, bytes]]:
         start = _require_started(self.spec)
         # A sensor started before anyone listens has been turning all along: begin with the first turn not
         # yet due. The sender paces every datagram from the moment the first one leaves, so that must be its
-        # own time: a turn whose scan finished too late (a busy machine) is dropped for a later one.
-        turn, first = -1, []
-        while not self._stop.is_set() and (turn < 0 or time.time() > start + turn * TURN_S):
-            turn = max(0, math.ceil((time.time() + _SCAN_ALLOWANCE_S - start) / TURN_S))
-            first = self.turn_datagrams(turn)
-        self._stop.wait(max(0.0, start + turn * TURN_S - time.time()))
-        yield from first
+        # own time; a turn that would leave late is dropped (lost), as a sensor's packets are never late.
+        first = True
         while not self._stop.is_set():
-            turn += 1
-            yield from self.turn_datagrams(turn)
+            try:
+                turn, datagrams = ahead.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            if time.time() > start + turn * TURN_S + _LATE_S:
+                continue
+            if first:
+                self._stop.wait(max(0.0, start + turn * TURN_S - time.time()))
+                first = False
+            yield from datagrams
 
     def turn_datagrams(self, turn: int) -> list[tuple[float, int, bytes]]:
         """The datagrams (host send time s, port, payload) of turn ``turn``: one position packet, 75 data packets."""
@@ -110,7 +150,10 @@ class LidarEmitter:
         t_turn = turn * TURN_S
         pose_lidar = self.trajectory.pose_at(t_turn + TURN_S / 2).compose(self.spec.T_camera_lidar)
         rng = np.random.default_rng([self.spec.seed, turn, _STREAM_LIDAR])
-        sweep = scan(self.scene, pose_lidar, rng, self.lidar)
+        key = pose_lidar.matrix.tobytes()
+        if self._returns is None or self._returns[0] != key:  # standing still: the same surfaces, new noise
+            self._returns = key, beam_returns(self.scene, pose_lidar, self.lidar)
+        sweep = scan(self.scene, pose_lidar, rng, self.lidar, self._returns[1])
         packets = encode_data_packets(sweep.ranges_m, sweep.reflectivity, FIRING_AZIMUTH_DEG, start + t_turn)
         out: list[tuple[float, int, bytes]] = []
         if self.position_port is not None:

@@ -10,7 +10,7 @@ See docs/vlp16.md for the packet layout, time handling and the comparison with v
 """
 
 from drivers.vlp16.calibration import LaserCalibration, load_calibration
-from drivers.vlp16.clock import TimePair, TimeSource
+from drivers.vlp16.clock import ClockStep, StepKind, TimePair, TimeSource
 from drivers.vlp16.datagrams import DatagramBatch, PositionDatagram
 from drivers.vlp16.decode import POINT_DTYPE, Decoded, decode_packets
 from drivers.vlp16.encode import EncodedPackets, encode_data_packets, encode_position_packet, gprmc_sentence
@@ -42,6 +42,7 @@ __all__ = [
     "POSITION_PORT",
     "VLP16_PRODUCT_ID",
     "CaptureSummary",
+    "ClockStep",
     "DatagramBatch",
     "Decoded",
     "EncodedPackets",
@@ -55,6 +56,7 @@ __all__ = [
     "PpsStatus",
     "ReturnMode",
     "ReturnType",
+    "StepKind",
     "StreamStats",
     "Sweep",
     "SweepAssembler",

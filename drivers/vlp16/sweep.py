@@ -6,7 +6,10 @@ device time (within ``reorder_window`` packets of arrival order), duplicates dro
 arrives after its sweep was emitted is counted LATE. Missing packets are gaps in the packet cadence
 (1327.104 us, 663.552 us in dual-return mode), except where the device clock stepped forward (the host
 received the packets on either side of the gap close together). Packets that cross no cut for longer than
-any turn (a head that does not turn) go out as an incomplete sweep every ``STALLED_S``.
+any turn (a head that does not turn) go out as an incomplete sweep every ``STALLED_S``. A step of the device
+clock (drivers.vlp16.clock, seen from the receive times) ends the open sweep there, incomplete, and the
+stream continues as a new piece, so no sweep mixes two clocks; packets of the old clock reordered past the
+step are LATE.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.vlp16.calibration import LaserCalibration
-from drivers.vlp16.clock import DeviceClock, TimePair, TimeSource
+from drivers.vlp16.clock import ClockStep, DeviceClock, TimePair, TimeSource
 from drivers.vlp16.datagrams import DatagramBatch
 from drivers.vlp16.decode import decode_packets
 from drivers.vlp16.errors import Vlp16Error
@@ -72,8 +75,13 @@ class Sweep:
     """One rotation. ``points`` (N,) POINT_DTYPE with ``time`` s since ``start.device``.
 
     ``start``/``end``: first and last firing (device s since the epoch; host s of their packets).
-    ``complete`` is False for the partial first and last piece of a stream. ``clock_offset_s`` is host
-    minus device time (smallest seen); ``time_s`` is the sweep start on the best clock available.
+    ``complete`` is False for the partial first and last piece of a stream (and the pieces either side of a
+    device clock step). ``clock_offset_s`` is host minus device time of the sweep's clock segment (smallest
+    seen over the segment, drivers.vlp16.clock); ``receive_offset_s`` the same measured on this sweep's own
+    packets alone (>= ``clock_offset_s`` by the least receive delay among them: milliseconds, unless the
+    clock estimate is wrong). ``coverage``: the fraction of a turn's firings at this ``rpm`` the sweep holds
+    (1.0 for a whole turn, less for each packet lost; a little above 1 by where the cut falls). ``time_s``
+    is the sweep start on the best clock available.
     """
 
     index: int
@@ -88,6 +96,8 @@ class Sweep:
     time_source: TimeSource
     clock_offset_s: float
     pps: PpsStatus | None
+    receive_offset_s: float = math.inf
+    coverage: float = 0.0
 
     @property
     def time_s(self) -> float:
@@ -115,6 +125,7 @@ class StreamStats:
     time_source: TimeSource
     clock_offset_s: float
     ipv4_fragments: int = 0  # records of a capture that are IPv4 fragments: skipped, not in other_datagrams
+    clock_steps: tuple[ClockStep, ...] = ()  # steps of the device clock seen so far (drivers.vlp16.clock)
 
     @property
     def bad_packets(self) -> int:
@@ -206,6 +217,7 @@ class SweepAssembler:
         self._modes: set[ReturnMode] = set()
         self._products: set[int] = set()
         self._cut_units = round(self.config.cut_azimuth_deg * 100) % AZIMUTH_UNITS
+        self._offset_s = math.inf  # host minus device time of the clock segment being assembled
 
     # -- input ---------------------------------------------------------------------------------------------
     def feed(self, batch: DatagramBatch) -> list[Sweep]:
@@ -245,6 +257,7 @@ class SweepAssembler:
             self.clock.source,
             self.clock.host_offset_s,
             ipv4_fragments=self._counts["fragments"],
+            clock_steps=self.clock.steps,
         )
 
     # -- internals -----------------------------------------------------------------------------------------
@@ -267,7 +280,32 @@ class SweepAssembler:
         if len(payloads) == 0:
             return []
         count_us = self.clock.unwrap(as_packet_records(payloads)["timestamp_us"])
-        self.clock.observe_host(host_s, count_us)
+        seen = self.clock.observe_host(host_s, count_us)
+        starts = np.asarray(seen.starts, dtype=np.int64)
+        if seen.stragglers.any():
+            self.tally.add(PacketFault.LATE, int(seen.stragglers.sum()), int(index[seen.stragglers].min()))
+            starts = starts - np.searchsorted(np.flatnonzero(seen.stragglers), starts)  # indices once dropped
+            keep = ~seen.stragglers
+            payloads, host_s, count_us, index = payloads[keep], host_s[keep], count_us[keep], index[keep]
+        bounds = [0, *starts.tolist(), len(count_us)]
+        sweeps: list[Sweep] = []
+        for piece, (first, stop) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+            if piece > 0:  # the device clock stepped: the open sweep ends there, a new stream piece begins
+                sweeps += self.flush()
+                self._floor_us = None
+            self._offset_s = seen.offsets_s[piece]
+            part = slice(first, stop)
+            sweeps += self._feed_piece(payloads[part], host_s[part], count_us[part], index[part])
+        return sweeps
+
+    def _feed_piece(
+        self,
+        payloads: NDArray[np.uint8],
+        host_s: NDArray[np.float64],
+        count_us: NDArray[np.int64],
+        index: NDArray[np.int64],
+    ) -> list[Sweep]:
+        """Packets of one clock segment: drop late ones and duplicates, order them, cut sweeps."""
         late = count_us < self._floor_us if self._floor_us is not None else np.zeros(len(count_us), bool)
         if late.any():
             self.tally.add(PacketFault.LATE, int(late.sum()), int(index[late].min()))
@@ -281,7 +319,7 @@ class SweepAssembler:
             pending = pending.take(np.setdiff1d(np.arange(len(pending.count_us)), repeat))
         self._counts["data"] += len(pending.count_us) - len(self._pending.count_us)
         self._pending = pending
-        return self._split()
+        return self._split() if len(pending.count_us) else []
 
     def _cuts(self, pending: _Pending) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
         """Flat block indices (packet * 12 + block) after ``start_block`` where a new sweep starts, and
@@ -375,6 +413,11 @@ class SweepAssembler:
         self._counts["missing"] += missing
         epoch_s = float(self.clock.epoch_s(0))
         start_us = float(count_us[p0]) + start_delay_us
+        received = slice(p0, p_last + 1)
+        receive_offset_s = float(np.min(emitted.packets.host_s[received] - (epoch_s + count_us[received] * 1e-6)))
+        rpm = float(np.median(emitted.rate[p0 : p_last + 1])) * 1e6 / AZIMUTH_UNITS * 60.0
+        block_us = (1 if dual[p0] else 2) * SEQUENCE_US  # a dual-return block pair shares its firings
+        coverage = (stop - first) * block_us * rpm / 60e6 if rpm > 0 else 0.0
         sweep = Sweep(
             index=self._next_index,
             points=points,
@@ -382,12 +425,14 @@ class SweepAssembler:
             end=TimePair(float(emitted.packets.host_s[p_last]), epoch_s + float(end_us) * 1e-6),
             packet_count=p_last - p0 + 1,
             missing_packets=missing,
-            rpm=float(np.median(emitted.rate[p0 : p_last + 1])) * 1e6 / AZIMUTH_UNITS * 60.0,
+            rpm=rpm,
             return_mode=mode,
             complete=complete,
             time_source=self.clock.source,
-            clock_offset_s=self.clock.host_offset_s,
+            clock_offset_s=self._offset_s,
             pps=self.clock.pps,
+            receive_offset_s=receive_offset_s,
+            coverage=coverage,
         )
         self._next_index += 1
         return sweep

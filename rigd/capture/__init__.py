@@ -14,6 +14,7 @@ from rigd.capture.errors import (
     SensorSilenceError,
     SourceEndedError,
     SourceSpecError,
+    SyncError,
 )
 
 __all__ = [
@@ -27,5 +28,6 @@ __all__ = [
     "SensorSilenceError",
     "SourceEndedError",
     "SourceSpecError",
+    "SyncError",
     "run_capture",
 ]

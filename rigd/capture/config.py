@@ -38,6 +38,7 @@ class CaptureDefaults:
     min_move: float = 0.5
     silence_timeout_s: float = 5.0
     out: Path | None = None
+    min_sweep_fraction: float = 0.99  # of a turn's packets, in every fused sweep
 
 
 @dataclass(frozen=True)
@@ -158,7 +159,15 @@ def _capture(section: dict[str, Any], where: str) -> CaptureDefaults:
         min_move=_number(section, "min_move", base.min_move, here, 0.0, strict=False),
         silence_timeout_s=_number(section, "silence_timeout_s", base.silence_timeout_s, here, 0.0, strict=True),
         out=Path(str(out)) if out is not None else None,
+        min_sweep_fraction=_fraction(section, "min_sweep_fraction", base.min_sweep_fraction, here),
     )
+
+
+def _fraction(section: dict[str, Any], key: str, default: float, where: str) -> float:
+    value = _number(section, key, default, where, 0.0, strict=True)
+    if value > 1.0:
+        raise ConfigError(f"{where}.{key}: must be at most 1 (a fraction of a turn's packets), got {value!r}")
+    return value
 
 
 def _sdk(section: dict[str, Any], where: str) -> SdkSettings:

@@ -1,12 +1,16 @@
 """The capture loop: wait until the rig stands still at a new place, take a pair, repeat until ``n`` pairs.
 
-Per complete LiDAR sweep: update the still window (rigd.capture.gate), read the camera frames received,
-then decide: not moved since the last pair -> "move to the next place"; camera or LiDAR motion -> "waiting
-for the rig to stop"; still for less than ``still_seconds`` -> "hold still"; still long enough and a
-camera frame exposed inside the window -> fuse the ``sweeps`` sweeps nearest that frame and write the
-pair atomically (rigd.dataset.write_pair). ``stop`` is looked at between sweeps and never while a pair is
-being taken, so a pair is either written whole or not begun. A capture holds the dataset's writer lock
-(rigd.dataset.lock) from start to end: a second one into the same folder is refused at once.
+Per LiDAR sweep: judge it (a whole turn, complete to ``min_sweep_fraction`` of its packets, with returns);
+a usable one updates the still window (rigd.capture.gate), then the camera frames received are read and
+the loop decides: not moved since the last pair -> "move to the next place"; camera or LiDAR motion ->
+"waiting for the rig to stop"; still for less than ``still_seconds`` -> "hold still"; still long enough and
+a camera frame exposed inside the window -> fuse the ``sweeps`` sweeps nearest that frame, check that the
+pair is synchronised (the sweeps' own receive times against their device times, inside the window), and
+write it atomically (rigd.dataset.write_pair). A step of the LiDAR's clock restarts the window. No usable
+sweep for the silence timeout ends the capture with an error that says why (no data, a stopped head, lost
+packets, a blind sensor). ``stop`` is looked at between sweeps and never while a pair is being taken, so a
+pair is either written whole or not begun. A capture holds the dataset's writer lock (rigd.dataset.lock)
+from start to end: a second one into the same folder is refused at once.
 """
 
 from __future__ import annotations
@@ -29,11 +33,26 @@ import numpy as np
 from calib.geometry import Transform
 from drivers.ladybug5 import PanoramaFrame
 from drivers.sim.motion import MotionRigSpec
-from drivers.vlp16 import StreamStats, Sweep
+from drivers.vlp16 import ClockStep, StreamStats, Sweep
+from drivers.vlp16.layout import SEQUENCE_US
 from rigd.capture.config import RigSettings, load_settings
-from rigd.capture.errors import CaptureError, DiskFullError, SensorSilenceError
+from rigd.capture.errors import CaptureError, DiskFullError, SensorSilenceError, SyncError
 from rigd.capture.fuse import fuse_sweeps
-from rigd.capture.gate import FrameSample, StillnessGate, SweepSample, range_change_m, range_image, thumbnail
+from rigd.capture.gate import (
+    AZIMUTH_BINS,
+    MIN_INLIER_FRACTION,
+    MOVING_SWEEPS,
+    RINGS,
+    DirectionGrid,
+    FrameSample,
+    StillnessGate,
+    StillThresholds,
+    SweepSample,
+    camera_image,
+    direction_grid,
+    range_change_m,
+    range_image,
+)
 from rigd.capture.sources import Sources, frame_time, open_sources
 from rigd.capture.specs import CameraKind as SourceKind
 from rigd.capture.specs import parse_camera, parse_lidar
@@ -43,10 +62,20 @@ from rigd.dataset.store import read_yaml
 from rigd.errors import DatasetError
 from rigd.version import software_version
 
-STILL_RANGE_M = 0.05  # LiDAR: 90th-percentile range change that still counts as standing still (docs/capture.md)
-CAMERA_CHANGE_GREY = 2.5  # camera: thumbnail change that still counts as standing still (docs/capture.md)
 DEFAULT_MIN_MOVE_M = 0.5
-MOVING_SWEEPS = 3  # a window shorter than this many sweeps is motion, not the start of a stop
+DEFAULT_MIN_SWEEP_FRACTION = 0.99  # of a turn's packets, in every fused sweep
+DEFAULT_TOLERANCE_DEG = 0.2  # the rig's rotation tolerance when the rig file gives none (calib.assess)
+# A sweep's packets received more than this off its device time on the host clock (or outside the still
+# window): the LiDAR's clock mapping is not what the window was built on, so the pair is not taken. Receive
+# delays stay in milliseconds; half a turn still puts the sweep at the right turn.
+SYNC_BOUND_S = 0.05
+BLIND_FRACTION = 0.05  # a whole turn with returns in fewer of its 16 x 360 directions sees (almost) nothing
+COVERAGE_SLACK_BLOCKS = 2  # where the cut falls moves a whole turn's count by a block either way
+UNUSABLE_NOTE_S = 1.0  # no usable sweep for this long: the status line says why (the error comes later)
+# Camera frames this far ahead of the LiDAR's latest sweep on the host clock cannot be explained by the
+# loop being behind for long: one of the clocks is wrong (shown at once, an error after the silence timeout).
+CLOCK_DISAGREE_S = 1.0
+FRAMES_AHEAD_KEPT = 16  # frames newer than the still window kept for it (they are full images)
 # The simulated rig stands still_seconds + this at each place: a frame exposed in the still window must also
 # have been rendered before the rig leaves, and a 1024x512 render takes 1.5-4 s on a busy 2-core machine.
 SIM_STOP_MARGIN_S = 6.0
@@ -57,6 +86,8 @@ def sim_stops(pairs: int) -> int:
     """Places for a simulated rig that should yield ``pairs`` pairs: twice as many plus spares, since a stop
     whose frame rendered too slowly is skipped, and the rig never leaves its last place."""
     return 2 * pairs + 4
+
+
 STATUS_PERIOD_S = 0.5
 # Before its first data a sensor may take this long (the SDK starts the camera, the simulator's sensors start
 # as processes and render a first frame); after it, silence_timeout_s applies.
@@ -72,7 +103,9 @@ class CaptureRequest:
     """A capture job: ``n`` pairs in the dataset ``out`` (counting pairs already there).
 
     Sources as in ``rigd capture`` (docs/capture.md); ``config``: the rig file for the dataset's rig.yaml
-    (camera size, initial guess) and the SDK settings; None: built-in defaults.
+    (camera size, initial guess, the tolerance the stillness thresholds come from) and the SDK settings;
+    None: built-in defaults. ``min_sweep_fraction``: every fused sweep holds at least this fraction of a
+    turn's packets (0 < f <= 1).
     """
 
     out: Path
@@ -84,6 +117,7 @@ class CaptureRequest:
     min_move: float = DEFAULT_MIN_MOVE_M
     silence_timeout_s: float = 5.0
     config: Path | None = None
+    min_sweep_fraction: float = DEFAULT_MIN_SWEEP_FRACTION
 
 
 class CaptureState(Enum):
@@ -91,11 +125,22 @@ class CaptureState(Enum):
     WAITING_FOR_STOP = "waiting_for_stop"
     HOLDING_STILL = "holding_still"
     WAITING_FOR_FRAME = "waiting_for_frame"
+    NOT_SYNCHRONISED = "not_synchronised"
+    UNUSABLE_LIDAR = "unusable_lidar"
     NEED_MOVE = "need_move"
     CAPTURING = "capturing"
     CAPTURED = "captured"
     DONE = "done"
     STOPPED = "stopped"
+
+
+class SweepUse(Enum):
+    """Whether a LiDAR sweep can go into a pair, and if not, why."""
+
+    USABLE = "usable"
+    PARTIAL = "partial"  # not a whole turn: the stream's ends, a clock step, whole turns lost, a stopped head
+    LOSSY = "lossy"  # packets lost: less than min_sweep_fraction of a turn
+    BLIND = "blind"  # a whole turn with (almost) no returns
 
 
 @dataclass(frozen=True)
@@ -118,6 +163,15 @@ class CaptureSummary:
     out: Path
     pairs: tuple[Path, ...]
     seconds_per_pair: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Unusable:
+    """The latest sweep that could not go into a pair: why, the sweep, and its directions with a return."""
+
+    use: SweepUse
+    sweep: Sweep
+    returns: int
 
 
 Progress = Callable[[CaptureStatus], None]
@@ -147,7 +201,7 @@ def run_capture(request: CaptureRequest, progress: Progress | None = None,
 
 def _validate(request: CaptureRequest) -> None:
     numbers = {"still_seconds": request.still_seconds, "min_move": request.min_move,
-               "silence_timeout_s": request.silence_timeout_s}
+               "silence_timeout_s": request.silence_timeout_s, "min_sweep_fraction": request.min_sweep_fraction}
     for name, value in numbers.items():
         if not math.isfinite(value):
             raise CaptureError(f"capture: {name} must be a finite number, got {value}")
@@ -157,6 +211,8 @@ def _validate(request: CaptureRequest) -> None:
         (request.sweeps >= 1, f"sweeps must be >= 1, got {request.sweeps}"),
         (request.min_move >= 0, f"min_move must be >= 0 m, got {request.min_move}"),
         (request.silence_timeout_s > 0, f"silence_timeout_s must be > 0, got {request.silence_timeout_s}"),
+        (0 < request.min_sweep_fraction <= 1,
+         f"min_sweep_fraction must be in (0, 1], got {request.min_sweep_fraction}"),
     ]
     for ok, message in checks:
         if not ok:
@@ -190,6 +246,12 @@ def _disk_full(exc: DatasetError) -> bool:
     return isinstance(cause, OSError) and cause.errno in (errno.ENOSPC, errno.EDQUOT)
 
 
+def thresholds_for(settings: RigSettings) -> StillThresholds:
+    """The stillness thresholds from the rig file's rotation tolerance (docs/capture.md)."""
+    tolerance = settings.tolerance.tolerance_rot_deg if settings.tolerance is not None else DEFAULT_TOLERANCE_DEG
+    return StillThresholds.from_tolerance(tolerance)
+
+
 class _Session:
     """One run of the capture loop over open sources."""
 
@@ -203,13 +265,17 @@ class _Session:
         self.stop = stop
         self.done = len(existing)
         self.reference = _reference_image(existing[-1]) if existing else None
-        self.gate = StillnessGate(STILL_RANGE_M, CAMERA_CHANGE_GREY)
-        self.recent: deque[tuple[SweepSample, Sweep]] = deque(maxlen=RECENT_SWEEPS)
-        self.frames: deque[tuple[float, PanoramaFrame]] = deque(maxlen=8)
+        self.thresholds = thresholds_for(settings)
+        self.gate = StillnessGate(self.thresholds)
+        self.recent: deque[tuple[SweepSample, Sweep]] = deque(maxlen=RECENT_SWEEPS)  # usable sweeps only
+        self.frames: list[tuple[float, PanoramaFrame]] = []  # (host time s, frame): those the window may use
         self.rates: deque[tuple[float, float, int]] = deque(maxlen=20)  # (start, end, packets) of sweeps
         self._rate_at = -math.inf  # monotonic time the latest sweep (whole or not) arrived
-        self.partial: Sweep | None = None  # the latest incomplete sweep since the last complete one
+        self.unusable: Unusable | None = None  # the latest sweep that could not go into a pair
+        self.window_lossy = 0  # sweeps left out of the current still window for lost packets
         self.stats: StreamStats | None = None
+        self.steps_seen = 0  # LiDAR clock steps already acted on
+        self.unsynced_since: float | None = None  # monotonic time camera frames were first seen ahead
         self.written: list[Path] = []
         self.seconds: list[float] = []
         self.state = CaptureState.STARTING
@@ -221,9 +287,9 @@ class _Session:
     def run(self) -> CaptureSummary:
         self._set(CaptureState.STARTING, f"waiting for the LiDAR ({self.sources.lidar.describe}) and the camera "
                                          f"({self.sources.camera.describe})")
-        # Silence is counted from the last complete sweep: incomplete ones (a stopped head, turns lost) are no
-        # data a pair can be made of, but they end the start-up allowance and say what is wrong.
-        last_sweep, any_data = time.monotonic(), False
+        # Silence is counted from the last usable sweep: others (a stopped head, lost packets, a blind sensor)
+        # are no data a pair can be made of, but they end the start-up allowance and say what is wrong.
+        last_usable, any_data = time.monotonic(), False
         while self.done < self.request.n:
             if self.stop.is_set():
                 self._set(CaptureState.STOPPED, f"stopped after {self.done}/{self.request.n} pairs; rerun the same "
@@ -233,66 +299,157 @@ class _Session:
             now = time.monotonic()
             if item is not None:
                 if not any_data:
-                    last_sweep, any_data = now, True
-                self.stats = item.stats
-                self._count_packets(item.sweep, now)
-                if item.sweep.complete:
-                    last_sweep, self.partial = now, None
-                    self._on_sweep(item.sweep)
-                else:
-                    self.partial = item.sweep
-            if now - last_sweep > self._silence_limit(any_data):
-                raise SensorSilenceError(self._lidar_silence(now - last_sweep))
+                    last_usable, any_data = now, True
+                if self._on_item(item.sweep, item.stats, now):
+                    last_usable = now
+            if now - last_usable > self._silence_limit(any_data):
+                raise SensorSilenceError(self._lidar_silence(now - last_usable))
+            if now - last_usable > UNUSABLE_NOTE_S and self.unusable is not None:
+                self._show_unusable(self.unusable)
             self._check_camera()
             self._emit(force=False)
         else:
             self._set(CaptureState.DONE, f"captured {self.done}/{self.request.n}: done")
         return CaptureSummary(self.out, tuple(self.written), tuple(self.seconds))
 
-    def _on_sweep(self, sweep: Sweep) -> None:
+    def _on_item(self, sweep: Sweep, stats: StreamStats, now: float) -> bool:
+        """One sweep from the LiDAR; True when it was usable (and went to the gate)."""
+        self.stats = stats
+        self._count_packets(sweep, now)
+        self._check_clock(stats)
+        use, grid = self._judge(sweep)
+        if use is not SweepUse.USABLE or grid is None:
+            self.unusable = Unusable(use, sweep, 0 if grid is None else grid.returns)
+            self.window_lossy += use is SweepUse.LOSSY
+            return False
+        self.unusable = None
+        self._on_sweep(sweep, grid)
+        return True
+
+    def _judge(self, sweep: Sweep) -> tuple[SweepUse, DirectionGrid | None]:
+        """Whether ``sweep`` can go into a pair: a whole turn, complete to min_sweep_fraction (less the two
+        blocks by which where the cut falls changes a whole turn's count), with returns."""
+        if not sweep.complete:
+            return SweepUse.PARTIAL, None
+        slack = COVERAGE_SLACK_BLOCKS * 2 * SEQUENCE_US * sweep.rpm / 60e6  # a block is two firing sequences
+        if sweep.coverage < self.request.min_sweep_fraction - slack:
+            return SweepUse.LOSSY, None
         xyz = np.stack([sweep.points["x"], sweep.points["y"], sweep.points["z"]], axis=1)
-        sample = SweepSample(sweep.start.device + sweep.clock_offset_s, sweep.end.device + sweep.clock_offset_s,
-                             range_image(xyz, sweep.points["ring"]))
+        grid = direction_grid(xyz, sweep.points["ring"])
+        if grid.returns < BLIND_FRACTION * RINGS * AZIMUTH_BINS:
+            return SweepUse.BLIND, grid
+        return SweepUse.USABLE, grid
+
+    def _check_clock(self, stats: StreamStats) -> None:
+        """A step of the LiDAR's clock: the window built on the old offset is dropped (the new offset is the
+        driver's, measured from the new clock's own packets)."""
+        if len(stats.clock_steps) <= self.steps_seen:
+            return
+        self.steps_seen = len(stats.clock_steps)
+        step = stats.clock_steps[-1]
+        self.gate.reset()
+        self._set(CaptureState.NOT_SYNCHRONISED,
+                  f"the LiDAR's clock stepped {'back' if step.step_s < 0 else 'forward'} {abs(step.step_s):.3f} s: its "
+                  "offset to the host clock is measured again; the still window restarts")
+
+    def _on_sweep(self, sweep: Sweep, grid: DirectionGrid) -> None:
+        offset = sweep.clock_offset_s
+        sample = SweepSample(sweep.start.device + offset, sweep.end.device + offset, grid.range_m, grid)
         self.recent.append((sample, sweep))
         self.gate.add_sweep(sample)
+        if self.gate.sweeps <= 1:
+            self.window_lossy = 0
         for frame in self.sources.camera.poll(sample.t_end):
             t = frame_time(frame, self.sources.camera.describe)
-            self.gate.add_frame(FrameSample(t, thumbnail(frame.image)))
+            self.gate.add_frame(FrameSample(t, camera_image(frame.image)))
             self.frames.append((t, frame))
+        self._prune_frames()
         self._decide(sample)
+
+    def _prune_frames(self) -> None:
+        """Keep the newest frame inside the still window and those after it (the window grows onto them)."""
+        window = self.gate.window
+        if window is None:
+            self.frames = self.frames[-FRAMES_AHEAD_KEPT:]
+            return
+        inside = [f for f in self.frames if window[0] <= f[0] <= window[1]]
+        self.frames = inside[-1:] + [f for f in self.frames if f[0] > window[1]][-FRAMES_AHEAD_KEPT:]
 
     def _decide(self, sample: SweepSample) -> None:
         gate, request = self.gate, self.request
+        unsynced_since, self.unsynced_since = self.unsynced_since, None
         moved_m = None if self.reference is None else range_change_m(self.reference, sample.image)
         if moved_m is not None and moved_m < request.min_move:
             self._set(CaptureState.NEED_MOVE, "move to the next place")
             return
         if gate.camera_saw_motion():
+            change = gate.camera_change()
             gate.restart()
-            self._set(CaptureState.WAITING_FOR_STOP, "waiting for the rig to stop (the camera sees motion)")
+            self._set(CaptureState.WAITING_FOR_STOP, f"waiting for the rig to stop (the camera sees motion: "
+                                                     f"{change:.2f} deg)")
             return
         if gate.sweeps < MOVING_SWEEPS:
-            self._set(CaptureState.WAITING_FOR_STOP, "waiting for the rig to stop")
+            self._set(CaptureState.WAITING_FOR_STOP, f"waiting for the rig to stop{self._motion_note()}")
             return
-        if gate.still_for_s < request.still_seconds or gate.sweeps < request.sweeps:
-            remaining = max(request.still_seconds - gate.still_for_s, 0.0)
-            self._set(CaptureState.HOLDING_STILL, f"hold still {remaining:.1f} s")
+        if not gate.held(request.still_seconds, request.sweeps):
+            self._set(CaptureState.HOLDING_STILL, self._holding_line())
             return
         window = gate.window
         assert window is not None
         inside = [(t, f) for t, f in self.frames if window[0] <= t <= window[1]]
         if not inside:
-            self._set(CaptureState.WAITING_FOR_FRAME, "hold still: waiting for a camera frame")
+            self.unsynced_since = unsynced_since
+            self._waiting_for_frame(window)
             return
         self._take_pair(*inside[-1], window, moved_m)
+
+    def _motion_note(self) -> str:
+        motion, limits = self.gate.last_motion, self.thresholds
+        if motion is None:
+            return ""
+        if not math.isfinite(motion.rotation_deg) or motion.inlier_fraction < MIN_INLIER_FRACTION:
+            return " (LiDAR: the scene changed)"
+        return (f" (LiDAR: {motion.rotation_deg:.3f} deg, {motion.translation_m * 1000:.1f} mm from the window's first "
+                f"sweep; still is within {limits.rotation_deg:.3f} deg, {limits.translation_m * 1000:.1f} mm)")
+
+    def _holding_line(self) -> str:
+        remaining = max(self.request.still_seconds - self.gate.still_for_s, 0.0)
+        if remaining > 0:
+            return f"hold still {remaining:.1f} s"
+        lossy = f" ({self.window_lossy} left out: packets lost)" if self.window_lossy else ""
+        return f"hold still: {self.gate.sweeps} of {self.request.sweeps} sweeps{lossy}"
+
+    def _waiting_for_frame(self, window: tuple[float, float]) -> None:
+        """No frame in the still window yet: normal for a while, unless the frames run ahead of the LiDAR."""
+        newest = max(self.frames, key=lambda f: f[0], default=None)
+        ahead_s = -math.inf if newest is None else newest[0] - window[1]
+        if newest is None or ahead_s <= CLOCK_DISAGREE_S:
+            self.unsynced_since = None
+            self._set(CaptureState.WAITING_FOR_FRAME, "hold still: waiting for a camera frame")
+            return
+        now = time.monotonic()
+        self.unsynced_since = self.unsynced_since if self.unsynced_since is not None else now
+        lidar_offset = self.recent[-1][1].clock_offset_s if self.recent else math.nan
+        what = (f"the camera's frames are {ahead_s:.1f} s ahead of the LiDAR's sweeps on the host clock (host minus "
+                f"device: camera {newest[0] - newest[1].device_time_s:+.3f} s, LiDAR {lidar_offset:+.3f} s): one of "
+                "the clocks is wrong")
+        if now - self.unsynced_since > self.request.silence_timeout_s:
+            raise SyncError(f"no synchronised pair for {now - self.unsynced_since:.1f} s: {what}; check the camera's "
+                            "and the LiDAR's time sources (GPS/PPS, NTP) and restart the sensor whose clock jumped")
+        self._set(CaptureState.NOT_SYNCHRONISED, f"not synchronised: {what}")
 
     # -- a pair --------------------------------------------------------------------------------------------
     def _take_pair(self, frame_t: float, frame: PanoramaFrame, window: tuple[float, float],
                    moved_m: float | None) -> None:
-        self._set(CaptureState.CAPTURING, f"capturing pair {self.done + 1}/{self.request.n}")
         in_window = [(s, sw) for s, sw in self.recent if s.t_start >= window[0] and s.t_end <= window[1]]
         nearest = sorted(in_window, key=lambda x: abs(0.5 * (x[0].t_start + x[0].t_end) - frame_t))
         chosen = sorted(nearest[: self.request.sweeps], key=lambda x: x[0].t_start)
+        problem = self._sync_problem([sw for _, sw in chosen], window)
+        if problem is not None:
+            self.gate.reset()
+            self._set(CaptureState.NOT_SYNCHRONISED, f"not taking a pair: {problem}; the still window restarts")
+            return
+        self._set(CaptureState.CAPTURING, f"capturing pair {self.done + 1}/{self.request.n}")
         cloud = fuse_sweeps([sw for _, sw in chosen])
         meta = self._meta(frame_t, frame, chosen, cloud, window, moved_m)
         index = max((int(p.name) for p in existing_pairs(self.out)), default=-1) + 1
@@ -309,12 +466,31 @@ class _Session:
         self.gate.restart()
         self._set(CaptureState.CAPTURED, f"captured {self.done}/{self.request.n}")
 
+    def _sync_problem(self, sweeps: list[Sweep], window: tuple[float, float]) -> str | None:
+        """Why the sweeps cannot be shown to lie in the still window on the host clock, or None. Each sweep's
+        own packets measure its host-minus-device offset; the window was built with its clock segment's."""
+        for sweep in sweeps:
+            lag = sweep.receive_offset_s - sweep.clock_offset_s
+            if not abs(lag) <= SYNC_BOUND_S:
+                return (f"a LiDAR sweep's packets arrived {lag:+.3f} s off its device time on the host clock (host "
+                        f"minus device: measured {sweep.receive_offset_s:+.3f} s, used {sweep.clock_offset_s:+.3f} s; "
+                        f"bound {SYNC_BOUND_S} s): the LiDAR's clock is not settled")
+            if sweep.start.host < window[0] - SYNC_BOUND_S or sweep.end.host > window[1] + SYNC_BOUND_S:
+                return (f"a LiDAR sweep was received at {sweep.start.host:.3f}-{sweep.end.host:.3f} s, outside the "
+                        f"still window {window[0]:.3f}-{window[1]:.3f} s (host clock)")
+        steps = [s for s in self._clock_steps() if s.host_s > window[0]]
+        if steps:
+            return f"the LiDAR's clock stepped {steps[-1].step_s:+.3f} s inside the still window"
+        return None
+
+    def _clock_steps(self) -> tuple[ClockStep, ...]:
+        return () if self.stats is None else self.stats.clock_steps
+
     def _meta(self, frame_t: float, frame: PanoramaFrame, chosen: list[tuple[SweepSample, Sweep]], cloud: Cloud,
               window: tuple[float, float], moved_m: float | None) -> dict[str, Any]:
         sweeps = [sw for _, sw in chosen]
-        first, last = sweeps[0], sweeps[-1]
+        measured = min(s.receive_offset_s for s in sweeps)
         lidar_mid = 0.5 * (chosen[0][0].t_start + chosen[-1][0].t_end)
-        camera_change = self.gate.camera_change()
         return {
             "source": "captured",
             "software_version": software_version(),
@@ -326,32 +502,59 @@ class _Session:
                 "time_base": frame.time_base.value,
                 "exposure": {"shutter_s": frame.exposure.shutter_s, "gain_db": frame.exposure.gain_db},
             },
-            "lidar": {
-                "source": self.request.lidar,
-                "device_time_s": [float(first.start.device), float(last.end.device)],
-                "host_time_s": [float(first.start.host), float(last.end.host)],
-                "sweeps_fused": len(sweeps),
-                "points": len(cloud),
-                "rpm": float(np.median([s.rpm for s in sweeps])),
-                "packets": int(sum(s.packet_count for s in sweeps)),
-                "packets_lost": int(sum(s.missing_packets for s in sweeps)),
-                "pps": last.pps.name.lower() if last.pps is not None else None,
-                "time_source": last.time_source.value,
-            },
-            "clock_offset_s": {"camera": float(frame_t - frame.device_time_s), "lidar": float(last.clock_offset_s)},
+            "lidar": self._lidar_meta(sweeps, cloud),
+            "clock_offset_s": {"camera": float(frame_t - frame.device_time_s), "lidar": float(measured)},
+            "sync": self._sync_meta(sweeps),
             "camera_minus_lidar_s": float(frame_t - lidar_mid),
             "still_window_host_s": [float(window[0]), float(window[1])],
-            "motion": {
-                "still_seconds": self.request.still_seconds,
-                "lidar_range_change_m": float(self.gate.lidar_change_m),
-                "lidar_still_threshold_m": STILL_RANGE_M,
-                "camera_change_grey": None if camera_change is None else float(camera_change),
-                "camera_frames_in_window": len(self.gate.window_frames()),
-                "camera_still_threshold_grey": CAMERA_CHANGE_GREY,
-                "moved_since_previous_m": None if moved_m is None else float(moved_m),
-                "min_move_m": self.request.min_move,
-            },
+            "motion": self._motion_meta(moved_m),
             "stream": {"packets_lost_total": self._packets_lost()},
+        }
+
+    def _lidar_meta(self, sweeps: list[Sweep], cloud: Cloud) -> dict[str, Any]:
+        first, last = sweeps[0], sweeps[-1]
+        return {
+            "source": self.request.lidar,
+            "device_time_s": [float(first.start.device), float(last.end.device)],
+            "host_time_s": [float(first.start.host), float(last.end.host)],
+            "sweeps_fused": len(sweeps),
+            "points": len(cloud),
+            "rpm": float(np.median([s.rpm for s in sweeps])),
+            "packets": int(sum(s.packet_count for s in sweeps)),
+            "packets_lost": int(sum(s.missing_packets for s in sweeps)),
+            "sweep_coverage": [round(float(s.coverage), 4) for s in sweeps],
+            "min_sweep_fraction": self.request.min_sweep_fraction,
+            "pps": last.pps.name.lower() if last.pps is not None else None,
+            "time_source": last.time_source.value,
+        }
+
+    def _sync_meta(self, sweeps: list[Sweep]) -> dict[str, Any]:
+        """The LiDAR's host-minus-device offset as used (its clock segment's) and as measured on the fused
+        sweeps' own packets, and every clock step seen so far in this capture."""
+        return {
+            "lidar_offset_used_s": float(sweeps[-1].clock_offset_s),
+            "lidar_offset_measured_s": float(min(s.receive_offset_s for s in sweeps)),
+            "lidar_receive_lag_s": float(max(s.receive_offset_s - s.clock_offset_s for s in sweeps)),
+            "bound_s": SYNC_BOUND_S,
+            "lidar_clock_steps": [{"host_time_s": float(s.host_s), "step_s": float(s.step_s), "seen": s.kind.value}
+                                  for s in self._clock_steps()],
+        }
+
+    def _motion_meta(self, moved_m: float | None) -> dict[str, Any]:
+        camera_change, camera_limit = self.gate.camera_change(), self.gate.camera_threshold_deg()
+        limits = self.thresholds
+        return {
+            "still_seconds": self.request.still_seconds,
+            "lidar_rotation_deg": float(self.gate.rotation_deg),
+            "lidar_translation_m": float(self.gate.translation_m),
+            "lidar_still_rotation_deg": limits.rotation_deg,
+            "lidar_still_translation_m": limits.translation_m,
+            "camera_change_deg": None if camera_change is None else float(camera_change),
+            "camera_frames_in_window": len(self.gate.window_frames()),
+            "camera_still_deg": None if camera_limit is None else float(camera_limit),
+            "tolerance_deg": limits.tolerance_deg,
+            "moved_since_previous_m": None if moved_m is None else float(moved_m),
+            "min_move_m": self.request.min_move,
         }
 
     def _ensure_rig(self, image: np.ndarray) -> None:
@@ -397,8 +600,17 @@ class _Session:
 
     # -- sensors' health and status ------------------------------------------------------------------------
     def _lidar_silence(self, silent_s: float) -> str:
-        describe = self.sources.lidar.describe
-        partial = self.partial
+        """The error when no usable sweep came for ``silent_s``: what the LiDAR did send, and what to check."""
+        describe, unusable = self.sources.lidar.describe, self.unusable
+        if unusable is not None and unusable.use is SweepUse.LOSSY:
+            return self._loss_error(unusable.sweep, silent_s)
+        if unusable is not None and unusable.use is SweepUse.BLIND:
+            return (f"the VLP-16 at {describe} turns ({unusable.sweep.rpm:.0f} rpm) and sends whole turns but sees "
+                    f"almost nothing: returns in {unusable.returns} of {RINGS * AZIMUTH_BINS} directions (at least "
+                    f"{BLIND_FRACTION:.0%} needed) for {silent_s:.1f} s: its window is covered, dirty or blinded, or "
+                    "its lasers are off (every range zero); clean and uncover it, then check its settings (web "
+                    "interface)")
+        partial = unusable.sweep if unusable is not None else None
         if partial is not None and partial.rpm < STOPPED_RPM:
             return (f"the VLP-16 at {describe} sends packets ({self._packet_rate():.0f}/s) but its head does not turn "
                     f"({partial.rpm:.0f} rpm), no sweep for {silent_s:.1f} s: its motor is stopped or blocked; check "
@@ -412,6 +624,23 @@ class _Session:
                     "(docs/vlp16.md, Validation)")
         return (f"no VLP-16 data from {describe} for {silent_s:.1f} s: check the sensor's power and cable, and "
                 "that it sends to this host's address and port (deploy/network)")
+
+    def _loss_error(self, sweep: Sweep, silent_s: float) -> str:
+        return (f"the VLP-16 at {self.sources.lidar.describe} loses packets: no sweep with at least "
+                f"{self.request.min_sweep_fraction:.0%} of a turn's packets for {silent_s:.1f} s (the latest held "
+                f"{sweep.coverage:.0%}; {self._packets_lost()} packets lost so far): check its cable and switch, that "
+                "nothing else floods its network, and the receive buffer (deploy/network); or accept more loss "
+                "with --min-sweep-fraction")
+
+    def _show_unusable(self, unusable: Unusable) -> None:
+        """The status line while sweeps keep coming that cannot go into a pair (before the silence error)."""
+        if unusable.use is SweepUse.LOSSY:
+            self._set(CaptureState.UNUSABLE_LIDAR, f"the LiDAR's sweeps are incomplete: {unusable.sweep.coverage:.0%} "
+                                                   f"of a turn's packets arrive, {self.request.min_sweep_fraction:.0%} "
+                                                   "needed")
+        elif unusable.use is SweepUse.BLIND:
+            self._set(CaptureState.UNUSABLE_LIDAR, f"the LiDAR sees almost nothing: returns in {unusable.returns} "
+                                                   f"of {RINGS * AZIMUTH_BINS} directions")
 
     def _silence_limit(self, any_data: bool) -> float:
         return self.request.silence_timeout_s if any_data else max(self.request.silence_timeout_s, STARTUP_S)

@@ -16,7 +16,13 @@ class ConfigError(CaptureError):
 
 
 class SensorSilenceError(CaptureError):
-    """A sensor sent nothing usable for longer than the silence timeout."""
+    """A sensor sent nothing usable for longer than the silence timeout (the message says what it did send:
+    nothing, bad packets, a stopped head, incomplete turns, turns without returns)."""
+
+
+class SyncError(CaptureError):
+    """The camera's and the LiDAR's times disagree for longer than the silence timeout: no pair can be shown
+    to be synchronised."""
 
 
 class SourceEndedError(CaptureError):

@@ -24,7 +24,7 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "capture",
         help="capture still camera/LiDAR pairs: stop the rig at a place, it takes a pair; move on",
-        description="Waits until the rig stands still (LiDAR range change, confirmed by the camera), takes the "
+        description="Waits until the rig stands still (LiDAR motion estimate, confirmed by the camera), takes the "
         "camera frame and fuses the LiDAR sweeps of that still period into one pair, then waits for the rig to "
         "move to a new place. Rerunning the same command continues the dataset. Defaults come from the rig "
         "file (--config, $RIGD_CONFIG, ./rig.yaml, /etc/rigd/rig.yaml; docs/configuration.md). Ctrl-C stops "
@@ -41,7 +41,10 @@ def register(subparsers: Any) -> None:
                         help="range change in m (90th percentile over directions) from the last pair's scan "
                         "that makes a new place (default 0.5)")
     parser.add_argument("--silence-timeout", type=float, default=None,
-                        help="seconds without data from a sensor before giving up (default 5)")
+                        help="seconds without usable data from a sensor before giving up (default 5)")
+    parser.add_argument("--min-sweep-fraction", type=float, default=None,
+                        help="every fused LiDAR sweep holds at least this fraction of a turn's packets; sustained "
+                        "loss below it ends the capture after the silence timeout (default 0.99)")
     parser.add_argument("--config", type=Path, default=None, help="rig file (default: see above)")
     parser.set_defaults(func=run)
 
@@ -68,6 +71,7 @@ def request_from_args(args: argparse.Namespace) -> CaptureRequest:
         min_move=pick(args.min_move, defaults.min_move),
         silence_timeout_s=pick(args.silence_timeout, defaults.silence_timeout_s),
         config=config,
+        min_sweep_fraction=pick(args.min_sweep_fraction, defaults.min_sweep_fraction),
     )
 
 

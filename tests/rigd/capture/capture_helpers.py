@@ -1,10 +1,12 @@
 """Helpers for the capture tests: a recorded session of the moving simulated rig (a pcap of its VLP-16 and a
-replay directory of its camera), made without waiting in real time, and checks against its trajectory."""
+replay directory of its camera), made without waiting in real time, checks against its trajectory, and a fault
+relay: the simulated VLP-16 with a fault applied to every datagram on its way out (real UDP on loopback)."""
 
 from __future__ import annotations
 
 import csv
 import socket
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -14,7 +16,8 @@ import yaml
 from drivers.sim import render_panorama
 from drivers.sim.motion import MotionRigSpec, Trajectory
 from drivers.sim.stream import TURN_S, LidarEmitter
-from drivers.vlp16 import write_pcap
+from drivers.vlp16 import PpsStatus, encode_position_packet, gprmc_sentence, write_pcap
+from drivers.vlp16.layout import BLOCKS_PER_PACKET, HOUR_US, POSITION_TIMESTAMP_OFFSET
 
 REPO = Path(__file__).resolve().parents[3]
 START_S = 1_700_000_000.0  # the recorded rig's time 0 on the host clock
@@ -48,11 +51,16 @@ def read_meta(pair: Path) -> dict:
     return yaml.safe_load((pair / "meta.yaml").read_text())
 
 
-def stop_of_pair(meta: dict, trajectory: Trajectory, start_s: float, still_tolerance_m: float = 0.01) -> int:
+def stop_of_pair(meta: dict, trajectory: Trajectory, start_s: float, still_tolerance_m: float = 0.01,
+                 lidar_times: str = "device_time_s") -> int:
     """The stop a pair was taken at. Fails unless the rig stood within ``still_tolerance_m`` (and 0.1 deg)
-    of that stop's place at the camera frame's instant and over the whole span of the fused sweeps."""
-    times = [meta["camera"]["host_time_s"], *meta["lidar"]["device_time_s"]]
-    times += list(np.linspace(*meta["lidar"]["device_time_s"], 20))
+    of that stop's place at the camera frame's instant and at every instant a fused sweep was scanned: the
+    simulated VLP-16 scans each turn at the pose of its middle, so from half a turn after the first sweep's
+    start to half a turn before the last one's end (``lidar_times``: device times, which are the host clock
+    for the simulated rig, or ``host_time_s``, when the packets were received, whatever the sensor's clock
+    said)."""
+    first, last = meta["lidar"][lidar_times]
+    times = [meta["camera"]["host_time_s"], *np.linspace(first + TURN_S / 2, last - TURN_S / 2, 20)]
     stops = set()
     for t in times:
         rel = t - start_s
@@ -78,3 +86,78 @@ def free_udp_ports(count: int) -> list[int]:
     finally:
         for sock in sockets:
             sock.close()
+
+
+# -- the fault relay ---------------------------------------------------------------------------------------
+
+Fault = Callable[[float, int, bytes], "bytes | None"]  # (s since the rig started, port, payload) -> sent or None
+
+
+class RelayedEmitter(LidarEmitter):
+    """The simulated rig's VLP-16 with ``fault`` between it and the network: each datagram, with its time
+    since the rig started (s) and its port, goes out as ``fault`` returns it (None: dropped)."""
+
+    def __init__(self, spec: MotionRigSpec, host: str, data_port: int, position_port: int, fault: Fault) -> None:
+        super().__init__(spec, host, data_port, position_port)
+        self.fault = fault
+
+    def turn_datagrams(self, turn: int) -> list[tuple[float, int, bytes]]:
+        start = self.spec.start_host_s
+        assert start is not None
+        out = []
+        for t, port, payload in super().turn_datagrams(turn):
+            sent = self.fault(t - start, port, payload)
+            if sent is not None:
+                out.append((t, port, sent))
+        return out
+
+
+def shifted(payload: bytes, port: int, data_port: int, seconds: float) -> bytes:
+    """The datagram with its device timestamp moved by ``seconds`` (modulo the hour, as the sensor counts)."""
+    offset = 1200 if port == data_port else POSITION_TIMESTAMP_OFFSET
+    packet = bytearray(payload)
+    stamp = int.from_bytes(packet[offset : offset + 4], "little")
+    packet[offset : offset + 4] = ((stamp + round(seconds * 1e6)) % HOUR_US).to_bytes(4, "little")
+    return bytes(packet)
+
+
+def clock_step(data_port: int, at_s: float, step_s: float) -> Fault:
+    """The device clock jumps by ``step_s`` at ``at_s`` (negative: back)."""
+    return lambda t, port, payload: shifted(payload, port, data_port, step_s) if t >= at_s else payload
+
+
+def pps_lock(data_port: int, start_s: float, at_s: float, ahead_s: float) -> Fault:
+    """A free-running device clock ``ahead_s`` ahead of UTC (the host clock) until a PPS lock at ``at_s`` sets
+    it to UTC, stepping it back: from then on position packets say locked, with the $GPRMC time."""
+
+    def fault(t: float, port: int, payload: bytes) -> bytes:
+        if t < at_s:
+            return shifted(payload, port, data_port, ahead_s)
+        if port == data_port:
+            return payload
+        utc = start_s + t
+        return encode_position_packet(round(utc * 1e6) % HOUR_US, PpsStatus.LOCKED, gprmc_sentence(utc))
+
+    return fault
+
+
+def dropping(data_port: int, fraction: float, seed: int = 0) -> Fault:
+    """Data packets lost at random, ``fraction`` of them."""
+    rng = np.random.default_rng(seed)
+    return lambda t, port, payload: None if port == data_port and rng.random() < fraction else payload
+
+
+def zeroed(data_port: int) -> Fault:
+    """A blind sensor: every range of every data packet 0 (no return), azimuths and stamps as usual."""
+    distance = (np.arange(BLOCKS_PER_PACKET)[:, None] * 100 + 4 + 3 * np.arange(32)[None, :]).ravel()
+
+    def fault(t: float, port: int, payload: bytes) -> bytes:
+        if port != data_port:
+            return payload
+        packet = np.frombuffer(payload, np.uint8).copy()
+        packet[distance] = 0
+        packet[distance + 1] = 0
+        return packet.tobytes()
+
+    return fault
+

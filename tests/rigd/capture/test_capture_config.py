@@ -62,7 +62,9 @@ def test_the_deployed_rig_file_gives_its_values() -> None:
 
 @pytest.mark.parametrize("capture, match", [({"n": 0}, "capture.n"), ({"n": "twelve"}, "capture.n"),
                                             ({"still_seconds": -1}, "still_seconds"), ({"sweep": 5}, "'sweep'"),
-                                            ({"min_move": "far"}, "min_move")])
+                                            ({"min_move": "far"}, "min_move"),
+                                            ({"min_sweep_fraction": 0}, "min_sweep_fraction"),
+                                            ({"min_sweep_fraction": 1.2}, "at most 1")])
 def test_bad_capture_settings_name_the_key(tmp_path: Path, capture: dict, match: str) -> None:
     path = tmp_path / "rig.yaml"
     path.write_text(yaml.safe_dump({"capture": capture}))
@@ -100,10 +102,14 @@ def test_config_search_order(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
 def test_options_override_the_rig_file_which_overrides_the_defaults(tmp_path: Path) -> None:
     path = tmp_path / "rig.yaml"
     path.write_text(yaml.safe_dump({"lidar": {"source": "pcap:x.pcap"},
-                                    "capture": {"n": 7, "sweeps": 3, "out": str(tmp_path / "ds")}}))
+                                    "capture": {"n": 7, "sweeps": 3, "out": str(tmp_path / "ds"),
+                                                "min_sweep_fraction": 0.95}}))
     args = build_parser().parse_args(["capture", "--config", str(path), "--sweeps", "9", "--camera", "sim"])
     request = request_from_args(args)
     assert (request.n, request.sweeps, request.out) == (7, 9, tmp_path / "ds")  # file, option, file
+    assert request.min_sweep_fraction == 0.95
+    args = build_parser().parse_args(["capture", "--config", str(path), "--min-sweep-fraction", "0.9"])
+    assert request_from_args(args).min_sweep_fraction == 0.9
     assert (request.lidar, request.camera) == ("pcap:x.pcap", "sim")
     assert (request.still_seconds, request.min_move, request.silence_timeout_s) == (2.0, 0.5, 5.0)  # built in
     assert request.config == path

@@ -20,7 +20,7 @@ from drivers.sim.stream import LidarEmitter
 from rigd.capture import CaptureRequest, DiskFullError, SensorSilenceError, SourceEndedError, run_capture
 from rigd.capture import engine as capture_engine
 from rigd.capture import sources as capture_sources
-from rigd.capture.engine import STILL_RANGE_M
+from rigd.capture.engine import SYNC_BOUND_S
 from rigd.dataset import open_dataset
 from rigd.errors import DatasetError
 
@@ -57,7 +57,14 @@ def test_one_pair_per_stop_and_none_in_motion(tmp_path: Path, session) -> None:
         first, last = meta["lidar"]["device_time_s"]
         assert window[0] - 1e-3 <= first < last <= window[1] + 1e-3
         assert meta["lidar"]["sweeps_fused"] == 3 and meta["lidar"]["packets_lost"] == 0
-        assert meta["motion"]["lidar_range_change_m"] <= STILL_RANGE_M
+        assert all(0.998 < c < 1.002 for c in meta["lidar"]["sweep_coverage"])
+        motion = meta["motion"]
+        assert motion["lidar_rotation_deg"] <= motion["lidar_still_rotation_deg"] == pytest.approx(0.05)
+        assert motion["lidar_translation_m"] <= motion["lidar_still_translation_m"]
+        sync = meta["sync"]  # the recording's packets carry their own times: measured and used agree
+        assert sync["lidar_offset_used_s"] <= sync["lidar_offset_measured_s"] == meta["clock_offset_s"]["lidar"]
+        assert 0 <= sync["lidar_receive_lag_s"] < 2e-3 and sync["bound_s"] == SYNC_BOUND_S
+        assert sync["lidar_clock_steps"] == []
         assert meta["source"] == "captured" and meta["software_version"]
     moved = [m["motion"]["moved_since_previous_m"] for m in metas]
     assert moved[0] is None and min(moved[1:]) >= 0.5
@@ -130,7 +137,8 @@ def test_disk_full_while_writing_is_a_named_error(tmp_path: Path, session, monke
 
 
 @pytest.mark.parametrize("field, value", [("n", 0), ("sweeps", 0), ("still_seconds", 0.0), ("min_move", -1.0),
-                                          ("silence_timeout_s", math.nan)])
+                                          ("silence_timeout_s", math.nan), ("min_sweep_fraction", 0.0),
+                                          ("min_sweep_fraction", 1.5)])
 def test_bad_request_values_are_refused(tmp_path: Path, session, field: str, value: float) -> None:
     from dataclasses import replace
 
