@@ -91,22 +91,30 @@ def render_panorama(scene: Scene, pose_world_camera: Pose, width: int, height: i
     """An equirectangular panorama (H,W) uint8 grey, or (H,W,3) BGR when ``color``: from one projection
     centre, or stitched from the Ladybug5's side sensors (``stitch``: parallax, seams, gains, falloff;
     drivers.sim.stitched), then JPEG-compressed at ``jpeg_quality`` (1..100) if given."""
+    gains = None if stitch is None else sensor_gains(stitch, rng)  # drawn first: the noise then follows
+    display = panorama_display(scene, pose_world_camera, width, height, supersample, stitch, gains)
+    image = quantise(display, rng, noise_grey, color)
+    return image if jpeg_quality is None else jpeg_round_trip(image, jpeg_quality)
+
+
+def panorama_display(scene: Scene, pose_world_camera: Pose, width: int, height: int, supersample: int = 2,
+                     stitch: StitchConfig | None = None, gains: F64 | None = None) -> F64:
+    """The noise-free panorama (H,W) in [0, 1] that :func:`render_panorama` quantises: what a still camera
+    sees in every frame (``gains``: the stitched sensors', drawn by the caller)."""
     _check_size(width, height, supersample)
     rays_cam = _panorama_rays(width, height, supersample)
-    gains = None if stitch is None else sensor_gains(stitch, rng)  # drawn first: the noise then follows
     per_row = width * supersample * supersample
     band = max(1, BAND_RAYS // (per_row * (1 if stitch is None else 2)))
     linear = np.empty((height, width))
     for r0 in range(0, height, band):
         r1 = min(r0 + band, height)
         rays = rays_cam[r0 * per_row : r1 * per_row]
-        if stitch is None or gains is None:  # (gains is None exactly when stitch is)
+        if stitch is None or gains is None:
             lin = radiance(scene, pose_world_camera.translation_m, rotate(rays, pose_world_camera.rotation))
         else:
             lin = _stitched_radiance(scene, pose_world_camera, rays, stitch, gains)
         linear[r0:r1] = lin.reshape(-1, supersample, width, supersample).mean(axis=(1, 3))
-    image = _to_8bit(tone(scene, linear), rng, noise_grey, color)
-    return image if jpeg_quality is None else jpeg_round_trip(image, jpeg_quality)
+    return tone(scene, linear)
 
 
 def _stitched_radiance(scene: Scene, pose_world_camera: Pose, rays_cam: F64, stitch: StitchConfig,
@@ -170,10 +178,10 @@ def render_pinhole(scene: Scene, origin_world: F64, rotation_world_optical: F64,
     origin = np.asarray(origin_world, dtype=np.float64)
     lin = np.concatenate([radiance(scene, origin, dirs[s : s + BAND_RAYS]) for s in range(0, len(dirs), BAND_RAYS)])
     linear = lin.reshape(height, supersample, width, supersample).mean(axis=(1, 3))
-    return _to_8bit(tone(scene, linear), rng, noise_grey, color)
+    return quantise(tone(scene, linear), rng, noise_grey, color)
 
 
-def _to_8bit(display: F64, rng: np.random.Generator, noise_grey: float, color: bool) -> U8:
+def quantise(display: F64, rng: np.random.Generator, noise_grey: float, color: bool = False) -> U8:
     """Quantise a display image in [0, 1] to 8 bits with Gaussian read noise (per channel if colour)."""
     channels = 3 if color else 1
     shape = (*display.shape, channels)

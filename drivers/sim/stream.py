@@ -11,7 +11,9 @@ are lost but never sent much later than their time (that would look like a clock
 drivers.vlp16.clock); one less late leaves at once and the sender catches up within the turn.
 
 :class:`CameraStream` renders the panorama seen at the rig's pose at the instant the frame starts, as
-often as ``frame_period_s`` allows (rendering is slower than a real camera: see MotionRigSpec). Frames
+often as ``frame_period_s`` allows; while the rig stands still the view is rendered once and each frame
+only adds its own read noise, so a still rig streams at that rate as a real camera does (rendering a moving
+rig is slower than a real camera: see MotionRigSpec). Frames
 carry their exposure instant on the host clock and the camera's own clock (seconds since the rig
 started).
 
@@ -36,7 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.sim.camera import render_panorama
+from drivers.sim.camera import panorama_display, quantise
 from drivers.sim.errors import SimError
 from drivers.sim.lidar import FIRINGS_PER_TURN, BeamReturns, LidarConfig, beam_returns, scan
 from drivers.sim.motion import MotionRigSpec
@@ -185,6 +187,7 @@ class CameraStream:
         self.spec = spec
         self.scene, self.trajectory = spec.build()
         self._stop = stop if stop is not None else threading.Event()
+        self._view: tuple[bytes, NDArray[np.float64]] | None = None  # the last pose rendered and its view
 
     def frames(self) -> Iterator[SimFrame]:
         sequence = 0
@@ -195,11 +198,19 @@ class CameraStream:
                 continue
             t = now - self.start_host_s
             rng = np.random.default_rng([self.spec.seed, sequence, _STREAM_CAMERA])
-            image = render_panorama(self.scene, self.trajectory.pose_at(t), self.spec.width, self.spec.height, rng,
-                                    self.spec.image_noise_grey)
-            yield SimFrame(image, now, t, sequence)
+            yield SimFrame(quantise(self._display(t), rng, self.spec.image_noise_grey), now, t, sequence)
             sequence += 1
             self._stop.wait(max(0.0, now + self.spec.frame_period_s - time.time()))
+
+    def _display(self, t: float) -> NDArray[np.float64]:
+        """The noise-free view at time ``t`` s: rendered again only when the rig has moved. A real camera
+        streams at 10 Hz whatever it sees; a render takes seconds, so without this a still rig waited that
+        long for each frame (and a busy machine's capture missed still windows)."""
+        pose = self.trajectory.pose_at(t)
+        key = pose.matrix.tobytes()
+        if self._view is None or self._view[0] != key:
+            self._view = key, panorama_display(self.scene, pose, self.spec.width, self.spec.height)
+        return self._view[1]
 
     def close(self) -> None:
         self._stop.set()

@@ -3,6 +3,7 @@ sends (decoded back, and paced at the sensor's real rate over loopback) and its 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from pathlib import Path
@@ -115,3 +116,24 @@ def test_camera_frames_show_the_pose_at_their_exposure() -> None:
     expected = render_panorama(stream.scene, stream.trajectory.pose_at(frame.device_time_s), 64, 32,
                                np.random.default_rng([spec.seed, 0, 11]), spec.image_noise_grey)
     np.testing.assert_array_equal(frame.image, expected)
+
+
+def test_a_still_rig_streams_frames_without_rendering_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Standing still, the view is rendered once; each frame adds its own noise, as render_panorama would."""
+    import drivers.sim.stream as stream_module
+
+    renders = []
+    real = stream_module.panorama_display
+    monkeypatch.setattr(stream_module, "panorama_display", lambda *a, **k: renders.append(1) or real(*a, **k))
+    spec = dataclasses.replace(SPEC, still_s=5.0).started(time.time())
+    stream = CameraStream(spec)
+    frames = stream.frames()
+    got = [next(frames) for _ in range(3)]
+    stream.close()
+    assert [f.sequence for f in got] == [0, 1, 2]
+    assert len(renders) == 1  # the first place: the rig has not moved
+    for f in got:
+        expected = render_panorama(stream.scene, stream.trajectory.pose_at(f.device_time_s), 64, 32,
+                                   np.random.default_rng([spec.seed, f.sequence, 11]), spec.image_noise_grey)
+        np.testing.assert_array_equal(f.image, expected)
+    assert not np.array_equal(got[0].image, got[1].image)  # fresh read noise
