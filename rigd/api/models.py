@@ -171,8 +171,12 @@ class CalibrateIn(Request):
                                           "rig.yaml tolerance, else 0.2 deg / 2 cm")
 
 
-class ThresholdIn(ToleranceIn):
-    """The change per axis that matters to a check (default the field tolerance, 0.2 deg / 2 cm)."""
+class ThresholdIn(Request):
+    """The length of a rotation / translation change that matters to a check: rigd check's defaults
+    (calib.check.DriftOptions; a test holds them equal), docs/check.md."""
+
+    rotation_deg: ToleranceDeg = Field(default=0.3, description="rotation change, deg (0.001 .. 10)")
+    translation_cm: ToleranceCm = Field(default=2.0, description="translation change, cm (0.01 .. 100)")
 
 
 class CheckIn(Request):
@@ -180,7 +184,7 @@ class CheckIn(Request):
     against: Literal["active"] | Annotated[StrictInt, Field(ge=1, le=2**31 - 1)] | TransformIn = Field(
         "active", description="the extrinsics to check: the active version, a version number, or an explicit "
         "transform")
-    threshold: ThresholdIn | None = Field(None, description="change per axis that matters; absent: 0.2 deg / 2 cm")
+    threshold: ThresholdIn | None = Field(None, description="the change that matters; absent: 0.3 deg / 2 cm")
 
 
 class ManualVersionIn(Request):

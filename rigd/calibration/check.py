@@ -2,29 +2,79 @@
 
 from __future__ import annotations
 
+import os
 import time
-from dataclasses import dataclass
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
-from calib.check import DriftOptions, DriftResult, check_drift
+from typing_extensions import TypedDict
+
+from calib.check import DriftOptions, DriftResult, GroupChange, check_drift
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.pipeline import CalibParams
 from rigd.calibration.service import Progress, dataset_features
-from rigd.dataset import open_dataset
+from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import transform_from_yaml, transform_to_yaml
 from rigd.dataset.store import read_yaml_mapping
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
+from rigd.report import TransformYaml
 from rigd.store import Database, VersionStore
+
+
+class PerAxis(TypedDict):
+    rpy_deg: list[float]
+    xyz_cm: list[float]
+
+
+class GroupYaml(TypedDict):
+    """One group's change as a length (deg for rotation, cm for translation): ``length`` measured, ``upper`` the
+    largest the pairs allow at the ok confidence, ``t2`` Hotelling's T² of the change and ``t2_limit`` beyond
+    which it is real."""
+
+    length: float
+    upper: float
+    threshold: float
+    t2: float
+    t2_limit: float
+
+
+class Thresholds(TypedDict):
+    rotation_deg: float
+    translation_cm: float
+
+
+class Confidence(TypedDict):
+    ok: float
+    drifted: float
+
+
+class CheckReport(TypedDict):
+    """``rigd check --json`` and the service's check job result."""
+
+    status: str  # ok | drifted | unknown
+    axes: list[str]
+    reasons: list[str]
+    change: PerAxis
+    sigma: PerAxis
+    groups: dict[str, GroupYaml]  # "rotation", "translation"; empty when no group could be judged
+    places: int
+    thresholds: Thresholds
+    confidence: Confidence
+    checked: TransformYaml
+    found: TransformYaml
+    dataset: str
+    pairs: int
+    wall_time_s: float
 
 
 @dataclass(frozen=True)
 class CheckOutcome:
     result: DriftResult
     checked: Transform
-    report: dict[str, Any]
+    report: CheckReport
 
 
 def extrinsics_from_file(path: Path) -> Transform:
@@ -45,29 +95,55 @@ def extrinsics_from_store(data_dir: Path, number: int) -> Transform:
         db.close()
 
 
+def _group_yaml(g: GroupChange) -> GroupYaml:
+    return {"length": g.length, "upper": g.upper, "threshold": g.threshold, "t2": g.t2, "t2_limit": g.t2_limit}
+
+
+def check_report(result: DriftResult, checked: Transform, opts: DriftOptions, dataset: Dataset,
+                 wall_s: float) -> CheckReport:
+    return {
+        "status": result.status.value,
+        "axes": list(result.axes),
+        "reasons": list(result.reasons),
+        "change": {"rpy_deg": result.change[:3].tolist(), "xyz_cm": result.change[3:].tolist()},
+        "sigma": {"rpy_deg": result.sigma[:3].tolist(), "xyz_cm": result.sigma[3:].tolist()},
+        "groups": {g.group.value: _group_yaml(g) for g in result.judgement.groups},
+        "places": result.places,
+        "thresholds": {"rotation_deg": opts.threshold_rot_deg, "translation_cm": opts.threshold_trans_cm},
+        "confidence": {"ok": opts.ok_confidence, "drifted": opts.drift_confidence},
+        "checked": transform_to_yaml(checked),
+        "found": transform_to_yaml(result.found),
+        "dataset": str(dataset.root),
+        "pairs": len(dataset),
+        "wall_time_s": round(wall_s, 2),
+    }
+
+
+def _cores() -> int:
+    """The processors this process may run on (Linux: its affinity, as a pinned service's)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def with_rig_tolerance(opts: DriftOptions, dataset: Dataset) -> DriftOptions:
+    """``opts`` with the rig file's field tolerance (if it has one) for the pairs' own verdict, as rigd calibrate."""
+    return opts if dataset.rig.tolerance is None else replace(opts, trust=dataset.rig.tolerance)
+
+
 def run_check(dataset_dir: Path, checked: Transform, opts: DriftOptions,
               progress: Progress | None = None) -> CheckOutcome:
     started = time.monotonic()
     dataset = open_dataset(dataset_dir, WORKING_WIDTH_PX)
+    opts = with_rig_tolerance(opts, dataset)
     params = CalibParams()
-    feats = dataset_features(dataset, params, progress)
+    # Threads, not processes: the edges' FFTs and OpenCV release the GIL, and a spawned process would first spend
+    # about a second importing; the same features either way.
+    with ThreadPoolExecutor(max(1, min(_cores(), len(dataset)))) as threads:
+        feats = dataset_features(dataset, params, progress, threads)
     if progress:
         progress("searching around the checked extrinsics", 0.6)
     try:
         result = check_drift(feats, checked, params, opts, dataset.rig.prior)
     except CalibError as exc:
         raise RigdError(f"{dataset.root}: {exc}") from exc
-    report: dict[str, Any] = {
-        "status": result.status.value,
-        "axes": list(result.axes),
-        "reasons": list(result.reasons),
-        "change": {"rpy_deg": result.change[:3].tolist(), "xyz_cm": result.change[3:].tolist()},
-        "sigma": {"rpy_deg": result.sigma[:3].tolist(), "xyz_cm": result.sigma[3:].tolist()},
-        "thresholds": {"rotation_deg": opts.threshold_rot_deg, "translation_cm": opts.threshold_trans_cm},
-        "checked": transform_to_yaml(checked),
-        "found": transform_to_yaml(result.found),
-        "dataset": str(dataset.root),
-        "pairs": len(dataset),
-        "wall_time_s": round(time.monotonic() - started, 2),
-    }
+    report = check_report(result, checked, opts, dataset, time.monotonic() - started)
     return CheckOutcome(result, checked, report)

@@ -8,13 +8,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from calib.check import DriftOptions, DriftStatus
+from calib.check import DriftOptions, DriftStatus, percent
 from calib.geometry import Transform
-from rigd.calibration.check import extrinsics_from_file, extrinsics_from_store, run_check
+from rigd.calibration.check import CheckReport, extrinsics_from_file, extrinsics_from_store, run_check
 from rigd.cli.args import parse_tolerance
 from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
 from rigd.errors import RigdError
+from rigd.store.jsonsafe import json_safe
 
 
 def register(subparsers: Any) -> None:
@@ -22,9 +23,10 @@ def register(subparsers: Any) -> None:
         "check",
         help="is an existing calibration still right for new pairs? (exit 0 ok, 1 drifted, 2 unknown or error)",
         description="Searches the finest levels of the calibration from the given extrinsics on the dataset's "
-        "pairs and reports the per-axis change with its uncertainty: ok (every axis known to be within its "
-        "threshold), drifted (an axis moved beyond its threshold by more than 3 sigma) or unknown (the pairs "
-        "cannot tell). Exit code 0, 1, 2 (2 is also any error, with a message). See docs/check.md.",
+        "pairs and judges the rotation and the translation change by their length: ok (both within their "
+        "thresholds at 95 % confidence), drifted (one moved beyond its threshold, and the change is real at 95 % "
+        "confidence) or unknown (the pairs cannot tell; at least 4 places are needed). Exit code 0, 1, 2 (2 is "
+        "also any error, with a message). See docs/check.md.",
     )
     parser.add_argument("dataset", type=Path, metavar="DATASET")
     source = parser.add_mutually_exclusive_group()
@@ -36,7 +38,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--data-dir", type=Path, default=Path("rigd-data"), help="the service's data directory "
                         "for --version (default rigd-data)")
     parser.add_argument("--threshold", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
-                        help="change that matters per axis (default 0.2,2)")
+                        help="length of a rotation (deg) and of a translation (cm) change that matters "
+                        f"(default {DriftOptions().threshold_rot_deg:g},{DriftOptions().threshold_trans_cm:g})")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
     parser.set_defaults(func=run)
 
@@ -66,15 +69,24 @@ def run(args: argparse.Namespace) -> int:
                         lambda stage, f: print(f"[{f * 100:5.1f} %] {stage}", file=sys.stderr, flush=True))
     rep = outcome.report
     if args.json:
-        print(json.dumps(rep))
+        print(json.dumps(json_safe(rep)))
     else:
-        c, s = rep["change"], rep["sigma"]
-        print(f"change roll, pitch, yaw: {', '.join(f'{v:+.3f}' for v in c['rpy_deg'])} deg "
-              f"(sigma {', '.join(f'{v:.3f}' for v in s['rpy_deg'])})")
-        print(f"change x, y, z: {', '.join(f'{v:+.2f}' for v in c['xyz_cm'])} cm "
-              f"(sigma {', '.join(f'{v:.2f}' for v in s['xyz_cm'])})")
-        axes = f" ({', '.join(rep['axes'])})" if rep["axes"] else ""
-        print(f"status: {rep['status'].upper()}{axes}; {rep['pairs']} pairs, {rep['wall_time_s']:.1f} s")
-        for reason in rep["reasons"]:
-            print(f"  - {reason}")
+        print("\n".join(report_lines(rep)))
     return Check[DriftStatus(rep["status"]).name]
+
+
+def report_lines(rep: CheckReport) -> list[str]:
+    """The report in words: the change per axis with its sigma, per group its length and bound, the answer."""
+    c, s = rep["change"], rep["sigma"]
+    lines = [f"change roll, pitch, yaw: {', '.join(f'{v:+.3f}' for v in c['rpy_deg'])} deg "
+             f"(sigma {', '.join(f'{v:.3f}' for v in s['rpy_deg'])})",
+             f"change x, y, z: {', '.join(f'{v:+.2f}' for v in c['xyz_cm'])} cm "
+             f"(sigma {', '.join(f'{v:.2f}' for v in s['xyz_cm'])})"]
+    for name, unit in (("rotation", "deg"), ("translation", "cm")):
+        if (g := rep["groups"].get(name)) is not None:
+            lines.append(f"{name}: {g['length']:.3g} {unit}, at most {g['upper']:.3g} at "
+                         f"{percent(rep['confidence']['ok'])} confidence (threshold {g['threshold']:g})")
+    axes = f" ({', '.join(rep['axes'])})" if rep["axes"] else ""
+    lines.append(f"status: {rep['status'].upper()}{axes}; {rep['pairs']} pairs at {rep['places']} places, "
+                 f"{rep['wall_time_s']:.1f} s")
+    return lines + [f"  - {reason}" for reason in rep["reasons"]]

@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from calib.assess import TrustOptions
 from calib.check import DriftOptions
 from calib.evaluate import Params6, PoseError
 from rigd.cli.args import (
@@ -20,6 +19,7 @@ from rigd.cli.args import (
 )
 from rigd.cli.evaluate_compare import register_compare
 from rigd.cli.evaluate_initial import register_initial
+from rigd.errors import RigdError
 from rigd.evaluate.drift import DriftRequest, run_drift
 from rigd.evaluate.protocols import (
     ConvergenceRequest,
@@ -65,12 +65,18 @@ def register(subparsers: Any) -> None:
     drift = protocols.add_parser(
         "drift", help="how well rigd check tells drift from none (detection and false-alarm rates)",
         description="Injects known errors into the ground truth (none, rotations of --rot-deg, translations of "
-        "--trans-cm, random directions), runs rigd check's search from each and counts ok / drifted / unknown. "
+        "--trans-cm, random directions), runs rigd check from each and counts ok / drifted / unknown. "
         "Writes OUT/drift.yaml.")
     add_evaluation_options(drift)
     drift.add_argument("--trials", type=positive_int, default=120, help="number of trials (default 120)")
     drift.add_argument("--rot-deg", type=str, default="0.3,0.5,1", help="injected rotations, deg (default 0.3,0.5,1)")
     drift.add_argument("--trans-cm", type=str, default="2,5", help="injected translations, cm (default 2,5)")
+    drift.add_argument("--threshold", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
+                       help="rigd check's thresholds (default its own, "
+                       f"{DriftOptions().threshold_rot_deg:g},{DriftOptions().threshold_trans_cm:g})")
+    drift.add_argument("--size", type=positive_int, default=None, metavar="N",
+                       help="each trial checks N pairs drawn at random (default all pairs: then every trial "
+                       "without an injected error is the same check)")
     drift.set_defaults(func=run_drift_command)
     register_initial(protocols)
     register_compare(protocols)
@@ -144,21 +150,26 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
 
 def run_drift_command(args: argparse.Namespace) -> int:
     settings = evaluation_settings(args, None)
-    tol = parse_tolerance(args.tolerance) if args.tolerance else TrustOptions()
-    opts = DriftOptions(threshold_rot_deg=tol.tolerance_rot_deg, threshold_trans_cm=tol.tolerance_trans_cm)
+    if args.tolerance is not None:
+        raise RigdError("rigd evaluate drift: give rigd check's thresholds with --threshold (no verdicts here)")
+    opts = DriftOptions()
+    if args.threshold is not None:
+        tol = parse_tolerance(args.threshold, "--threshold")
+        opts = DriftOptions(threshold_rot_deg=tol.tolerance_rot_deg, threshold_trans_cm=tol.tolerance_trans_cm)
     rot = numbers(args.rot_deg, "--rot-deg", len(args.rot_deg.split(",")))
     trans = numbers(args.trans_cm, "--trans-cm", len(args.trans_cm.split(",")))
-    request = DriftRequest(settings, args.trials, tuple(rot), tuple(trans), opts)
+    request = DriftRequest(settings, args.trials, tuple(rot), tuple(trans), opts, args.size)
     outcome = run_drift(request)
     rep = outcome.report
-    print(f"drift on {rep['dataset']} ({rep['pairs']} pairs): {rep['settings']['trials']} trials, thresholds "
-          f"{opts.threshold_rot_deg} deg / {opts.threshold_trans_cm} cm; {_where(rep['settings'])}")
+    size = "all" if args.size is None else f"{args.size} random"
+    print(f"drift on {rep['dataset']} ({rep['pairs']} pairs, {size} per trial): {rep['settings']['trials']} trials, "
+          f"thresholds {opts.threshold_rot_deg:g} deg / {opts.threshold_trans_cm:g} cm; {_where(rep['settings'])}")
     for label, row in rep["summary"].items():
-        print(f"  {label:>14}: drifted {row['drifted']}/{row['trials']} ({row['drifted_share'] * 100:.0f} %), ok "
-              f"{row['ok']}, unknown {row['unknown']}, error {row['error']}; median "
-              + ("n/a" if row["median_time_s"] is None else f"{row['median_time_s']:.1f} s"))
-    print(f"false alarms (drifted at zero error): {rep['false_alarm_rate'] * 100:.1f} %; "
-          f"{rep['wall_time_s']:.0f} s wall")
+        print(f"  {label:>14}: ok {row['ok']}/{row['trials']} ({row['ok_share'] * 100:.0f} %), drifted "
+              f"{row['drifted']} ({row['drifted_share'] * 100:.0f} %), unknown {row['unknown']}, error "
+              f"{row['error']}; median " + ("n/a" if row["median_time_s"] is None else f"{row['median_time_s']:.1f} s"))
+    print(f"ok at zero error: {rep['ok_rate_at_zero_error'] * 100:.1f} %; false alarms (drifted at zero error): "
+          f"{rep['false_alarm_rate'] * 100:.1f} %; {rep['wall_time_s']:.0f} s wall")
     print(f"written: {outcome.yaml_path}")
     return 0
 

@@ -2,8 +2,11 @@
 
 Trials inject a known error into the ground truth (a random direction in rotation or in translation, at
 each magnitude of ``rot_deg`` / ``trans_cm``, and none at all), run :func:`calib.check.check_drift` from the
-erroneous extrinsics, and count the outcomes: detection rate per magnitude, and the false-alarm rate (drifted
-at zero error). The worker processes and their features are those of :mod:`rigd.evaluate.runner`.
+erroneous extrinsics, and count the answers per magnitude: ``ok`` at zero error (a good calibration passes),
+``drifted`` at each magnitude (detection), and drifted at zero error (false alarms). With ``size`` each trial
+checks that many pairs drawn at random from the dataset, so the pairs' own errors vary between trials too
+(with all pairs every zero-error trial is the same check). The worker processes and their features are those
+of :mod:`rigd.evaluate.runner`.
 """
 
 from __future__ import annotations
@@ -15,23 +18,32 @@ from typing import Any
 
 import numpy as np
 
-from calib.check import DriftOptions, check_drift
+from calib.check import DriftOptions, DriftStatus, check_drift
 from calib.errors import CalibError
+from calib.evaluate import random_subsets
 from calib.geometry import Transform
 from calib.uncertainty import tau_at
+from rigd.calibration.check import with_rig_tolerance
+from rigd.calibration.service import of_pairs
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 from rigd.evaluate.runner import trial_runner, where_run
 from rigd.evaluate.trials import EvaluationSettings, WorkerState, calib_params, open_for
 
+ERROR = "error"  # a trial whose checked pose sees nothing: counted apart, not as an answer
+ANSWERS = (*(s.value for s in DriftStatus), ERROR)
+
 
 @dataclass(frozen=True)
 class DriftRequest:
+    """``size``: pairs per trial, drawn at random (None: all of the dataset's)."""
+
     settings: EvaluationSettings
     trials: int = 120
     rot_deg: tuple[float, ...] = (0.3, 0.5, 1.0)
     trans_cm: tuple[float, ...] = (2.0, 5.0)
     options: DriftOptions = DriftOptions()
+    size: int | None = None
 
 
 @dataclass(frozen=True)
@@ -39,14 +51,21 @@ class _DriftTask:
     index: int
     injected: str  # "none", "rot 0.5 deg", "trans 2 cm"
     checked: Transform
+    pairs: tuple[int, ...]
 
 
 @dataclass(frozen=True)
 class DriftTrial:
+    """One check: its answer (ok | drifted | unknown | error), and per group (rotation deg, translation cm) the
+    change's length and its upper bound at the ok confidence (None where not judged)."""
+
     index: int
     injected: str
-    status: str  # ok | drifted | unknown | error
+    status: str
     wall_s: float
+    pairs: tuple[int, ...]
+    length: tuple[float, float] | None = None
+    upper: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -56,34 +75,59 @@ class DriftOutcome:
     yaml_path: Path
 
 
-
 def _classes(request: DriftRequest) -> list[tuple[str, float, bool]]:
     """(label, magnitude in rad or m, is_rotation) per class; zero error first."""
     return ([("none", 0.0, True)] + [(f"rot {r:g} deg", float(np.radians(r)), True) for r in request.rot_deg]
             + [(f"trans {t:g} cm", t / 100.0, False) for t in request.trans_cm])
 
 
-def _tasks(truth: Transform, request: DriftRequest) -> list[_DriftTask]:
+def _tasks(truth: Transform, n_pairs: int, request: DriftRequest) -> list[_DriftTask]:
     rng = np.random.default_rng(request.settings.seed)
     classes = _classes(request)
+    all_pairs = tuple(range(n_pairs))
+    subsets = ([all_pairs] * request.trials if request.size is None
+               else random_subsets(n_pairs, request.size, request.trials, request.settings.seed))
     tasks = []
-    for i in range(request.trials):
+    for i, pairs in enumerate(subsets):
         label, size, rotation = classes[i % len(classes)]
         direction = rng.normal(size=3)
         direction /= np.linalg.norm(direction)
         xi = np.concatenate([direction * size, np.zeros(3)] if rotation else [np.zeros(3), direction * size])
-        tasks.append(_DriftTask(i, label, Transform.from_tau(tau_at(truth.tau, xi))))
+        tasks.append(_DriftTask(i, label, Transform.from_tau(tau_at(truth.tau, xi)), pairs))
     return tasks
 
 
 def _run_drift_task(state: WorkerState, task: tuple[_DriftTask, DriftOptions]) -> DriftTrial:
     t, opts = task
     started = time.monotonic()
+    feats = of_pairs(state.feats, state.n_pairs, t.pairs)
     try:
-        status = check_drift(list(state.feats), t.checked, state.params, opts).status.value
-    except CalibError:  # the checked pose sees nothing: counted apart, not as a detection
-        status = "error"
-    return DriftTrial(t.index, t.injected, status, time.monotonic() - started)
+        result = check_drift(feats, t.checked, state.params, opts, state.prior)
+    except CalibError:
+        return DriftTrial(t.index, t.injected, ERROR, time.monotonic() - started, t.pairs)
+    groups = result.judgement.groups
+    length = (groups[0].length, groups[1].length) if groups else None
+    upper = (groups[0].upper, groups[1].upper) if groups else None
+    return DriftTrial(t.index, t.injected, result.status.value, time.monotonic() - started, t.pairs, length, upper)
+
+
+def _row(mine: list[DriftTrial]) -> dict[str, Any]:
+    """One magnitude's counts and shares."""
+    counts = {k: sum(t.status == k for t in mine) for k in ANSWERS}
+    n = max(len(mine), 1)
+    return {"trials": len(mine), **counts, "ok_share": counts["ok"] / n, "drifted_share": counts["drifted"] / n,
+            "median_time_s": float(np.median([t.wall_s for t in mine])) if mine else None}
+
+
+def _trial_yaml(t: DriftTrial, size: int | None) -> dict[str, Any]:
+    out: dict[str, Any] = {"index": t.index, "injected": t.injected, "status": t.status,
+                           "wall_time_s": round(t.wall_s, 2)}
+    if size is not None:
+        out["pairs"] = list(t.pairs)
+    if t.length is not None and t.upper is not None:
+        out["length"] = {"rotation_deg": t.length[0], "translation_cm": t.length[1]}
+        out["upper"] = {"rotation_deg": t.upper[0], "translation_cm": t.upper[1]}
+    return out
 
 
 def run_drift(request: DriftRequest) -> DriftOutcome:
@@ -93,28 +137,26 @@ def run_drift(request: DriftRequest) -> DriftOutcome:
     dataset = open_for(s)
     if dataset.ground_truth is None:
         raise RigdError(f"{dataset.root}: drift evaluation needs ground_truth.yaml (a simulated dataset)")
+    if request.size is not None and not 1 <= request.size <= len(dataset):
+        raise RigdError(f"--size must be between 1 and the dataset's {len(dataset)} pairs, got {request.size}")
     params = calib_params(s.sigmas_deg)
-    tasks = [(t, request.options) for t in _tasks(dataset.ground_truth, request)]
+    opts = with_rig_tolerance(request.options, dataset)
+    tasks = [(t, opts) for t in _tasks(dataset.ground_truth, len(dataset), request)]
     with trial_runner(s, dataset.root, params, None) as workers:
         where = where_run(s, workers)
         trials = tuple(sorted(workers.run(_run_drift_task, tasks, "drift", s.progress), key=lambda r: r.index))
-    summary = {}
-    for label, _, _ in _classes(request):
-        mine = [t for t in trials if t.injected == label]
-        counts = {k: sum(t.status == k for t in mine) for k in ("ok", "drifted", "unknown", "error")}
-        summary[label] = {"trials": len(mine), **counts,
-                          "drifted_share": counts["drifted"] / max(len(mine), 1),
-                          "median_time_s": float(np.median([t.wall_s for t in mine])) if mine else None}
+    summary = {label: _row([t for t in trials if t.injected == label]) for label, _, _ in _classes(request)}
     o = request.options
     report = {
         "protocol": "drift", "dataset": str(dataset.root), "pairs": len(dataset),
-        "settings": {"trials": request.trials, "seed": s.seed, **where,
-                     "threshold_rot_deg": o.threshold_rot_deg, "threshold_trans_cm": o.threshold_trans_cm},
+        "settings": {"trials": request.trials, "seed": s.seed, "size": request.size, **where,
+                     "threshold_rot_deg": o.threshold_rot_deg, "threshold_trans_cm": o.threshold_trans_cm,
+                     "ok_confidence": o.ok_confidence, "drift_confidence": o.drift_confidence},
         "summary": summary,
         "false_alarm_rate": summary["none"]["drifted_share"],
+        "ok_rate_at_zero_error": summary["none"]["ok_share"],
         "wall_time_s": round(time.monotonic() - started, 2),
-        "trials": [{"index": t.index, "injected": t.injected, "status": t.status, "wall_time_s": round(t.wall_s, 2)}
-                   for t in trials],
+        "trials": [_trial_yaml(t, request.size) for t in trials],
     }
     out = Path(s.out_dir) if s.out_dir is not None else dataset.root / "evaluation"
     out.mkdir(parents=True, exist_ok=True)

@@ -1,11 +1,12 @@
 """rigd check: exit 0 / 1 / 2 for ok / drifted / unknown, the extrinsics from a file, the store or rig.yaml."""
 
 import json
+import shutil
 
-import numpy as np
 import pytest
 import yaml
 
+from calib.check import DriftOptions
 from calib.geometry import Transform
 from rigd.cli import main
 from rigd.dataset import open_dataset
@@ -13,11 +14,13 @@ from rigd.dataset.records import transform_to_yaml
 from rigd.simulate import write_simulated_dataset
 from rigd.store import Database, NewVersion, VersionStore
 
+CODES = {"ok": 0, "drifted": 1, "unknown": 2}
+
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("ds") / "outdoor"
-    write_simulated_dataset(root, "outdoor", 3, seed=5, width=512, height=256, progress=False)
+    write_simulated_dataset(root, "outdoor", 5, seed=5, width=512, height=256, progress=False)
     return root
 
 
@@ -26,21 +29,40 @@ def _file(path, transform):
     return path
 
 
+def _check(dataset, transform, path, capsys, *extra):
+    code = main(["check", str(dataset), "--against", str(_file(path, transform)), "--json", *extra])
+    return code, json.loads(capsys.readouterr().out)
+
+
 def test_a_drifted_calibration_exits_1_and_the_truth_does_not(dataset, tmp_path, capsys):
     truth = open_dataset(dataset).ground_truth
     moved = Transform.from_rpy_xyz(truth.rpy_deg + [0.0, 0.0, 1.5], truth.translation_m + [0.0, 0.06, 0.0])
-    code = main(["check", str(dataset), "--against", str(_file(tmp_path / "moved.yaml", moved)), "--json",
-                 "--threshold", "0.5,3"])
-    report = json.loads(capsys.readouterr().out)
+    code, report = _check(dataset, moved, tmp_path / "moved.yaml", capsys, "--threshold", "0.5,3")
     assert code == 1 and report["status"] == "drifted" and report["reasons"]
     assert "yaw" in report["axes"] or "y" in report["axes"]
-    code = main(["check", str(dataset), "--against", str(_file(tmp_path / "truth.yaml", truth)), "--json",
-                 "--threshold", "0.5,3"])
-    report = json.loads(capsys.readouterr().out)
-    # Never "drifted" at zero error: 3 small pairs may let an axis wander (then "unknown"), not call it drift.
-    assert code == {"ok": 0, "unknown": 2}[report["status"]]
-    wandered = np.abs(report["change"]["rpy_deg"] + report["change"]["xyz_cm"]) > [0.5] * 3 + [3.0] * 3
-    assert not wandered.any() or report["status"] == "unknown"
+    assert report["places"] == 5 and set(report["groups"]) == {"rotation", "translation"}
+    assert report["thresholds"] == {"rotation_deg": 0.5, "translation_cm": 3.0}
+    code, report = _check(dataset, truth, tmp_path / "truth.yaml", capsys, "--threshold", "0.5,3")
+    # Never "drifted" at zero error; "ok" only when the bound the report gives is within the threshold.
+    assert code == CODES[report["status"]] and report["status"] != "drifted"
+    within = all(g["upper"] <= g["threshold"] for g in report["groups"].values())
+    assert (report["status"] == "ok") == within
+    # the default thresholds are the check's own, and the human-readable form says the same as the JSON
+    assert main(["check", str(dataset), "--against", str(tmp_path / "truth.yaml")]) in (0, 2)
+    printed = capsys.readouterr().out
+    assert f"threshold {DriftOptions().threshold_rot_deg:g})" in printed and "places" in printed
+
+
+def test_three_places_cannot_tell(dataset, tmp_path, capsys):
+    """A large injected drift on three pairs: the pairs cannot measure their uncertainty, so unknown (exit 2)."""
+    few = tmp_path / "few"
+    shutil.copytree(dataset, few, ignore=shutil.ignore_patterns("0003", "0004"))
+    assert len(open_dataset(few)) == 3
+    truth = open_dataset(few).ground_truth
+    moved = Transform.from_rpy_xyz(truth.rpy_deg + [0.0, 0.0, 1.5], truth.translation_m + [0.0, 0.06, 0.0])
+    code, report = _check(few, moved, tmp_path / "moved.yaml", capsys)
+    assert code == 2 and report["status"] == "unknown" and "3 places" in report["reasons"][0]
+    assert report["groups"] == {}
 
 
 def test_version_from_the_store_and_missing_sources(dataset, tmp_path, capsys):
@@ -58,3 +80,4 @@ def test_version_from_the_store_and_missing_sources(dataset, tmp_path, capsys):
     assert "no rigd store" in capsys.readouterr().err
     assert main(["check", str(dataset)]) == 2  # simulated datasets carry no initial_guess
     assert "--against" in capsys.readouterr().err
+

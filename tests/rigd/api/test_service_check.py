@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from api_helpers import Server, simulated_dataset, wait_job
 
+from calib.check import DriftOptions
+from rigd.api.models import ThresholdIn
 from rigd.dataset import open_dataset
 
 
 def test_check_against_active_version_and_explicit_transform(tmp_path):
     data = tmp_path / "data"
-    dataset = simulated_dataset(data, "ds", pairs=2)
+    dataset = simulated_dataset(data, "ds", pairs=8)  # 256 x 128 images: 8 places pin the pose down
     truth = open_dataset(dataset).ground_truth
     assert truth is not None
     at_truth = {"rpy_deg": truth.rpy_deg.tolist(), "xyz_m": truth.translation_m.tolist()}
@@ -42,7 +44,8 @@ def test_check_against_active_version_and_explicit_transform(tmp_path):
             result = job["result"]
             assert result["status"] in ("ok", "unknown"), result
             assert len(result["change"]["rpy_deg"]) == 3 and len(result["sigma"]["xyz_cm"]) == 3
-            assert result["thresholds"] == {"rotation_deg": 0.2, "translation_cm": 2.0}
+            assert result["thresholds"] == job["params"]["threshold"]
+            assert result["places"] == 8
             assert job["result_link"] is None
 
             off = {"rpy_deg": (truth.rpy_deg + [0.0, 0.0, 1.5]).tolist(),
@@ -59,3 +62,9 @@ def test_check_against_active_version_and_explicit_transform(tmp_path):
             assert client.get("/jobs", params={"kind": "check"}).json()[0]["kind"] == "check"
     finally:
         server.stop()
+
+
+def test_the_service_checks_with_the_commands_default_thresholds():
+    default = DriftOptions()
+    assert ThresholdIn().model_dump() == {"rotation_deg": default.threshold_rot_deg,
+                                          "translation_cm": default.threshold_trans_cm}

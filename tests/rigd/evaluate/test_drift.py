@@ -25,9 +25,31 @@ def test_drift_counts_every_trial_by_injected_error(dataset, tmp_path, capsys):
     assert set(report["summary"]) == {"none", "rot 1 deg", "trans 5 cm"}
     for row in report["summary"].values():
         assert row["trials"] == 2 and row["ok"] + row["drifted"] + row["unknown"] + row["error"] == 2
+        assert row["ok_share"] == row["ok"] / 2 and row["drifted_share"] == row["drifted"] / 2
     assert report["false_alarm_rate"] == report["summary"]["none"]["drifted_share"]
+    assert report["ok_rate_at_zero_error"] == report["summary"]["none"]["ok_share"]
     assert [t["injected"] for t in report["trials"]] == ["none", "rot 1 deg", "trans 5 cm"] * 2
+    # three places: too few to measure the uncertainty across them, so every check answers unknown
+    assert {t["status"] for t in report["trials"]} == {"unknown"}
     assert "false alarms" in capsys.readouterr().out
+
+
+def test_drift_on_random_subsets(dataset, tmp_path):
+    code = main(["evaluate", "drift", str(dataset), "--trials", "3", "--workers", "1", "--rot-deg", "1",
+                 "--trans-cm", "5", "--size", "2", "--threshold", "0.5,3", "--out", str(tmp_path)])
+    assert code == 0
+    report = yaml.safe_load((tmp_path / "drift.yaml").read_text())
+    assert report["settings"]["size"] == 2
+    assert report["settings"]["threshold_rot_deg"] == 0.5 and report["settings"]["threshold_trans_cm"] == 3.0
+    pairs = [tuple(t["pairs"]) for t in report["trials"]]
+    assert all(len(set(p)) == 2 and set(p) <= {0, 1, 2} for p in pairs)
+    assert len(set(pairs)) > 1  # the subsets differ between trials
+
+
+def test_drift_refuses_a_subset_larger_than_the_dataset(dataset, tmp_path, capsys):
+    assert main(["evaluate", "drift", str(dataset), "--trials", "3", "--workers", "1", "--size", "4",
+                 "--out", str(tmp_path)]) == 2
+    assert "--size" in capsys.readouterr().err
 
 
 def test_drift_needs_ground_truth(tmp_path, capsys):
