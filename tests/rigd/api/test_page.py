@@ -518,7 +518,9 @@ def test_zoom_loads_full_resolution_and_pans(browser, tmp_path):
         console_errors(browser)
         load(browser, server.url + "/")
         click(browser, f'button[data-action="pairs"][data-dataset="{name}"]')
-        until(browser, 10, lambda d: images_loaded(d, ("lens-after",)) and lens_state(d)["after"]["src"])
+        # Loaded means decoded: an image element is "complete" before its new source has arrived.
+        until(browser, 10, lambda d: images_loaded(d, ("lens-after",)) and lens_state(d)["after"]["src"]
+              and lens_state(d)["after"]["natural"] > 0)
         first = lens_state(browser)
         lens_width = browser.execute_script("return document.getElementById('lens').clientWidth")
         assert "width=" in first["after"]["src"] and first["full"] == "false"
