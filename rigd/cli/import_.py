@@ -8,6 +8,8 @@ from typing import Any
 
 from tqdm import tqdm
 
+from rigd.cli.args import non_negative_float, positive_int
+
 
 def _scan_list(text: str) -> list[int]:
     """'1-10' or '1,3,5' (or both mixed) as a list of scan numbers."""
@@ -53,6 +55,34 @@ def register(subparsers: Any) -> None:
     kitti.add_argument("--frames", type=_scan_list, default=None, metavar="LIST",
                        help="frames to take, e.g. 0-5 or 0,50,100 (default: every frame)")
     kitti.set_defaults(func=_kitti)
+    _register_bag(formats)
+
+
+def _register_bag(formats: Any) -> None:
+    bag = formats.add_parser(
+        "bag", help="a ROS 1 / ROS 2 bag or MCAP: its still moments as pairs",
+        description="Read a ROS 1 .bag, a ROS 2 bag (folder, .db3 or .mcap) without ROS installed; find the moments "
+        "the rig stood still with rigd capture's stillness gate and keep up to --n of them at distinct places, each "
+        "image with the sweep nearest it (docs/bags.md). Images: sensor_msgs/Image or CompressedImage; clouds: "
+        "sensor_msgs/PointCloud2 or velodyne_msgs/VelodyneScan (decoded by rigd's VLP-16 decoder).")
+    bag.add_argument("src", type=Path, metavar="BAG", help="the .bag file, ROS 2 bag folder, .db3 or .mcap file")
+    bag.add_argument("out", type=Path, metavar="OUT", help="new (or empty) dataset folder")
+    bag.add_argument("--image-topic", required=True, metavar="TOPIC", help="sensor_msgs/Image or CompressedImage")
+    bag.add_argument("--cloud-topic", required=True, metavar="TOPIC",
+                     help="sensor_msgs/PointCloud2 or velodyne_msgs/VelodyneScan")
+    bag.add_argument("--camera-info-topic", default=None, metavar="TOPIC",
+                     help="sensor_msgs/CameraInfo for the intrinsics (plumb_bob: pinhole, equidistant: fisheye)")
+    bag.add_argument("--rig", type=Path, default=None, metavar="RIG.yaml",
+                     help="the rig file for the camera (and initial guess, prior, tolerance) instead of CameraInfo")
+    bag.add_argument("--n", type=positive_int, default=12, help="pairs to keep at most (default 12)")
+    bag.add_argument("--still-seconds", type=non_negative_float, default=2.0,
+                     help="a still stretch lasts this long (default 2)")
+    bag.add_argument("--sweeps", type=positive_int, default=5, help="and holds this many sweeps (default 5)")
+    bag.add_argument("--min-move", type=non_negative_float, default=0.5, metavar="M",
+                     help="places at least this far apart, m of range change (default 0.5, as rigd capture)")
+    bag.add_argument("--max-offset", type=non_negative_float, default=0.05, metavar="S",
+                     help="an image within this many seconds of its sweep (default 0.05)")
+    bag.set_defaults(func=_bag)
 
 
 def _bar(desc: str, unit: str) -> tuple[tqdm, Any]:
@@ -84,4 +114,25 @@ def _kitti(args: argparse.Namespace) -> int:
         n = import_kitti(args.src, args.out, args.camera, args.frames, progress)
     print(f"written: {args.out} ({n} pairs, camera {args.camera}; KITTI's calibration in "
           f"{args.out / 'reference.yaml'})")
+    return 0
+
+
+def _bag(args: argparse.Namespace) -> int:
+    from rigd.importers.bag import BagImportOptions, import_bag
+    from rigd.importers.bag.stills import StillOptions, Verdict
+
+    still = StillOptions(n=args.n, still_seconds=args.still_seconds, sweeps=args.sweeps, min_move_m=args.min_move,
+                         max_offset_s=args.max_offset)
+    options = BagImportOptions(args.image_topic, args.cloud_topic, args.camera_info_topic, args.rig, still)
+    summary = import_bag(args.src, args.out, options=options, report=print)
+    pair = 0
+    for d in summary.decisions:
+        span = f"{d.t_start_s - summary.start_s:8.2f} - {d.t_end_s - summary.start_s:8.2f} s"
+        if d.verdict is Verdict.KEPT:
+            print(f"{span}  kept as pair {pair:04d}: {d.reason}")
+            pair += 1
+        else:
+            print(f"{span}  not kept ({d.verdict.value}): {d.reason}")
+    print(f"written: {args.out} ({summary.pairs} pairs; frames camera {summary.camera_frame!r}, lidar "
+          f"{summary.lidar_frame!r} in {args.out / 'bag.yaml'})")
     return 0

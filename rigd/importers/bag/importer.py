@@ -1,0 +1,269 @@
+"""``rigd import bag BAG OUT``: two passes over the bag, then the dataset.
+
+1. Every sweep of the cloud topic is decoded and reduced to the gate's direction grid (its points are not
+   kept: a long drive never sits in memory); the image topic's stamps are read (the first image is decoded, so
+   a bad encoding fails at once) and the camera-info topic's first message kept.
+2. :mod:`.stills` picks the pairs; their images and sweeps are read again by their bag time and written with
+   rigd.dataset's writers (atomic pairs under the writer lock), with rig.yaml from ``--rig``, else from the
+   CameraInfo, else an equirectangular panorama when the image is 2:1.
+
+``OUT/bag.yaml`` records the bag, its topics, the frame ids of the messages' headers (``rigd export`` names the
+transform's frames with them) and what became of every stretch of the recording.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rigd.capture.gate import SweepSample, direction_grid
+from rigd.dataset.pcd import Cloud
+from rigd.dataset.records import CameraConfig, CameraKind, RigConfig
+from rigd.dataset.store import read_yaml, write_pair, write_rig, write_yaml
+from rigd.errors import DatasetError
+from rigd.importers.bag.clouds import BagSweep, pointcloud2_sweep, velodyne_scan_sweep
+from rigd.importers.bag.errors import BagError
+from rigd.importers.bag.images import decode_compressed, decode_image
+from rigd.importers.bag.intrinsics import camera_from_info
+from rigd.importers.bag.reader import (
+    CLOUD_KINDS,
+    IMAGE_KINDS,
+    INFO_KINDS,
+    Bag,
+    Message,
+    Topic,
+    TopicKind,
+)
+from rigd.importers.bag.stills import Decision, StillOptions, SweepTime, Verdict, WindowTracker, select_pairs
+
+BAG_FILE = "bag.yaml"
+U8 = NDArray[np.uint8]
+
+
+@dataclass(frozen=True)
+class BagImportOptions:
+    """The topics to read (``camera_info_topic`` optional), an optional rig file for the camera (and initial
+    guess, prior, tolerance), and how still moments are chosen."""
+
+    image_topic: str
+    cloud_topic: str
+    camera_info_topic: str | None = None
+    rig: Path | None = None
+    still: StillOptions = field(default_factory=StillOptions)
+
+
+@dataclass(frozen=True)
+class ImportSummary:
+    """What an import wrote: ``pairs`` in ``out``, every stretch's :class:`Decision` (times s on the headers'
+    clock), the headers' frame ids and the recording's first stamp s (for times relative to it)."""
+
+    out: Path
+    pairs: int
+    decisions: tuple[Decision, ...]
+    camera_frame: str
+    lidar_frame: str
+    start_s: float
+
+
+@dataclass
+class _Scan:
+    """What pass 1 keeps: sweep spans and bag times, image stamps and bag times, the first image and info."""
+
+    sweeps: list[SweepTime] = field(default_factory=list)
+    sweep_ns: list[int] = field(default_factory=list)
+    image_t_s: list[float] = field(default_factory=list)
+    image_ns: list[int] = field(default_factory=list)
+    first_image: U8 | None = None
+    camera_info: Message | None = None
+    camera_frame: str = ""
+    lidar_frame: str = ""
+    empty_sweeps: int = 0
+
+
+def _where(message: Message) -> str:
+    return f"{message.topic} at {message.stamp_s:.6f} s"
+
+
+def decode_sweep(message: Message, kind: TopicKind) -> BagSweep | None:
+    """A cloud-topic message as a sweep (None: a VelodyneScan without a valid packet)."""
+    if kind is TopicKind.VELODYNE_SCAN:
+        return velodyne_scan_sweep(message.body, where=_where(message))
+    return pointcloud2_sweep(message.body, stamp_s=message.stamp_s, where=_where(message))
+
+
+def decode_frame(message: Message, kind: TopicKind) -> U8:
+    if kind is TopicKind.COMPRESSED_IMAGE:
+        return decode_compressed(message.body, where=_where(message))
+    return decode_image(message.body, where=_where(message))
+
+
+def _scan(bag: Bag, topics: dict[str, Topic], tracker: WindowTracker) -> _Scan:
+    scan = _Scan()
+    image, cloud = topics["image"], topics["cloud"]
+    for message in bag.messages(topics=list(topics.values())):
+        if message.topic == cloud.name:
+            sweep = decode_sweep(message, cloud.kind)
+            if sweep is None or len(sweep) == 0:
+                scan.empty_sweeps += 1
+                continue
+            grid = direction_grid(sweep.points_lidar, sweep.ring)
+            tracker.add(index=len(scan.sweeps), sample=SweepSample(sweep.t_start_s, sweep.t_end_s, grid.range_m, grid))
+            scan.sweeps.append(SweepTime(sweep.t_start_s, sweep.t_end_s))
+            scan.sweep_ns.append(message.bag_time_ns)
+            scan.lidar_frame = scan.lidar_frame or message.frame_id
+        elif message.topic == image.name:
+            if scan.first_image is None:
+                scan.first_image = decode_frame(message, image.kind)
+                scan.camera_frame = message.frame_id
+            scan.image_t_s.append(message.stamp_s)
+            scan.image_ns.append(message.bag_time_ns)
+        elif scan.camera_info is None:
+            scan.camera_info = message
+    return scan
+
+
+def _check_overlap(bag: Bag, topics: dict[str, Topic], scan: _Scan) -> None:
+    image, cloud = topics["image"], topics["cloud"]
+    if not scan.sweeps:
+        empty = f" ({scan.empty_sweeps} messages without a valid return)" if scan.empty_sweeps else ""
+        raise BagError(f"{bag.path}: no LiDAR sweep on {cloud.name}{empty}")
+    if not scan.image_t_s:
+        raise BagError(f"{bag.path}: no image on {image.name}")
+    lidar = (scan.sweeps[0].t_start_s, max(s.t_end_s for s in scan.sweeps))
+    camera = (min(scan.image_t_s), max(scan.image_t_s))
+    if camera[1] < lidar[0] or camera[0] > lidar[1]:
+        raise BagError(f"{bag.path}: the topics do not overlap in time: {image.name} is stamped {camera[0]:.3f} to "
+                       f"{camera[1]:.3f} s, {cloud.name} {lidar[0]:.3f} to {lidar[1]:.3f} s (header stamps; are the "
+                       "two sensors on different clocks?)")
+
+
+def _camera(bag: Bag, options: BagImportOptions, scan: _Scan) -> RigConfig:
+    """rig.yaml: the rig file's, else the CameraInfo's camera, else a 2:1 image's panorama; sizes checked."""
+    assert scan.first_image is not None
+    height, width = scan.first_image.shape[:2]
+    if options.rig is not None:
+        try:
+            rig = RigConfig.from_yaml(read_yaml(options.rig), str(options.rig))
+        except DatasetError as exc:
+            raise BagError(str(exc)) from exc
+        camera = rig.camera
+    elif scan.camera_info is not None:
+        camera = camera_from_info(scan.camera_info.body, where=_where(scan.camera_info))
+        rig = RigConfig(camera)
+    elif width == 2 * height:
+        camera = CameraConfig(CameraKind.EQUIRECTANGULAR, width, height)
+        rig = RigConfig(camera)
+    else:
+        raise BagError(f"{bag.path}: no intrinsics for the {width}x{height} images of {options.image_topic}: give "
+                       "--camera-info-topic or --rig (only a 2:1 image is taken for an equirectangular panorama)")
+    if camera.kind is CameraKind.HEAD:
+        raise BagError(f"{options.rig}: a head rig has several images per pair; a bag import takes one image topic")
+    if (camera.width, camera.height) != (width, height):
+        source = options.rig if options.rig is not None else options.camera_info_topic
+        raise BagError(f"{source}: the camera is {camera.width}x{camera.height}, the images of {options.image_topic} "
+                       f"are {width}x{height}")
+    return rig
+
+
+def _fetch(bag: Bag, topic: Topic, bag_time_ns: int, stamp_s: float | None) -> Message:
+    """The message of ``topic`` at ``bag_time_ns`` (the one stamped ``stamp_s`` if several share the time)."""
+    found = list(bag.messages(topics=[topic], start_ns=bag_time_ns, stop_ns=bag_time_ns + 1))
+    match = [m for m in found if stamp_s is None or m.stamp_s == stamp_s]
+    if not match:
+        raise BagError(f"{bag.path}: the message of {topic.name} at bag time {bag_time_ns} ns is gone on the second "
+                       "read (was the bag changed during the import?)")
+    return match[0]
+
+
+def _meta(bag: Bag, topics: dict[str, Topic], decision: Decision, image: Message, sweep: BagSweep,
+          options: BagImportOptions) -> dict[str, Any]:
+    window, still = decision.window, options.still
+    assert window is not None
+    return {
+        "source": "rosbag",
+        "bag": str(bag.path),
+        "camera": {"topic": image.topic, "frame_id": image.frame_id, "stamp_s": image.stamp_s,
+                   "bag_time_ns": image.bag_time_ns, "type": topics["image"].kind.value},
+        "lidar": {"topic": topics["cloud"].name, "frame_id": sweep.frame_id, "stamp_s": [sweep.t_start_s,
+                  sweep.t_end_s], "points": len(sweep), "type": topics["cloud"].kind.value},
+        "camera_minus_lidar_s": image.stamp_s - 0.5 * (sweep.t_start_s + sweep.t_end_s),
+        "still_window_s": [window.t_start_s, window.t_end_s],
+        "motion": {"still_seconds": still.still_seconds, "sweeps_in_window": window.sweeps,
+                   "lidar_rotation_deg": window.rotation_deg, "lidar_translation_m": window.translation_m,
+                   "tolerance_deg": still.tolerance_deg, "min_move_m": still.min_move_m,
+                   "max_offset_s": still.max_offset_s},
+    }
+
+
+def _decisions_yaml(decisions: list[Decision]) -> list[dict[str, Any]]:
+    return [{"stamp_s": [d.t_start_s, d.t_end_s], "verdict": d.verdict.value, "reason": d.reason}
+            for d in decisions]
+
+
+def import_bag(bag_path: Path, out: Path, *, options: BagImportOptions,
+               report: Callable[[str], None] | None = None) -> ImportSummary:
+    """Write the dataset ``out`` from the still moments of ``bag_path`` (module doc); ``report`` gets a line per
+    stage. Raises BagError (or DatasetError for ``out``) naming what is wrong; nothing is written then."""
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise DatasetError(f"{out}: exists and is not empty; give a new folder")
+    say = report or (lambda line: None)
+    with Bag(Path(bag_path)) as bag:
+        topics = {"image": bag.topic(name=options.image_topic, kinds=IMAGE_KINDS, role="--image-topic"),
+                  "cloud": bag.topic(name=options.cloud_topic, kinds=CLOUD_KINDS, role="--cloud-topic")}
+        if options.camera_info_topic is not None:
+            topics["info"] = bag.topic(name=options.camera_info_topic, kinds=INFO_KINDS, role="--camera-info-topic")
+        tracker = WindowTracker(options.still)
+        scan = _scan(bag, topics, tracker)
+        _check_overlap(bag, topics, scan)
+        say(f"read {len(scan.sweeps)} sweeps of {topics['cloud'].name} and {len(scan.image_t_s)} images of "
+            f"{topics['image'].name}")
+        if options.camera_info_topic is not None and scan.camera_info is None:
+            raise BagError(f"{bag.path}: no message on {options.camera_info_topic} (--camera-info-topic)")
+        rig = _camera(bag, options, scan)
+        order = np.argsort(scan.image_t_s, kind="stable")
+        image_t_s = [scan.image_t_s[i] for i in order]
+        decisions = select_pairs(windows=tracker.finish(), image_t_s=image_t_s, sweeps=scan.sweeps,
+                                 options=options.still)
+        kept = [d for d in decisions if d.verdict is Verdict.KEPT]
+        if not kept:
+            raise BagError(no_still_moment(bag.path, decisions, options.still))
+        write_rig(out, rig)
+        for index, decision in enumerate(kept):
+            assert decision.image is not None and decision.sweep is not None
+            image_index = int(order[decision.image])
+            image = _fetch(bag, topics["image"], scan.image_ns[image_index], scan.image_t_s[image_index])
+            sweep_message = _fetch(bag, topics["cloud"], scan.sweep_ns[decision.sweep], None)
+            sweep = decode_sweep(sweep_message, topics["cloud"].kind)
+            assert sweep is not None  # it was decoded in the first pass
+            write_pair(out, index, decode_frame(image, topics["image"].kind),
+                       Cloud(sweep.points_lidar, sweep.intensity, sweep.ring),
+                       _meta(bag, topics, decision, image, sweep, options))
+        summary = ImportSummary(out, len(kept), tuple(decisions), scan.camera_frame, scan.lidar_frame,
+                                min(scan.sweeps[0].t_start_s, image_t_s[0]))
+        write_yaml(out / BAG_FILE, {
+            "bag": str(bag.path),
+            "topics": {role: {"name": t.name, "type": t.kind.value} for role, t in topics.items()},
+            "frames": {"camera": scan.camera_frame, "lidar": scan.lidar_frame},
+            "options": dataclasses.asdict(options.still),
+            "stretches": _decisions_yaml(decisions),
+        })
+    return summary
+
+
+def no_still_moment(path: Path, decisions: list[Decision], options: StillOptions) -> str:
+    """The error of a recording without a pair: what its stretches were."""
+    counts = {v: sum(d.verdict is v for d in decisions) for v in Verdict if v is not Verdict.KEPT}
+    seen = ", ".join(f"{n} {v.value}" for v, n in counts.items() if n)
+    held = [d for d in decisions if d.window is not None]
+    hint = (f"the rig never stood still for {options.still_seconds:g} s ({options.sweeps} sweeps) within "
+            f"{options.tolerance_deg:g} deg tolerance" if not held else
+            "no still stretch had an image near one of its sweeps" if all(d.verdict is Verdict.NO_IMAGE for d in held)
+            else "see the stretches above")
+    return f"{path}: no still moment to take a pair from: {hint} (stretches: {seen or 'none'})"
