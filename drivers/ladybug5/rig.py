@@ -232,3 +232,21 @@ def default_ladybug5_rig(size_px: tuple[int, int] = LADYBUG5_SIZE_PX) -> RigCame
     top = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     cameras.append(RigCamera("cam5", width, height, k, d, top, np.array([0.0, 0.0, LADYBUG5_CAMERA_RADIUS_M])))
     return RigCameras("Ladybug5-like default (rigd; nominal values, not a factory calibration)", tuple(cameras))
+
+
+def scaled_ladybug5_rig(width_px: int) -> RigCameras:
+    """rigd's nominal head with each sensor ``width_px`` wide (height and focal length scaled with it, so every
+    sensor keeps the nominal field of view): the simulated Ladybug's head (small images render fast)."""
+    if width_px < 8:
+        raise RigFileError(f"a scaled Ladybug5 head needs sensors at least 8 px wide, got {width_px}")
+    scale = width_px / LADYBUG5_SIZE_PX[0]
+    height = round(LADYBUG5_SIZE_PX[1] * scale)
+    nominal = default_ladybug5_rig((width_px, height))
+    cameras = []
+    for camera in nominal.cameras:
+        k = camera.K.copy()
+        k[0, 0] = k[1, 1] = LADYBUG5_FOCAL_PX * scale
+        cameras.append(RigCamera(camera.name, width_px, height, k, camera.D, camera.R_head_camera,
+                                 camera.t_head_camera_m))
+    return RigCameras(f"Ladybug5-like head scaled to {width_px}x{height} px sensors (rigd; nominal values)",
+                      tuple(cameras))

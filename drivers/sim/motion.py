@@ -130,7 +130,10 @@ class MotionRigSpec:
     px rendered every ``frame_period_s`` s at most (the simulator renders slower than a Ladybug5 streams:
     a 1024x512 panorama takes 1-2 s); noise figures as in :class:`drivers.sim.SimConfig`;
     ``start_host_s``: UNIX time of trajectory time 0, None until the rig is started; ``disturbance``: vibration
-    and creep on top of the trajectory (drivers.sim.disturbance).
+    and creep on top of the trajectory (drivers.sim.disturbance). ``sensor_width``: None renders the panorama
+    directly; a width in px makes the camera a Ladybug5-like head of six sensors that wide
+    (drivers.ladybug5.rig.scaled_ladybug5_rig): each frame then holds the six raw sensor images and the
+    panorama stitched from them.
     """
 
     scene: str = "indoor"
@@ -147,6 +150,7 @@ class MotionRigSpec:
     T_camera_lidar: Pose = field(default_factory=lambda: PAPER_T_CAMERA_LIDAR)
     start_host_s: float | None = None
     disturbance: Disturbance = Disturbance()
+    sensor_width: int | None = None
 
     def __post_init__(self) -> None:
         scene_kind(self.scene)
@@ -158,6 +162,8 @@ class MotionRigSpec:
                            f"{self.frame_period_s} s")
         if self.range_noise_m < 0 or self.image_noise_grey < 0:
             raise SimError("sim rig: noise figures must be >= 0")
+        if self.sensor_width is not None and self.sensor_width < 8:
+            raise SimError(f"sim rig: sensor_width must be at least 8 px (or absent), got {self.sensor_width}")
 
     def started(self, start_host_s: float) -> MotionRigSpec:
         return replace(self, start_host_s=float(start_host_s))
@@ -178,6 +184,8 @@ class MotionRigSpec:
             out["start_host_s"] = self.start_host_s
         if self.disturbance.active:
             out["disturbance"] = self.disturbance.to_yaml()
+        if self.sensor_width is not None:
+            out["sensor_width"] = self.sensor_width
         return out
 
     @classmethod
@@ -195,8 +203,9 @@ class MotionRigSpec:
                                                              np.asarray(t["xyz_m"], float))
             if "disturbance" in values:
                 values["disturbance"] = Disturbance.from_yaml(values["disturbance"], where)
-            for key, kind in (("seed", int), ("stops", int), ("first_place", int), ("width", int), ("height", int)):
-                if key in values:
+            for key, kind in (("seed", int), ("stops", int), ("first_place", int), ("width", int), ("height", int),
+                              ("sensor_width", int)):
+                if values.get(key) is not None:
                     values[key] = kind(values[key])
             return cls(**values)
         except (KeyError, TypeError, ValueError) as exc:

@@ -13,7 +13,9 @@ drivers.vlp16.clock); one less late leaves at once and the sender catches up wit
 :class:`CameraStream` renders the panorama seen at the rig's pose at the instant the frame starts, as
 often as ``frame_period_s`` allows; while the rig stands still the view is rendered once and each frame
 only adds its own read noise, so a still rig streams at that rate as a real camera does (rendering a moving
-rig is slower than a real camera: see MotionRigSpec). Frames
+rig is slower than a real camera: see MotionRigSpec). A rig with ``sensor_width`` renders the six raw images of
+its Ladybug-like head instead (drivers.ladybug5.sim) and stitches the panorama from them, as the SDK source
+gives a real camera's frames. Frames
 carry their exposure instant on the host clock and the camera's own clock (seconds since the rig
 started).
 
@@ -38,6 +40,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.ladybug5.rig import RigCameras, scaled_ladybug5_rig
+from drivers.ladybug5.sim import pixel_rays_optical, sensor_displays
+from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 from drivers.sim.camera import panorama_display, quantise
 from drivers.sim.errors import SimError
 from drivers.sim.lidar import FIRINGS_PER_TURN, BeamReturns, LidarConfig, beam_returns, scan
@@ -169,12 +174,20 @@ class LidarEmitter:
 @dataclass(frozen=True)
 class SimFrame:
     """A rendered panorama ``image`` (H,W) uint8 grey, exposed at ``exposure_host_s`` (UNIX s) =
-    ``device_time_s`` (the camera's clock: s since the rig started) + the rig's start time."""
+    ``device_time_s`` (the camera's clock: s since the rig started) + the rig's start time. ``sensors``: a
+    head rig's six raw sensor images (H_s, W_s) uint8 grey, in the head's order (the panorama is stitched from
+    them); empty for a panorama rig."""
 
     image: NDArray[np.uint8]
     exposure_host_s: float
     device_time_s: float
     sequence: int
+    sensors: tuple[NDArray[np.uint8], ...] = ()
+
+
+def sim_head_rig(spec: MotionRigSpec) -> RigCameras | None:
+    """The head a rig with ``sensor_width`` renders (None: a panorama rig)."""
+    return None if spec.sensor_width is None else scaled_ladybug5_rig(spec.sensor_width)
 
 
 class CameraStream:
@@ -187,7 +200,10 @@ class CameraStream:
         self.spec = spec
         self.scene, self.trajectory = spec.build()
         self._stop = stop if stop is not None else threading.Event()
-        self._view: tuple[bytes, NDArray[np.float64]] | None = None  # the last pose rendered and its view
+        self._view: tuple[bytes, list[NDArray[np.float64]]] | None = None  # the last pose rendered, its view(s)
+        self.rig = sim_head_rig(spec)
+        self._rays = [] if self.rig is None else [pixel_rays_optical(c) for c in self.rig.cameras]
+        self._stitcher = None if self.rig is None else Stitcher(self.rig, PanoramaSpec(spec.width, spec.height))
 
     def frames(self) -> Iterator[SimFrame]:
         sequence = 0
@@ -198,18 +214,29 @@ class CameraStream:
                 continue
             t = now - self.start_host_s
             rng = np.random.default_rng([self.spec.seed, sequence, _STREAM_CAMERA])
-            yield SimFrame(quantise(self._display(t), rng, self.spec.image_noise_grey), now, t, sequence)
+            yield self._frame(self._display(t), rng, now, t, sequence)
             sequence += 1
             self._stop.wait(max(0.0, now + self.spec.frame_period_s - time.time()))
 
-    def _display(self, t: float) -> NDArray[np.float64]:
-        """The noise-free view at time ``t`` s: rendered again only when the rig has moved. A real camera
-        streams at 10 Hz whatever it sees; a render takes seconds, so without this a still rig waited that
-        long for each frame (and a busy machine's capture missed still windows)."""
+    def _frame(self, displays: list[NDArray[np.float64]], rng: np.random.Generator, host_s: float, t: float,
+               sequence: int) -> SimFrame:
+        """The frame of ``displays`` with its read noise: the panorama, or the sensors and their stitch."""
+        noise = self.spec.image_noise_grey
+        if self._stitcher is None:
+            return SimFrame(quantise(displays[0], rng, noise), host_s, t, sequence)
+        sensors = tuple(quantise(d, rng, noise) for d in displays)
+        return SimFrame(self._stitcher.stitch(list(sensors)), host_s, t, sequence, sensors)
+
+    def _display(self, t: float) -> list[NDArray[np.float64]]:
+        """The noise-free view at time ``t`` s (the panorama, or each sensor's image): rendered again only when
+        the rig has moved. A real camera streams at 10 Hz whatever it sees; a render takes seconds, so without
+        this a still rig waited that long for each frame (and a busy machine's capture missed still windows)."""
         pose = self.trajectory.pose_at(t)
         key = pose.matrix.tobytes()
         if self._view is None or self._view[0] != key:
-            self._view = key, panorama_display(self.scene, pose, self.spec.width, self.spec.height)
+            views = ([panorama_display(self.scene, pose, self.spec.width, self.spec.height)] if self.rig is None
+                     else sensor_displays(self.scene, pose, self.rig.cameras, self._rays))
+            self._view = key, views
         return self._view[1]
 
     def close(self) -> None:

@@ -16,7 +16,7 @@ from calib.assess import TrustOptions
 from calib.geometry import Transform
 from calib.initial import SearchOptions
 from calib.prior import Prior
-from drivers.ladybug5.sdk import DEFAULT_LIBRARY
+from drivers.ladybug5.sdk import DEFAULT_GRAB_TIMEOUT_MS, DEFAULT_LIBRARY
 from drivers.ladybug5.stitch import DEFAULT_RADIUS_M
 from rigd.capture.errors import ConfigError
 from rigd.dataset import CameraKind, RigConfig
@@ -47,8 +47,13 @@ class SdkSettings:
 
     layout: Path = DEFAULT_LAYOUT_FILE  # written by `rigd camera sdk-layout`
     library: str = DEFAULT_LIBRARY
-    rig_file: Path | None = None  # None: the nominal head of drivers.ladybug5 (not a factory calibration)
+    # The head calibration (`rigd camera export-head`, or a rig camera file). None: the rig file itself when its
+    # camera.model is head, else no head, which capture refuses unless the nominal head is accepted
+    # (--nominal-head: drivers.ladybug5's nominal values, not a calibration of any camera).
+    rig_file: Path | None = None
     radius_m: float = DEFAULT_RADIUS_M  # stitching sphere
+    serial: int | None = None  # the camera's head serial number; None: the only camera on the bus
+    grab_timeout_ms: int = DEFAULT_GRAB_TIMEOUT_MS  # ladybugSetGrabTimeout: a stalled camera times out
 
 
 @dataclass(frozen=True)
@@ -56,8 +61,9 @@ class RigSettings:
     """What capture takes from the rig file; ``path`` is None when no file was found (built-in defaults)."""
 
     path: Path | None = None
-    width: int = 2048
+    width: int = 2048  # the panorama's (px): the stillness check, the overlays, a panorama dataset
     height: int = 1024
+    head: bool = False  # camera.model is head: the rig file's camera section is the Ladybug5 head calibration
     camera_source: str = "sdk"
     lidar_model: str = "VLP-16"
     lidar_source: str = "udp"
@@ -95,13 +101,16 @@ def load_settings(path: Path | None) -> RigSettings:
         raise ConfigError(str(exc)) from exc
     camera = _section(data, "camera", where)
     lidar = _section(data, "lidar", where)
-    if rig is not None and rig.camera.kind is not CameraKind.EQUIRECTANGULAR:
-        raise ConfigError(f"{where}: camera.model must be equirectangular (capture writes Ladybug5 panoramas)")
+    if rig is not None and rig.camera.kind not in (CameraKind.EQUIRECTANGULAR, CameraKind.HEAD):
+        raise ConfigError(f"{where}: camera.model must be equirectangular or head (capture writes Ladybug5 "
+                          f"panoramas, or its sensors' images), got {rig.camera.kind.value}")
+    head = rig is not None and rig.camera.kind is CameraKind.HEAD
     defaults = RigSettings()
     return RigSettings(
         path=Path(path),
-        width=rig.camera.width if rig else defaults.width,
-        height=rig.camera.height if rig else defaults.height,
+        width=rig.camera.width if rig and not head else defaults.width,
+        height=rig.camera.height if rig and not head else defaults.height,
+        head=head,
         camera_source=str(camera.get("source", defaults.camera_source)),
         lidar_model=rig.lidar_model if rig else str(lidar.get("model", defaults.lidar_model)),
         lidar_source=str(lidar.get("source", defaults.lidar_source)),
@@ -179,4 +188,16 @@ def _sdk(section: dict[str, Any], where: str) -> SdkSettings:
         library=str(section.get("library", base.library)),
         rig_file=Path(str(rig_file)) if rig_file is not None else None,
         radius_m=_number(section, "radius_m", base.radius_m, f"{where}: camera.sdk", 0.0, strict=True, infinite=True),
+        serial=_serial(section.get("serial"), f"{where}: camera.sdk"),
+        grab_timeout_ms=_integer(section, "grab_timeout_ms", base.grab_timeout_ms, f"{where}: camera.sdk"),
     )
+
+
+def _serial(value: Any, where: str) -> int | None:
+    """A head serial number (a positive integer), or None."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ConfigError(f"{where}.serial: must be the camera's head serial number (a positive integer), got "
+                          f"{value!r}")
+    return value

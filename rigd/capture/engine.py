@@ -16,6 +16,7 @@ from start to end: a second one into the same folder is refused at once.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 import math
 import shutil
@@ -31,7 +32,6 @@ from typing import Any
 import numpy as np
 
 from calib.geometry import Transform
-from drivers.ladybug5 import PanoramaFrame
 from drivers.sim.motion import MotionRigSpec
 from drivers.vlp16 import ClockStep, StreamStats, Sweep
 from drivers.vlp16.layout import SEQUENCE_US
@@ -53,10 +53,11 @@ from rigd.capture.gate import (
     range_change_m,
     range_image,
 )
-from rigd.capture.sources import Sources, frame_time, open_sources
+from rigd.capture.pair_files import camera_difference, pair_bytes, pair_images, rig_camera
+from rigd.capture.sources import CameraFrame, Sources, frame_time, open_sources
 from rigd.capture.specs import CameraKind as SourceKind
 from rigd.capture.specs import parse_camera, parse_lidar
-from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
+from rigd.dataset import Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
 from rigd.dataset.lock import DatasetLock
 from rigd.dataset.store import read_yaml
 from rigd.errors import DatasetError
@@ -105,7 +106,9 @@ class CaptureRequest:
     Sources as in ``rigd capture`` (docs/capture.md); ``config``: the rig file for the dataset's rig.yaml
     (camera size, initial guess, the tolerance the stillness thresholds come from) and the SDK settings;
     None: built-in defaults. ``min_sweep_fraction``: every fused sweep holds at least this fraction of a
-    turn's packets (0 < f <= 1).
+    turn's packets (0 < f <= 1). ``serial``: the SDK camera's head serial number (None: the rig file's
+    camera.sdk.serial, else the only camera). ``nominal_head``: accept rigd's nominal head for the SDK camera
+    (instead of reading its factory head when the rig file names no head file; refused otherwise).
     """
 
     out: Path
@@ -118,6 +121,8 @@ class CaptureRequest:
     silence_timeout_s: float = 5.0
     config: Path | None = None
     min_sweep_fraction: float = DEFAULT_MIN_SWEEP_FRACTION
+    serial: int | None = None
+    nominal_head: bool = False
 
 
 class CaptureState(Enum):
@@ -181,7 +186,7 @@ def run_capture(request: CaptureRequest, progress: Progress | None = None,
                 stop: threading.Event | None = None) -> CaptureSummary:
     """Capture until the dataset has ``request.n`` pairs or ``stop`` is set (then it returns between pairs)."""
     _validate(request)
-    settings = load_settings(request.config)
+    settings = settings_for(request)
     lidar, camera = parse_lidar(request.lidar), parse_camera(request.camera)
     out = Path(request.out)
     with contextlib.ExitStack() as stack:
@@ -195,8 +200,17 @@ def run_capture(request: CaptureRequest, progress: Progress | None = None,
             return CaptureSummary(out, (), ())
         sim_default = MotionRigSpec(stops=sim_stops(request.n - len(existing)),
                                     still_s=request.still_seconds + SIM_STOP_MARGIN_S, move_s=SIM_MOVE_S)
-        sources = open_sources(stack, lidar, camera, settings, sim_default, places_done=len(existing))
+        sources = open_sources(stack, lidar, camera, settings, sim_default, places_done=len(existing),
+                               nominal_head=request.nominal_head)
         return _Session(request, settings, sources, existing, progress, stop or threading.Event()).run()
+
+
+def settings_for(request: CaptureRequest) -> RigSettings:
+    """The rig file's settings with the request's own choices over them (the SDK camera's serial)."""
+    settings = load_settings(request.config)
+    if request.serial is None:
+        return settings
+    return dataclasses.replace(settings, sdk=dataclasses.replace(settings.sdk, serial=request.serial))
 
 
 def _validate(request: CaptureRequest) -> None:
@@ -268,7 +282,7 @@ class _Session:
         self.thresholds = thresholds_for(settings)
         self.gate = StillnessGate(self.thresholds)
         self.recent: deque[tuple[SweepSample, Sweep]] = deque(maxlen=RECENT_SWEEPS)  # usable sweeps only
-        self.frames: list[tuple[float, PanoramaFrame]] = []  # (host time s, frame): those the window may use
+        self.frames: list[tuple[float, CameraFrame]] = []  # (host time s, frame): those the window may use
         self.rates: deque[tuple[float, float, int]] = deque(maxlen=20)  # (start, end, packets) of sweeps
         self._rate_at = -math.inf  # monotonic time the latest sweep (whole or not) arrived
         self.unusable: Unusable | None = None  # the latest sweep that could not go into a pair
@@ -360,8 +374,8 @@ class _Session:
         if self.gate.sweeps <= 1:
             self.window_lossy = 0
         for frame in self.sources.camera.poll(sample.t_end):
-            t = frame_time(frame, self.sources.camera.describe)
-            self.gate.add_frame(FrameSample(t, camera_image(frame.image)))
+            t = frame_time(frame.panorama, self.sources.camera.describe)
+            self.gate.add_frame(FrameSample(t, camera_image(frame.panorama.image)))
             self.frames.append((t, frame))
         self._prune_frames()
         self._decide(sample)
@@ -430,16 +444,16 @@ class _Session:
         now = time.monotonic()
         self.unsynced_since = self.unsynced_since if self.unsynced_since is not None else now
         lidar_offset = self.recent[-1][1].clock_offset_s if self.recent else math.nan
+        camera_offset = newest[0] - newest[1].panorama.device_time_s
         what = (f"the camera's frames are {ahead_s:.1f} s ahead of the LiDAR's sweeps on the host clock (host minus "
-                f"device: camera {newest[0] - newest[1].device_time_s:+.3f} s, LiDAR {lidar_offset:+.3f} s): one of "
-                "the clocks is wrong")
+                f"device: camera {camera_offset:+.3f} s, LiDAR {lidar_offset:+.3f} s): one of the clocks is wrong")
         if now - self.unsynced_since > self.request.silence_timeout_s:
             raise SyncError(f"no synchronised pair for {now - self.unsynced_since:.1f} s: {what}; check the camera's "
                             "and the LiDAR's time sources (GPS/PPS, NTP) and restart the sensor whose clock jumped")
         self._set(CaptureState.NOT_SYNCHRONISED, f"not synchronised: {what}")
 
     # -- a pair --------------------------------------------------------------------------------------------
-    def _take_pair(self, frame_t: float, frame: PanoramaFrame, window: tuple[float, float],
+    def _take_pair(self, frame_t: float, frame: CameraFrame, window: tuple[float, float],
                    moved_m: float | None) -> None:
         in_window = [(s, sw) for s, sw in self.recent if s.t_start >= window[0] and s.t_end <= window[1]]
         nearest = sorted(in_window, key=lambda x: abs(0.5 * (x[0].t_start + x[0].t_end) - frame_t))
@@ -453,9 +467,9 @@ class _Session:
         cloud = fuse_sweeps([sw for _, sw in chosen])
         meta = self._meta(frame_t, frame, chosen, cloud, window, moved_m)
         index = max((int(p.name) for p in existing_pairs(self.out)), default=-1) + 1
-        self._check_space(frame.image, cloud)  # before anything is written, rig.yaml included
-        self._ensure_rig(frame.image)
-        path = self._write(index, frame.image, cloud, meta)
+        self._check_space(pair_bytes(frame), cloud)  # before anything is written, rig.yaml included
+        self._ensure_rig(frame)
+        path = self._write(index, frame, cloud, meta)
         now = time.monotonic()
         self.written.append(path)
         self.seconds.append(now - self._since)
@@ -486,8 +500,9 @@ class _Session:
     def _clock_steps(self) -> tuple[ClockStep, ...]:
         return () if self.stats is None else self.stats.clock_steps
 
-    def _meta(self, frame_t: float, frame: PanoramaFrame, chosen: list[tuple[SweepSample, Sweep]], cloud: Cloud,
+    def _meta(self, frame_t: float, camera: CameraFrame, chosen: list[tuple[SweepSample, Sweep]], cloud: Cloud,
               window: tuple[float, float], moved_m: float | None) -> dict[str, Any]:
+        frame = camera.panorama
         sweeps = [sw for _, sw in chosen]
         measured = min(s.receive_offset_s for s in sweeps)
         lidar_mid = 0.5 * (chosen[0][0].t_start + chosen[-1][0].t_end)
@@ -501,6 +516,8 @@ class _Session:
                 "sequence_id": int(frame.sequence_id),
                 "time_base": frame.time_base.value,
                 "exposure": {"shutter_s": frame.exposure.shutter_s, "gain_db": frame.exposure.gain_db},
+                **({} if camera.sensors is None else {"head": camera.sensors.head.summary(),
+                                                      "head_source": camera.sensors.head.source.value}),
             },
             "lidar": self._lidar_meta(sweeps, cloud),
             "clock_offset_s": {"camera": float(frame_t - frame.device_time_s), "lidar": float(measured)},
@@ -557,17 +574,17 @@ class _Session:
             "min_move_m": self.request.min_move,
         }
 
-    def _ensure_rig(self, image: np.ndarray) -> None:
-        """Write rig.yaml (and the simulator's ground truth) with the first pair; check it on a resumed one."""
-        height, width = image.shape[:2]
+    def _ensure_rig(self, frame: CameraFrame) -> None:
+        """Write rig.yaml (and the simulator's ground truth) with the first pair; check it on a resumed one. Its
+        camera is the panorama, or the head the frame's sensor images go with (rigd.capture.pair_files)."""
+        camera = rig_camera(frame)
         rig_path = self.out / "rig.yaml"
         if rig_path.is_file():
             rig = RigConfig.from_yaml(read_yaml(rig_path), str(rig_path))
-            if (rig.camera.width, rig.camera.height) != (width, height):
-                raise DatasetError(f"{rig_path}: says {rig.camera.width}x{rig.camera.height} but the camera gives "
-                                   f"{width}x{height}: capture into a new dataset")
+            difference = camera_difference(rig.camera, camera)
+            if difference is not None:
+                raise DatasetError(f"{rig_path}: {difference}: capture into a new dataset")
             return
-        camera = CameraConfig(CameraKind.EQUIRECTANGULAR, width, height)
         try:
             write_rig(self.out, RigConfig(camera, self.settings.lidar_model, self.settings.initial_guess,
                                           self.settings.prior, self.settings.tolerance, self.settings.search))
@@ -579,8 +596,8 @@ class _Session:
                 raise DiskFullError(f"{exc}: disk full before the first pair; free some space and rerun") from exc
             raise
 
-    def _check_space(self, image: np.ndarray, cloud: Cloud) -> None:
-        needed = image.nbytes + 20 * len(cloud) + (1 << 20)  # uncompressed image and cloud, and metadata
+    def _check_space(self, image_bytes: int, cloud: Cloud) -> None:
+        needed = image_bytes + 20 * len(cloud) + (1 << 20)  # uncompressed images and cloud, and metadata
         try:
             free = shutil.disk_usage(self.out).free
         except OSError as exc:
@@ -589,9 +606,10 @@ class _Session:
             raise DiskFullError(f"{self.out}: only {free / 1e6:.1f} MB free, a pair needs up to {needed / 1e6:.1f} "
                                 f"MB; free some space and rerun (the {self.done} pairs written are complete)")
 
-    def _write(self, index: int, image: np.ndarray, cloud: Cloud, meta: dict[str, Any]) -> Path:
+    def _write(self, index: int, frame: CameraFrame, cloud: Cloud, meta: dict[str, Any]) -> Path:
+        image, extras = pair_images(frame)
         try:
-            return write_pair(self.out, index, image, cloud, meta)
+            return write_pair(self.out, index, image, cloud, meta, extras=extras)
         except DatasetError as exc:
             if _disk_full(exc):
                 raise DiskFullError(f"{self.out}: disk full while writing pair {index:04d}; it was not written, the "

@@ -1,4 +1,7 @@
-"""Sensor feeds for the capture loop: the LiDAR's sweeps and the camera's panoramas, each from its own thread.
+"""Sensor feeds for the capture loop: the LiDAR's sweeps and the camera's frames, each from its own thread.
+
+A camera frame is a panorama and, from a source that has them (the SDK, the simulated head), the raw sensor
+images it was stitched from with their head calibration (:class:`CameraFrame`).
 
 A live source (UDP, the SDK, the simulated rig) is read by a thread that hands items over through a
 bounded buffer, so the capture loop never blocks on a sensor and can check its stop flag and the sensors'
@@ -16,7 +19,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
-from typing import Protocol, cast
+from typing import Protocol, TypeVar, cast
 
 import cv2
 import numpy as np
@@ -26,24 +29,29 @@ from drivers.errors import DriverError
 from drivers.ladybug5 import (
     DirectoryFrameSource,
     Exposure,
+    HeadCalibration,
+    HeadCalibrationError,
+    HeadPolicy,
+    HeadSource,
     LadybugLibrary,
     PanoramaFrame,
     PanoramaSpec,
     SdkCamera,
     SdkFrameSource,
     SdkLayout,
-    Stitcher,
+    SensorFrame,
     TimeBase,
-    default_ladybug5_rig,
-    load_rig,
+    load_head,
 )
+from drivers.ladybug5.sim import simulated_head
 from drivers.sim.motion import MotionRigSpec, load_spec
-from drivers.sim.stream import START_LEAD_S, CameraProcess, LidarProcess, SimFrame
+from drivers.sim.stream import START_LEAD_S, CameraProcess, LidarProcess, SimFrame, sim_head_rig
 from drivers.vlp16 import PcapReplay, Ports, StreamStats, Sweep, UdpReceiver, Vlp16Config
 from rigd.capture.config import RigSettings
 from rigd.capture.errors import CaptureError, ConfigError, SourceEndedError, SourceSpecError
 from rigd.capture.specs import CameraKind, CameraSpec, LidarKind, LidarSpec
 
+_Item = TypeVar("_Item")
 _POLL_S = 0.1
 _CAMERA_BUFFER = 8  # frames kept for the loop (the newest win): 0.5 s of a 15 fps camera
 _JOIN_S = 30.0  # a simulated frame may take a few seconds to finish rendering
@@ -112,11 +120,21 @@ class LidarFeed:
             self._thread.join(_JOIN_S)
 
 
+@dataclass(frozen=True)
+class CameraFrame:
+    """A frame as capture takes it: the ``panorama`` (the stillness check, a panorama dataset's image, for people
+    in a head dataset) and ``sensors``, the raw sensor images it was stitched from with their head calibration,
+    from a source that has them (a head dataset's images; None: a panorama source)."""
+
+    panorama: PanoramaFrame
+    sensors: SensorFrame | None = None
+
+
 class CameraFeed(Protocol):
     describe: str
     frame_gap_s: float  # the longest normal gap between two frames; silence shorter than this is no error
 
-    def poll(self, until_host_s: float) -> list[PanoramaFrame]:
+    def poll(self, until_host_s: float) -> list[CameraFrame]:
         """Frames received since the last poll (recorded sources: those up to ``until_host_s``)."""
         ...
 
@@ -131,13 +149,13 @@ class CameraFeed(Protocol):
 class ThreadedCameraFeed:
     """A live camera: ``frames()`` iterated in a thread; the newest frames are kept for :meth:`poll`."""
 
-    def __init__(self, describe: str, frames: Callable[[], Iterator[PanoramaFrame]],
+    def __init__(self, describe: str, frames: Callable[[], Iterator[CameraFrame]],
                  on_close: Callable[[], None] | None = None, frame_gap_s: float = 0.0) -> None:
         self.describe = describe
         self.frame_gap_s = frame_gap_s
         self._frames = frames
         self._on_close = on_close
-        self._buffer: deque[PanoramaFrame] = deque(maxlen=_CAMERA_BUFFER)
+        self._buffer: deque[CameraFrame] = deque(maxlen=_CAMERA_BUFFER)
         self._lock = threading.Lock()
         self._closed = threading.Event()
         self._ended = threading.Event()
@@ -169,7 +187,7 @@ class ThreadedCameraFeed:
                 close()  # a generator holding the SDK camera releases it here, in its own thread
             self._ended.set()
 
-    def poll(self, until_host_s: float) -> list[PanoramaFrame]:
+    def poll(self, until_host_s: float) -> list[CameraFrame]:
         with self._lock:
             frames = list(self._buffer)
             self._buffer.clear()
@@ -202,10 +220,10 @@ class PulledCameraFeed:
         self._pending: PanoramaFrame | None = None
         self._ended = False
 
-    def poll(self, until_host_s: float) -> list[PanoramaFrame]:
+    def poll(self, until_host_s: float) -> list[CameraFrame]:
         if self._ended:
             raise SourceEndedError(f"camera source {self.describe} has no more frames")
-        out: list[PanoramaFrame] = []
+        out: list[CameraFrame] = []
         while True:
             if self._pending is None:
                 self._pending = next(self._frames, None)
@@ -214,7 +232,7 @@ class PulledCameraFeed:
                     return out
             if frame_time(self._pending, self.describe) > until_host_s:
                 return out
-            out.append(self._pending)
+            out.append(CameraFrame(self._pending))
             self._pending = None
 
     def seconds_since_frame(self) -> tuple[float, bool] | None:
@@ -234,10 +252,18 @@ def frame_time(frame: PanoramaFrame, describe: str) -> float:
     return frame.host_time_s
 
 
-def sim_panorama(frame: SimFrame) -> PanoramaFrame:
-    """A simulated frame as the Ladybug5 sources give it: BGR, camera clock and host time."""
-    bgr = cast(NDArray[np.uint8], cv2.cvtColor(frame.image, cv2.COLOR_GRAY2BGR))
-    return PanoramaFrame(bgr, frame.device_time_s, frame.exposure_host_s, frame.sequence, Exposure(), TimeBase.CAMERA)
+def _bgr(grey: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    return cast(NDArray[np.uint8], cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR))
+
+
+def sim_frame(frame: SimFrame, head: HeadCalibration | None) -> CameraFrame:
+    """A simulated frame as the Ladybug5 sources give it: BGR, camera clock and host time; with the six sensor
+    images and ``head`` (the simulated head) when the rig renders them."""
+    times = (frame.device_time_s, frame.exposure_host_s, frame.sequence, Exposure(), TimeBase.CAMERA)
+    panorama = PanoramaFrame(_bgr(frame.image), *times)
+    if head is None or not frame.sensors:
+        return CameraFrame(panorama)
+    return CameraFrame(panorama, SensorFrame(tuple(_bgr(s) for s in frame.sensors), head, *times))
 
 
 @dataclass
@@ -250,11 +276,13 @@ class Sources:
 
 
 def open_sources(stack: contextlib.ExitStack, lidar: LidarSpec, camera: CameraSpec, settings: RigSettings,
-                 sim_default: MotionRigSpec, places_done: int) -> Sources:
+                 sim_default: MotionRigSpec, places_done: int, *, nominal_head: bool = False) -> Sources:
     """Start both feeds; everything started is closed when ``stack`` closes (also after an error).
 
     ``sim_default`` is the rig simulated here for ``--lidar sim`` without a file. A rig simulated here
     starts ``places_done`` places further on, so a resumed capture does not go back to places it has.
+    ``nominal_head``: the SDK camera may run on rigd's nominal head when the settings name no head calibration
+    (else that is refused: :func:`sdk_head`).
     """
     if lidar.kind is LidarKind.SIM:
         if camera.kind is not CameraKind.SIM or camera.path not in (None, lidar.path):
@@ -277,7 +305,7 @@ def open_sources(stack: contextlib.ExitStack, lidar: LidarSpec, camera: CameraSp
         pulled = PulledCameraFeed(str(camera), DirectoryFrameSource(camera.path).frames())
         stack.callback(pulled.close)
         return Sources(feed, pulled, None)
-    return Sources(feed, _start_camera(stack, _sdk_feed(settings)), None)
+    return Sources(feed, _start_camera(stack, _sdk_feed(settings, nominal_head=nominal_head)), None)
 
 
 def _start_camera(stack: contextlib.ExitStack, feed: ThreadedCameraFeed) -> ThreadedCameraFeed:
@@ -303,16 +331,24 @@ def _sim_rig(stack: contextlib.ExitStack, spec: MotionRigSpec) -> Sources:
 def _sim_camera(stack: contextlib.ExitStack, describe: str, spec: MotionRigSpec) -> ThreadedCameraFeed:
     camera = CameraProcess(spec)
     stack.callback(camera.close)
+    rig = sim_head_rig(spec)
+    head = None if rig is None else simulated_head(rig)
 
-    def frames() -> Iterator[PanoramaFrame]:
-        stream = camera.frames()
-        try:
-            for frame in stream:
-                yield sim_panorama(frame)
-        finally:
-            stream.close()
+    def frames() -> Iterator[CameraFrame]:
+        return _converted(camera.frames(), lambda frame: sim_frame(frame, head))
 
     return _start_camera(stack, ThreadedCameraFeed(describe, frames, camera.close, SIM_FRAME_GAP_S))
+
+
+def _converted(stream: Iterator[_Item], convert: Callable[[_Item], CameraFrame]) -> Iterator[CameraFrame]:
+    """``stream``'s items converted; closing this closes ``stream`` (a generator holding a camera releases it)."""
+    try:
+        for item in stream:
+            yield convert(item)
+    finally:
+        close = getattr(stream, "close", None)
+        if close is not None:
+            close()
 
 
 def _lidar_feed(stack: contextlib.ExitStack, spec: LidarSpec) -> LidarFeed:
@@ -330,8 +366,33 @@ def _lidar_feed(stack: contextlib.ExitStack, spec: LidarSpec) -> LidarFeed:
     return feed
 
 
-def _sdk_feed(settings: RigSettings) -> ThreadedCameraFeed:
-    """The live Ladybug5 through FLIR's SDK, stitched to the rig file's panorama size."""
+NOMINAL_FIX = (
+    "capture does not run on rigd's nominal head, which is not a calibration of any camera (every extrinsic "
+    "calibration would absorb its lens errors): export the camera's factory head with `rigd camera export-head "
+    "--out /etc/rigd/ladybug_head.yaml` (from the camera, or from a .pgr stream or .cal file with --pgr / "
+    "--calibration) and set camera.sdk.rig_file to it, or pass --nominal-head to capture with the nominal head "
+    "anyway (docs/ladybug5.md)"
+)
+
+
+def sdk_head(settings: RigSettings, *, nominal_head: bool) -> HeadCalibration | HeadPolicy:
+    """The head calibration the live camera's frames go with: ``camera.sdk.rig_file``, else the rig file itself
+    when its camera.model is head, else the camera's factory head read through the SDK at the first frame
+    (``HeadPolicy.FACTORY``); rigd's nominal head only when ``nominal_head``. A file whose head says ``source:
+    nominal`` is refused without ``nominal_head`` (ConfigError naming the fix)."""
+    path = settings.sdk.rig_file or (settings.path if settings.head else None)
+    if path is None:
+        return HeadPolicy.NOMINAL if nominal_head else HeadPolicy.FACTORY
+    head = load_head(path)
+    if head.source is HeadSource.NOMINAL and not nominal_head:
+        raise ConfigError(f"{path}: this head calibration is rigd's nominal head (head.source: nominal), not the "
+                          f"camera's: {NOMINAL_FIX}")
+    return head
+
+
+def _sdk_feed(settings: RigSettings, *, nominal_head: bool) -> ThreadedCameraFeed:
+    """The live Ladybug5 through FLIR's SDK: each frame's six sensor images with the head calibration, and the
+    panorama stitched from them at the rig file's panorama size."""
     sdk = settings.sdk
     if not sdk.layout.exists():
         # The usual first-run state of a rig computer: say where the file comes from, not only that it is missing.
@@ -341,9 +402,16 @@ def _sdk_feed(settings: RigSettings) -> ThreadedCameraFeed:
             f"with `rigd camera sdk-layout --include /usr/include/ladybug --out {sdk.layout}` (the directory "
             "holding ladybug.h), or set camera.sdk.layout in the rig file to an existing layout file "
             "(docs/ladybug5.md). Without the camera, capture from the simulated rig (source sim).")
+    head = sdk_head(settings, nominal_head=nominal_head)
     library = LadybugLibrary(SdkLayout.load(sdk.layout), sdk.library)
-    rig = load_rig(sdk.rig_file) if sdk.rig_file is not None else default_ladybug5_rig()
-    stitcher = Stitcher(rig, PanoramaSpec(settings.width, settings.height, sdk.radius_m))
-    source = SdkFrameSource(SdkCamera(library), stitcher)
-    return ThreadedCameraFeed("sdk", source.frames)
+    camera = SdkCamera(library, serial=sdk.serial, grab_timeout_ms=sdk.grab_timeout_ms)
+    source = SdkFrameSource(camera, PanoramaSpec(settings.width, settings.height, sdk.radius_m), head=head)
 
+    def frames() -> Iterator[CameraFrame]:
+        try:
+            yield from _converted(source.frames_with_sensors(), lambda pair: CameraFrame(*pair))
+        except HeadCalibrationError as exc:  # the factory head unreadable, or not the camera's sensor size
+            raise HeadCalibrationError(f"{exc}; {NOMINAL_FIX}") from exc
+
+    describe = "sdk" if sdk.serial is None else f"sdk (camera {sdk.serial})"
+    return ThreadedCameraFeed(describe, frames)

@@ -46,6 +46,13 @@ def register(subparsers: Any) -> None:
                         help="every fused LiDAR sweep holds at least this fraction of a turn's packets; sustained "
                         "loss below it ends the capture after the silence timeout (default 0.99)")
     parser.add_argument("--config", type=Path, default=None, help="rig file (default: see above)")
+    parser.add_argument("--serial", type=int, default=None,
+                        help="--camera sdk: the Ladybug5's head serial number (default: camera.sdk.serial in the rig "
+                        "file, else the only camera on the bus)")
+    parser.add_argument("--nominal-head", action="store_true",
+                        help="--camera sdk: accept rigd's nominal head (NOT a calibration of the camera): used "
+                        "instead of reading the camera's factory head when the rig file names no head file, and "
+                        "allowed as camera.sdk.rig_file (default: refused; see `rigd camera export-head`)")
     parser.set_defaults(func=run)
 
 
@@ -72,6 +79,8 @@ def request_from_args(args: argparse.Namespace) -> CaptureRequest:
         silence_timeout_s=pick(args.silence_timeout, defaults.silence_timeout_s),
         config=config,
         min_sweep_fraction=pick(args.min_sweep_fraction, defaults.min_sweep_fraction),
+        serial=args.serial,
+        nominal_head=args.nominal_head,
     )
 
 

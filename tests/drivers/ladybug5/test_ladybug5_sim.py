@@ -10,7 +10,8 @@ import pytest
 from ladybug5_helpers import scaled_rig
 from scipy import ndimage
 
-from drivers.ladybug5.rig import default_ladybug5_rig
+from drivers.ladybug5.head import HeadSource
+from drivers.ladybug5.rig import default_ladybug5_rig, scaled_ladybug5_rig
 from drivers.ladybug5.sim import SimFrameSource, pixel_rays_optical
 from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 from drivers.sim import SceneKind, render_panorama
@@ -89,3 +90,28 @@ def test_sim_frame_source_times_and_frames(scene_and_pose):
     assert [(f.sequence_id, f.device_time_s, f.host_time_s) for f in frames] == [(0, 50.0, 1050.0), (1, 50.1, 1050.1)]
     assert frames[0].image.shape == (32, 64, 3) and frames[0].image.dtype == np.uint8
     assert not np.array_equal(frames[0].image, frames[1].image)  # independent read noise per frame
+
+
+def test_sim_frame_source_gives_each_panorama_with_its_sensor_images(scene_and_pose):
+    scene, pose = scene_and_pose
+    small = scaled_ladybug5_rig(40)
+    stitcher = Stitcher(small, PanoramaSpec(64, 32))
+    source = SimFrameSource(scene, [pose], stitcher, np.random.default_rng(2), frame_period_s=0.1,
+                            device_start_s=5.0, host_offset_s=100.0)
+    (pano, sensors), = source.frames_with_sensors()
+    assert (sensors.device_time_s, sensors.host_time_s, sensors.sequence_id) == (5.0, 105.0, 0)
+    assert sensors.head.source is HeadSource.FACTORY and sensors.head.sizes == tuple((40, 33) for _ in range(6))
+    np.testing.assert_array_equal(pano.image, stitcher.stitch(list(sensors.images)))
+    for sensor, camera in zip(sensors.head.sensors, small.cameras, strict=True):
+        np.testing.assert_allclose(sensor.R_head_camera, camera.R_head_camera, atol=1e-12)
+        np.testing.assert_allclose(sensor.lens.K, camera.K)
+
+
+def test_the_scaled_head_keeps_the_nominal_fields_of_view():
+    nominal, small = default_ladybug5_rig(), scaled_ladybug5_rig(153)  # 1/16 of the width
+    for big, little in zip(nominal.cameras, small.cameras, strict=True):
+        corner = cv2.undistortPoints(np.array([[[0.0, 0.0]]]), big.K, big.D).ravel()
+        scaled = cv2.undistortPoints(np.array([[[-0.5 + 0.5 / 16, -0.5 + 0.5 / 16]]]), little.K, little.D).ravel()
+        np.testing.assert_allclose(scaled, corner, rtol=0.01)
+        np.testing.assert_array_equal(little.R_head_camera, big.R_head_camera)
+    assert (small.cameras[0].width, small.cameras[0].height) == (153, 128)

@@ -11,6 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivers.ladybug5.rig import scaled_ladybug5_rig
+from drivers.ladybug5.sim import pixel_rays_optical, sensor_displays
+from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 from drivers.sim import Pose, make_scene, render_panorama, scan
 from drivers.sim.errors import SimError
 from drivers.sim.lidar import LidarConfig
@@ -137,3 +140,22 @@ def test_a_still_rig_streams_frames_without_rendering_again(monkeypatch: pytest.
                                    np.random.default_rng([spec.seed, f.sequence, 11]), spec.image_noise_grey)
         np.testing.assert_array_equal(f.image, expected)
     assert not np.array_equal(got[0].image, got[1].image)  # fresh read noise
+
+
+def test_a_head_rig_streams_its_sensor_images_and_their_stitch(tmp_path: Path) -> None:
+    spec = dataclasses.replace(SPEC, sensor_width=32, frame_period_s=0.05).started(time.time())
+    save_spec(tmp_path / "rig.yaml", spec)
+    assert load_spec(tmp_path / "rig.yaml").sensor_width == 32
+    with pytest.raises(SimError, match="sensor_width"):
+        dataclasses.replace(SPEC, sensor_width=4)
+    stream = CameraStream(spec)
+    frames = stream.frames()
+    frame = next(frames)
+    stream.close()
+    rig = scaled_ladybug5_rig(32)
+    assert [s.shape for s in frame.sensors] == [(c.height, c.width) for c in rig.cameras]
+    np.testing.assert_array_equal(frame.image, Stitcher(rig, PanoramaSpec(64, 32)).stitch(list(frame.sensors)))
+    pose = stream.trajectory.pose_at(frame.device_time_s)
+    truth = sensor_displays(stream.scene, pose, rig.cameras, [pixel_rays_optical(c) for c in rig.cameras])
+    for image, display in zip(frame.sensors, truth, strict=True):  # each sensor's own view, with read noise
+        assert 0 < np.abs(image - 255.0 * display).mean() < 3 * spec.image_noise_grey

@@ -14,7 +14,7 @@ import numpy as np
 import yaml
 
 from drivers.sim import render_panorama
-from drivers.sim.motion import MotionRigSpec, Trajectory
+from drivers.sim.motion import MotionRigSpec, Trajectory, save_spec
 from drivers.sim.stream import TURN_S, LidarEmitter
 from drivers.vlp16 import PpsStatus, encode_position_packet, gprmc_sentence, write_pcap
 from drivers.vlp16.layout import BLOCKS_PER_PACKET, HOUR_US, POSITION_TIMESTAMP_OFFSET
@@ -86,6 +86,21 @@ def free_udp_ports(count: int) -> list[int]:
     finally:
         for sock in sockets:
             sock.close()
+
+
+def capture_following(folder: Path, spec: MotionRigSpec, n: int, config: Path) -> tuple[int, LidarEmitter]:
+    """``rigd capture`` of ``n`` pairs into ``folder/dataset`` from the simulated rig ``spec``: its VLP-16 over UDP
+    on loopback (a thread here), its camera followed through its rig file (a child process); the exit code and
+    the emitter (its started spec, scene and trajectory)."""
+    from rigd.cli import main
+
+    data_port, position_port = free_udp_ports(2)
+    with LidarEmitter(spec, "127.0.0.1", data_port, position_port) as emitter:
+        save_spec(folder / "sim-rig.yaml", emitter.spec)
+        code = main(["capture", "--n", str(n), "--out", str(folder / "dataset"),
+                     "--lidar", f"udp:127.0.0.1:{data_port}:{position_port}",
+                     "--camera", f"sim:{folder / 'sim-rig.yaml'}", "--still-seconds", "0.5", "--config", str(config)])
+    return code, emitter
 
 
 # -- the fault relay ---------------------------------------------------------------------------------------

@@ -12,11 +12,13 @@ from capture_helpers import REPO
 from rigd.capture import CaptureStatus, ConfigError, SourceSpecError
 from rigd.capture import config as capture_config
 from rigd.capture.config import find_config, load_settings
+from rigd.capture.engine import settings_for
 from rigd.capture.specs import CameraKind, LidarKind, parse_camera, parse_lidar
 from rigd.cli import build_parser, main
 from rigd.cli.capture import StatusPrinter, request_from_args
 
 DEPLOY_RIG = REPO / "deploy" / "config" / "rig.yaml"
+PANORAMA = {"model": "equirectangular", "width": 64, "height": 32}
 
 
 @pytest.mark.parametrize("text, kind, host, data, position, path", [
@@ -159,3 +161,30 @@ def test_status_line_on_a_terminal_is_rewritten_in_place() -> None:
     assert out.count("\r") == 2 and out.count("\n") == 2  # same state: same line; a new state: a new line
     shown = out.split("\n")[0].split("\r")[-1]  # what the terminal shows on the first line at the end
     assert "hold still 1.1 s" in shown and shown.rstrip().endswith("3 lost")
+
+
+def test_the_sdk_camera_settings_and_options(tmp_path: Path) -> None:
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump({"camera": {**PANORAMA, "sdk": {"serial": 17092345, "grab_timeout_ms": 500}}}))
+    settings = load_settings(path)
+    assert (settings.sdk.serial, settings.sdk.grab_timeout_ms) == (17092345, 500)
+    assert load_settings(None).sdk.serial is None and load_settings(None).sdk.grab_timeout_ms == 2000
+    args = build_parser().parse_args(["capture", "--config", str(path), "--out", "ds"])
+    request = request_from_args(args)
+    assert (request.serial, request.nominal_head) == (None, False)
+    assert settings_for(request).sdk.serial == 17092345  # the rig file's camera
+    args = build_parser().parse_args(["capture", "--config", str(path), "--out", "ds", "--serial", "42",
+                                      "--nominal-head"])
+    request = request_from_args(args)
+    assert (request.serial, request.nominal_head) == (42, True)
+    assert settings_for(request).sdk.serial == 42 and settings_for(request).sdk.grab_timeout_ms == 500
+
+
+@pytest.mark.parametrize("sdk, match", [({"serial": "abc"}, "camera.sdk.serial"), ({"serial": 0}, "serial"),
+                                        ({"grab_timeout_ms": 0}, "grab_timeout_ms"),
+                                        ({"grab_timeout": 5}, "'grab_timeout'")])
+def test_bad_sdk_settings_name_the_key(tmp_path: Path, sdk: dict, match: str) -> None:
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump({"camera": {**PANORAMA, "sdk": sdk}}))
+    with pytest.raises(ConfigError, match=match):
+        load_settings(path)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from capture_helpers import free_udp_ports, read_meta, stop_of_pair
+from capture_helpers import capture_following, free_udp_ports, read_meta, stop_of_pair
 
 from drivers.sim.motion import MotionRigSpec, save_spec
 from drivers.sim.stream import LidarEmitter
@@ -37,15 +37,8 @@ def rig_config(path: Path) -> Path:
 def test_capture_over_udp_then_calibrate(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("RIGD_CONFIG", raising=False)
     spec = MotionRigSpec(scene="indoor", seed=1, stops=4, still_s=2.5, move_s=1.5, width=256, height=128)
-    data_port, position_port = free_udp_ports(2)
-    out = tmp_path / "dataset"
-    with LidarEmitter(spec, "127.0.0.1", data_port, position_port) as emitter:
-        save_spec(tmp_path / "sim-rig.yaml", emitter.spec)
-        code = main(["capture", "--n", "3", "--out", str(out), "--lidar", f"udp:127.0.0.1:{data_port}:{position_port}",
-                     "--camera", f"sim:{tmp_path / 'sim-rig.yaml'}", "--still-seconds", "0.5",
-                     "--config", str(rig_config(tmp_path / "rig.yaml"))])
-        start = emitter.spec.start_host_s
-        trajectory = emitter.trajectory
+    code, emitter = capture_following(tmp_path, spec, 3, rig_config(tmp_path / "rig.yaml"))
+    out, start, trajectory = tmp_path / "dataset", emitter.spec.start_host_s, emitter.trajectory
     assert code == 0
     dataset = open_dataset(out)
     assert len(dataset) == 3

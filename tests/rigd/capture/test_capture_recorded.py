@@ -128,7 +128,7 @@ def test_low_free_space_stops_before_writing(tmp_path: Path, session, monkeypatc
 
 
 def test_disk_full_while_writing_is_a_named_error(tmp_path: Path, session, monkeypatch: pytest.MonkeyPatch) -> None:
-    def full(root, index, image, cloud, meta):
+    def full(root, index, image, cloud, meta, extras=None):
         raise DatasetError(f"{root}: could not write pair") from OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(capture_engine, "write_pair", full)
