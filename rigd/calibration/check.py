@@ -10,7 +10,7 @@ from pathlib import Path
 
 from typing_extensions import TypedDict
 
-from calib.check import DriftOptions, DriftResult, GroupChange, check_drift
+from calib.check import DriftOptions, DriftResult, GroupChange, check_drift, percent
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.pipeline import CalibParams
@@ -68,6 +68,17 @@ class CheckReport(TypedDict):
     dataset: str
     pairs: int
     wall_time_s: float
+
+
+def group_lines(rep: CheckReport) -> list[str]:
+    """Each judged group's change as a length with the largest the pairs allow and the threshold, in the words
+    ``rigd check`` prints and the page shows."""
+    lines = []
+    for name, unit in (("rotation", "deg"), ("translation", "cm")):
+        if (g := rep["groups"].get(name)) is not None:
+            lines.append(f"{name}: {g['length']:.3g} {unit}, at most {g['upper']:.3g} at "
+                         f"{percent(rep['confidence']['ok'])} confidence (threshold {g['threshold']:g})")
+    return lines
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from calib.check import DriftOptions, DriftStatus, percent
+from calib.check import DriftOptions, DriftStatus
 from calib.geometry import Transform
-from rigd.calibration.check import CheckReport, extrinsics_from_file, extrinsics_from_store, run_check
+from rigd.calibration.check import CheckReport, extrinsics_from_file, extrinsics_from_store, group_lines, run_check
 from rigd.cli.args import parse_tolerance
 from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
@@ -82,10 +82,7 @@ def report_lines(rep: CheckReport) -> list[str]:
              f"(sigma {', '.join(f'{v:.3f}' for v in s['rpy_deg'])})",
              f"change x, y, z: {', '.join(f'{v:+.2f}' for v in c['xyz_cm'])} cm "
              f"(sigma {', '.join(f'{v:.2f}' for v in s['xyz_cm'])})"]
-    for name, unit in (("rotation", "deg"), ("translation", "cm")):
-        if (g := rep["groups"].get(name)) is not None:
-            lines.append(f"{name}: {g['length']:.3g} {unit}, at most {g['upper']:.3g} at "
-                         f"{percent(rep['confidence']['ok'])} confidence (threshold {g['threshold']:g})")
+    lines += group_lines(rep)
     axes = f" ({', '.join(rep['axes'])})" if rep["axes"] else ""
     lines.append(f"status: {rep['status'].upper()}{axes}; {rep['pairs']} pairs at {rep['places']} places, "
                  f"{rep['wall_time_s']:.1f} s")

@@ -4,6 +4,7 @@ latest jobs with the verdicts they produced, a page of the newest versions, the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from starlette.concurrency import run_in_threadpool
@@ -16,6 +17,7 @@ from rigd.api.routes.jobs import list_jobs
 from rigd.api.routes.status import get_status
 from rigd.api.runner import Start
 from rigd.api.service import Service
+from rigd.calibration.check import CheckReport, group_lines
 from rigd.report import VersionQuality, calibrated, verdict_of
 from rigd.store import ExtrinsicsVersion
 
@@ -164,6 +166,15 @@ class JobView:
         if tolerance := p.get("tolerance"):
             words.append(f"tolerance {tolerance['rotation_deg']:g}° / {tolerance['translation_cm']:g} cm")
         return words
+
+    @property
+    def check_lines(self) -> list[str]:
+        """A finished check's rotation and translation change as lengths against their bounds (rigd check's
+        words); none for another job, or a check stored before the report had its groups."""
+        result = self.record.result
+        if self.record.kind != "check" or not result or "groups" not in result or "confidence" not in result:
+            return []
+        return group_lines(cast(CheckReport, result))
 
     def _result(self) -> str:
         result = self.record.result or {}

@@ -430,6 +430,11 @@ def check_with_every_reason(browser, server) -> None:
     assert check["status"] == "succeeded" and len(check["result"]["reasons"]) >= 1
     row = f'.job[data-job="{check["id"]}"]'
     assert texts(browser, row + " .reasons li") == check["result"]["reasons"]
+    groups = check["result"]["groups"]  # each judged group's length against its bound (none here: few places)
+    lengths = texts(browser, row + " .lengths li")
+    assert len(lengths) == len(groups)
+    for line, (name, g) in zip(lengths, sorted(groups.items()), strict=True):
+        assert line.startswith(f"{name}: {g['length']:.3g} ") and f"at most {g['upper']:.3g}" in line
     assert text(browser, row + " .badge") == status
     until(browser, 10, lambda d: f"job {check['id']} done: {status}" in message(d)[0])
     assert message(browser)[1] == TONE[status]
