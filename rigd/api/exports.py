@@ -12,11 +12,18 @@ from rigd.dataset.records import transform_to_yaml
 from rigd.exports import ExportFormat, render_transform
 from rigd.store import ExtrinsicsVersion
 
-__all__ = ["ExportFormat", "document", "render"]
+__all__ = ["ExportFormat", "document", "download_name", "render"]
 
 YAML = "application/yaml"
 MEDIA_TYPES = {ExportFormat.JSON: "application/json", ExportFormat.ROS2_LAUNCH: "text/x-python",
                ExportFormat.URDF: "application/xml"}
+# A download's file name ends as its format is read: a launch file is Python, a URDF joint .urdf; the rest YAML.
+EXTENSIONS = {ExportFormat.JSON: "json", ExportFormat.ROS2_LAUNCH: "launch.py", ExportFormat.URDF: "urdf"}
+
+
+def download_name(number: int, fmt: ExportFormat) -> str:
+    """The file name a download of extrinsics version ``number`` in ``fmt`` is offered under."""
+    return f"extrinsics-v{number}-{fmt.value}.{EXTENSIONS.get(fmt, 'yaml')}"
 
 
 def document(version: ExtrinsicsVersion) -> dict[str, Any]:

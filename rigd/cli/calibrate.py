@@ -15,6 +15,7 @@ from calib.methods import Method
 from rigd.calibration import CalibrationRequest, run_calibration
 from rigd.calibration.service import DEFAULT_SIGMAS_DEG, PAPER_SIGMAS_DEG
 from rigd.cli.args import parse_init, parse_prior, parse_sigmas, parse_tolerance
+from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Calibrate
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.report import InitialSearch, ReferenceAgreement, Uncertainty, Verdict
@@ -29,7 +30,7 @@ def register(subparsers: Any) -> None:
         "points over each image before and after, coloured by range, and a close-up of where they moved most) and "
         "clouds/ (coloured PLY per pair).",
     )
-    parser.add_argument("dataset", type=Path, metavar="DATASET")
+    parser.add_argument("dataset", type=Path, metavar="DATASET", help="a dataset folder, or a bag (below)")
     start = parser.add_mutually_exclusive_group()
     start.add_argument("--init", type=str, default=None,
                        help="initial guess 'roll,pitch,yaw,x,y,z' in deg and m (default: rig.yaml initial_guess; "
@@ -47,7 +48,8 @@ def register(subparsers: Any) -> None:
                         "settings as printed; mi, nid, gom: the photometric baselines (LiDAR reflectivity against the "
                         "image; no trust assessment, exit code 5); rigd+nid: rigd, then NID from its solution; "
                         "gmm-*: the ablations (docs/results.md)")
-    parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration)")
+    parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration; for a "
+                        "bag BAG_calibration beside it, or DIR/calibration with --keep-dataset DIR)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
     parser.add_argument("--no-visuals", action="store_true", help="skip overlays and PLY clouds")
     parser.add_argument("--workers", type=_workers, default=2, metavar="N",
@@ -65,6 +67,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--max-width", type=_max_width, default=WORKING_WIDTH_PX, metavar="PX",
                         help=f"working resolution: wider images are halved until at most PX wide (default "
                         f"{WORKING_WIDTH_PX}; 0: full resolution, slower and no more accurate; docs/performance.md)")
+    add_bag_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -97,9 +100,14 @@ def _on_iter(level: int, iteration: int, cost: float) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with dataset_input(args) as data:
+        return _calibrate(args, data)
+
+
+def _calibrate(args: argparse.Namespace, data: DatasetInput) -> int:
     request = CalibrationRequest(
-        dataset=args.dataset,
-        out_dir=args.out or args.dataset / "calibration",
+        dataset=data.path,
+        out_dir=args.out or data.default_out("calibration"),
         initial=parse_init(args.init) if args.init else None,
         sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
         method=Method(args.method),
@@ -112,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         max_width=args.max_width or None,
     )
     outcome = run_calibration(request, _progress, _on_iter)
+    data.record_bag(outcome.out_dir)
     report = outcome.report
     if args.json:
         print(json.dumps(report))

@@ -12,6 +12,7 @@ from calib.check import DriftOptions, DriftStatus
 from calib.geometry import Transform
 from rigd.calibration.check import CheckReport, extrinsics_from_file, extrinsics_from_store, group_lines, run_check
 from rigd.cli.args import parse_tolerance
+from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
 from rigd.errors import RigdError
@@ -28,7 +29,7 @@ def register(subparsers: Any) -> None:
         "confidence) or unknown (the pairs cannot tell; at least 4 places are needed). Exit code 0, 1, 2 (2 is "
         "also any error, with a message). See docs/check.md.",
     )
-    parser.add_argument("dataset", type=Path, metavar="DATASET")
+    parser.add_argument("dataset", type=Path, metavar="DATASET", help="a dataset folder, or a bag (below)")
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--against", type=Path, default=None, metavar="FILE",
                         help="extrinsics.yaml (or any YAML with T_camera_lidar) to check; default: the dataset's "
@@ -41,18 +42,20 @@ def register(subparsers: Any) -> None:
                         help="length of a rotation (deg) and of a translation (cm) change that matters "
                         f"(default {DriftOptions().threshold_rot_deg:g},{DriftOptions().threshold_trans_cm:g})")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
+    add_bag_options(parser)
     parser.set_defaults(func=run)
 
 
-def _checked(args: argparse.Namespace) -> Transform:
+def _checked(args: argparse.Namespace, dataset: DatasetInput) -> Transform:
     if args.against is not None:
         return extrinsics_from_file(args.against)
     if args.version is not None:
         return extrinsics_from_store(args.data_dir, args.version)
-    guess = open_dataset(args.dataset).rig.initial_guess
+    guess = open_dataset(dataset.path).rig.initial_guess
     if guess is None:
-        raise RigdError(f"{args.dataset / 'rig.yaml'}: no initial_guess; give the extrinsics to check with "
-                        "--against FILE or --version N")
+        where = f"{args.dataset}: its rig (--rig)" if dataset.bag is not None else str(args.dataset / "rig.yaml")
+        raise RigdError(f"{where} has no initial_guess; give the extrinsics to check with --against FILE or "
+                        "--version N")
     return guess
 
 
@@ -65,8 +68,9 @@ def _options(text: str | None) -> DriftOptions:
 
 def run(args: argparse.Namespace) -> int:
     opts = _options(args.threshold)
-    outcome = run_check(args.dataset, _checked(args), opts,
-                        lambda stage, f: print(f"[{f * 100:5.1f} %] {stage}", file=sys.stderr, flush=True))
+    with dataset_input(args) as dataset:
+        outcome = run_check(dataset.path, _checked(args, dataset), opts,
+                            lambda stage, f: print(f"[{f * 100:5.1f} %] {stage}", file=sys.stderr, flush=True))
     rep = outcome.report
     if args.json:
         print(json.dumps(json_safe(rep)))

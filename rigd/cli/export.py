@@ -2,8 +2,9 @@
 Kalibr or OpenCV YAML (rigd.exports, the formats the service's ``/extrinsics?format=`` gives).
 
 The frames default to the ones the bag's headers named when the dataset was imported (``DATASET/bag.yaml``,
-rigd import bag): the dataset is ``--dataset``, else the one extrinsics.yaml says it calibrated, else the folder
-above a ``DATASET/calibration/extrinsics.yaml``; without one, ``camera`` and ``velodyne`` as the service's.
+rigd import bag): the dataset is ``--dataset``, else the one extrinsics.yaml says it calibrated, else the
+extrinsics' own folder (``rigd calibrate BAG`` copies bag.yaml there), else the folder above a
+``DATASET/calibration/extrinsics.yaml``; without one, ``camera`` and ``velodyne`` as the service's.
 """
 
 from __future__ import annotations
@@ -61,7 +62,8 @@ def _frames_of(dataset: Path | None) -> tuple[str, str] | None:
 
 
 def _datasets(args: argparse.Namespace, file: Path | None) -> list[Path]:
-    """Where the frames may be named, in order: --dataset, the calibrated dataset, the folder above."""
+    """Where the frames may be named, in order: --dataset, the calibrated dataset, the calibration folder itself
+    (``rigd calibrate BAG`` copies the bag.yaml of its temporary dataset there), the folder above."""
     from rigd.dataset.store import read_yaml_mapping
 
     found = [args.dataset] if args.dataset is not None else []
@@ -69,7 +71,7 @@ def _datasets(args: argparse.Namespace, file: Path | None) -> list[Path]:
         recorded = read_yaml_mapping(file).get("dataset")
         if isinstance(recorded, str):
             found.append(Path(recorded))
-        found.append(file.resolve().parent.parent)
+        found += [file.resolve().parent, file.resolve().parent.parent]
     return found
 
 

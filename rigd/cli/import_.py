@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
 
 from rigd.cli.args import non_negative_float, positive_int
+from rigd.cli.bag_input import add_topic_options
 
 
 def _scan_list(text: str) -> list[int]:
@@ -67,13 +69,7 @@ def _register_bag(formats: Any) -> None:
         "sensor_msgs/PointCloud2 or velodyne_msgs/VelodyneScan (decoded by rigd's VLP-16 decoder).")
     bag.add_argument("src", type=Path, metavar="BAG", help="the .bag file, ROS 2 bag folder, .db3 or .mcap file")
     bag.add_argument("out", type=Path, metavar="OUT", help="new (or empty) dataset folder")
-    bag.add_argument("--image-topic", required=True, metavar="TOPIC", help="sensor_msgs/Image or CompressedImage")
-    bag.add_argument("--cloud-topic", required=True, metavar="TOPIC",
-                     help="sensor_msgs/PointCloud2 or velodyne_msgs/VelodyneScan")
-    bag.add_argument("--camera-info-topic", default=None, metavar="TOPIC",
-                     help="sensor_msgs/CameraInfo for the intrinsics (plumb_bob: pinhole, equidistant: fisheye)")
-    bag.add_argument("--rig", type=Path, default=None, metavar="RIG.yaml",
-                     help="the rig file for the camera (and initial guess, prior, tolerance) instead of CameraInfo")
+    add_topic_options(bag, required=True)
     bag.add_argument("--n", type=positive_int, default=12, help="pairs to keep at most (default 12)")
     bag.add_argument("--still-seconds", type=non_negative_float, default=2.0,
                      help="a still stretch lasts this long (default 2)")
@@ -118,21 +114,12 @@ def _kitti(args: argparse.Namespace) -> int:
 
 
 def _bag(args: argparse.Namespace) -> int:
+    from rigd.cli.bag_input import report_import
     from rigd.importers.bag import BagImportOptions, import_bag
-    from rigd.importers.bag.stills import StillOptions, Verdict
+    from rigd.importers.bag.stills import StillOptions
 
     still = StillOptions(n=args.n, still_seconds=args.still_seconds, sweeps=args.sweeps, min_move_m=args.min_move,
                          max_offset_s=args.max_offset)
     options = BagImportOptions(args.image_topic, args.cloud_topic, args.camera_info_topic, args.rig, still)
-    summary = import_bag(args.src, args.out, options=options, report=print)
-    pair = 0
-    for d in summary.decisions:
-        span = f"{d.t_start_s - summary.start_s:8.2f} - {d.t_end_s - summary.start_s:8.2f} s"
-        if d.verdict is Verdict.KEPT:
-            print(f"{span}  kept as pair {pair:04d}: {d.reason}")
-            pair += 1
-        else:
-            print(f"{span}  not kept ({d.verdict.value}): {d.reason}")
-    print(f"written: {args.out} ({summary.pairs} pairs; frames camera {summary.camera_frame!r}, lidar "
-          f"{summary.lidar_frame!r} in {args.out / 'bag.yaml'})")
+    report_import(import_bag(args.src, args.out, options=options, report=print), sys.stdout)
     return 0

@@ -75,3 +75,14 @@ def test_errors_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     assert "none.yaml" in capsys.readouterr().err
     assert main(["export", "3", "--format", "urdf", "--data-dir", str(tmp_path)]) == 2
     assert "no rigd store" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("fmt", "name"), [("urdf", "extrinsics-v7-urdf.urdf"),
+                                           ("ros2-launch", "extrinsics-v7-ros2-launch.launch.py"),
+                                           ("json", "extrinsics-v7-json.json"), ("ros-tf", "extrinsics-v7-ros-tf.yaml"),
+                                           ("opencv", "extrinsics-v7-opencv.yaml")])
+def test_service_download_names_end_as_their_format(fmt: str, name: str) -> None:
+    from rigd.api.exports import download_name
+    from rigd.exports import ExportFormat
+
+    assert download_name(7, ExportFormat(fmt)) == name

@@ -10,7 +10,7 @@ from fastapi import APIRouter, Path, Query, Response, status
 from fastapi.responses import FileResponse
 
 from rigd.api.deps import Authorized, ServiceDep
-from rigd.api.exports import ExportFormat, render
+from rigd.api.exports import ExportFormat, download_name, render
 from rigd.api.images import image_response
 from rigd.api.models import ChangeOut, ErrorOut, ManualVersionIn, TransformOut, VersionOut
 from rigd.api.service import Service
@@ -47,9 +47,8 @@ def _respond(version: ExtrinsicsVersion, fmt: ExportFormat | None, camera_frame:
     if fmt is None:
         return version_out(version)
     body, media_type = render(version, fmt, camera_frame, lidar_frame)
-    extension = "json" if fmt is ExportFormat.JSON else "yaml"
     return Response(body, media_type=media_type, headers={
-        "Content-Disposition": f'inline; filename="extrinsics-v{version.number}-{fmt.value}.{extension}"'})
+        "Content-Disposition": f'inline; filename="{download_name(version.number, fmt)}"'})
 
 
 @router.get("", response_model=VersionOut, responses=EXPORTS, summary="the active version")

@@ -1,7 +1,8 @@
 """``rigd import bag BAG OUT``: two passes over the bag, then the dataset.
 
-1. Every sweep of the cloud topic is decoded and reduced to the gate's direction grid (its points are not
-   kept: a long drive never sits in memory); the image topic's stamps are read (the first image is decoded, so
+1. Every sweep of the cloud topic is decoded and reduced to the gate's direction grid in worker processes
+   (:mod:`.sweeps`; its points are not kept: a long drive never sits in memory) and fed to the gate in bag
+   order; the image topic's stamps are read (the first image is decoded, so
    a bad encoding fails at once) and the camera-info topic's first message kept.
 2. :mod:`.stills` picks the pairs; their images and sweeps are read again by their bag time and written with
    rigd.dataset's writers (atomic pairs under the writer lock), with rig.yaml from ``--rig``, else from the
@@ -22,12 +23,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rigd.capture.gate import SweepSample, direction_grid
+from rigd.capture.gate import SweepSample
 from rigd.dataset.pcd import Cloud
 from rigd.dataset.records import CameraConfig, CameraKind, RigConfig
 from rigd.dataset.store import read_yaml, write_pair, write_rig, write_yaml
 from rigd.errors import DatasetError
-from rigd.importers.bag.clouds import BagSweep, pointcloud2_sweep, velodyne_scan_sweep
+from rigd.importers.bag.clouds import BagSweep
 from rigd.importers.bag.errors import BagError
 from rigd.importers.bag.images import decode_compressed, decode_image
 from rigd.importers.bag.intrinsics import camera_from_info
@@ -41,6 +42,7 @@ from rigd.importers.bag.reader import (
     TopicKind,
 )
 from rigd.importers.bag.stills import Decision, StillOptions, SweepTime, Verdict, WindowTracker, select_pairs
+from rigd.importers.bag.sweeps import ReducedSweep, SweepPipeline, decode_sweep, default_workers, where
 
 BAG_FILE = "bag.yaml"
 U8 = NDArray[np.uint8]
@@ -49,13 +51,15 @@ U8 = NDArray[np.uint8]
 @dataclass(frozen=True)
 class BagImportOptions:
     """The topics to read (``camera_info_topic`` optional), an optional rig file for the camera (and initial
-    guess, prior, tolerance), and how still moments are chosen."""
+    guess, prior, tolerance), how still moments are chosen, and the processes that decode the sweeps beside this one
+    (None: one less than the processors; 0: none, all in this process; :mod:`.sweeps`)."""
 
     image_topic: str
     cloud_topic: str
     camera_info_topic: str | None = None
     rig: Path | None = None
     still: StillOptions = field(default_factory=StillOptions)
+    workers: int | None = None
 
 
 @dataclass(frozen=True)
@@ -86,45 +90,45 @@ class _Scan:
     empty_sweeps: int = 0
 
 
-def _where(message: Message) -> str:
-    return f"{message.topic} at {message.stamp_s:.6f} s"
-
-
-def decode_sweep(message: Message, kind: TopicKind) -> BagSweep | None:
-    """A cloud-topic message as a sweep (None: a VelodyneScan without a valid packet)."""
-    if kind is TopicKind.VELODYNE_SCAN:
-        return velodyne_scan_sweep(message.body, where=_where(message))
-    return pointcloud2_sweep(message.body, stamp_s=message.stamp_s, where=_where(message))
-
-
 def decode_frame(message: Message, kind: TopicKind) -> U8:
     if kind is TopicKind.COMPRESSED_IMAGE:
-        return decode_compressed(message.body, where=_where(message))
-    return decode_image(message.body, where=_where(message))
+        return decode_compressed(message.body, where=where(message))
+    return decode_image(message.body, where=where(message))
 
 
-def _scan(bag: Bag, topics: dict[str, Topic], tracker: WindowTracker) -> _Scan:
+def _take(scan: _Scan, tracker: WindowTracker, sweep: ReducedSweep) -> None:
+    """A reduced sweep, in bag order, into the gate."""
+    if sweep.time is None or sweep.grid is None:
+        scan.empty_sweeps += 1
+        return
+    grid = sweep.grid
+    tracker.add(index=len(scan.sweeps), sample=SweepSample(sweep.time.t_start_s, sweep.time.t_end_s, grid.range_m,
+                                                           grid))
+    scan.sweeps.append(sweep.time)
+    scan.sweep_ns.append(sweep.bag_time_ns)
+    scan.lidar_frame = scan.lidar_frame or sweep.frame_id
+
+
+def _scan(bag: Bag, topics: dict[str, Topic], tracker: WindowTracker, workers: int) -> _Scan:
     scan = _Scan()
     image, cloud = topics["image"], topics["cloud"]
-    for message in bag.messages(topics=list(topics.values())):
-        if message.topic == cloud.name:
-            sweep = decode_sweep(message, cloud.kind)
-            if sweep is None or len(sweep) == 0:
-                scan.empty_sweeps += 1
+    with SweepPipeline(bag=bag, kind=cloud.kind, workers=workers) as pipeline:
+        for raw in bag.raw_messages(topics=list(topics.values())):
+            if raw.topic == cloud.name:
+                for sweep in pipeline.put(raw):
+                    _take(scan, tracker, sweep)
                 continue
-            grid = direction_grid(sweep.points_lidar, sweep.ring)
-            tracker.add(index=len(scan.sweeps), sample=SweepSample(sweep.t_start_s, sweep.t_end_s, grid.range_m, grid))
-            scan.sweeps.append(SweepTime(sweep.t_start_s, sweep.t_end_s))
-            scan.sweep_ns.append(message.bag_time_ns)
-            scan.lidar_frame = scan.lidar_frame or message.frame_id
-        elif message.topic == image.name:
-            if scan.first_image is None:
-                scan.first_image = decode_frame(message, image.kind)
-                scan.camera_frame = message.frame_id
-            scan.image_t_s.append(message.stamp_s)
-            scan.image_ns.append(message.bag_time_ns)
-        elif scan.camera_info is None:
-            scan.camera_info = message
+            message = bag.message(raw)
+            if message.topic == image.name:
+                if scan.first_image is None:
+                    scan.first_image = decode_frame(message, image.kind)
+                    scan.camera_frame = message.frame_id
+                scan.image_t_s.append(message.stamp_s)
+                scan.image_ns.append(message.bag_time_ns)
+            elif scan.camera_info is None:
+                scan.camera_info = message
+        for sweep in pipeline.finish():
+            _take(scan, tracker, sweep)
     return scan
 
 
@@ -154,7 +158,7 @@ def _camera(bag: Bag, options: BagImportOptions, scan: _Scan) -> RigConfig:
             raise BagError(str(exc)) from exc
         camera = rig.camera
     elif scan.camera_info is not None:
-        camera = camera_from_info(scan.camera_info.body, where=_where(scan.camera_info))
+        camera = camera_from_info(scan.camera_info.body, where=where(scan.camera_info))
         rig = RigConfig(camera)
     elif width == 2 * height:
         camera = CameraConfig(CameraKind.EQUIRECTANGULAR, width, height)
@@ -220,7 +224,7 @@ def import_bag(bag_path: Path, out: Path, *, options: BagImportOptions,
         if options.camera_info_topic is not None:
             topics["info"] = bag.topic(name=options.camera_info_topic, kinds=INFO_KINDS, role="--camera-info-topic")
         tracker = WindowTracker(options.still)
-        scan = _scan(bag, topics, tracker)
+        scan = _scan(bag, topics, tracker, default_workers() if options.workers is None else options.workers)
         _check_overlap(bag, topics, scan)
         say(f"read {len(scan.sweeps)} sweeps of {topics['cloud'].name} and {len(scan.image_t_s)} images of "
             f"{topics['image'].name}")

@@ -17,6 +17,7 @@ from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
 
 from drivers.vlp16 import read_batches
 from drivers.vlp16.layout import as_packet_records
@@ -107,52 +108,75 @@ def _writer(path: Path, fmt: BagFormat) -> Writer1 | Writer2:
     return Writer2(path, version=9, storage_plugin=plugin)
 
 
+@dataclass(frozen=True)
+class BagTypes:
+    """The message types of a bag format (with velodyne_msgs registered) and how its messages are built."""
+
+    fmt: BagFormat
+    store: Typestore
+
+    @classmethod
+    def of(cls, fmt: BagFormat) -> BagTypes:
+        ros1 = fmt is BagFormat.ROS1
+        store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+        for name, text in (ROS1_VELODYNE if ros1 else ROS2_VELODYNE).items():
+            store.register(get_types_from_msg(text, name))
+        return cls(fmt, store)
+
+    def new(self, msgtype: str, **fields: object) -> object:
+        return self.store.types[msgtype](**fields)
+
+    def time(self, t: float) -> object:
+        sec = int(np.floor(t))
+        return self.new("builtin_interfaces/msg/Time", sec=sec, nanosec=int(round((t - sec) * 1e9)))
+
+    def header(self, t: float, frame: str) -> object:
+        if self.fmt is BagFormat.ROS1:
+            return self.new("std_msgs/msg/Header", seq=0, stamp=self.time(t), frame_id=frame)
+        return self.new("std_msgs/msg/Header", stamp=self.time(t), frame_id=frame)
+
+    def velodyne_scan(self, t: float, frame: str, packets: np.ndarray, packet_t_s: np.ndarray) -> object:
+        """A velodyne_msgs/VelodyneScan of (P,1206) uint8 ``packets`` stamped ``packet_t_s`` (P,) s."""
+        body = [self.new("velodyne_msgs/msg/VelodynePacket", stamp=self.time(float(s)), data=p)
+                for s, p in zip(packet_t_s, packets, strict=True)]
+        return self.new("velodyne_msgs/msg/VelodyneScan", header=self.header(t, frame), packets=body)
+
+    def write(self, path: Path, messages: list[tuple[float, str, str, object]]) -> Path:
+        """Write (bag time s, topic, message type, message) in bag time order at ``path``; returns ``path``."""
+        serialize = self.store.serialize_ros1 if self.fmt is BagFormat.ROS1 else self.store.serialize_cdr
+        with _writer(path, self.fmt) as writer:
+            kinds = {topic: msgtype for _, topic, msgtype, _ in messages}
+            connections = {topic: writer.add_connection(topic, msgtype, typestore=self.store)
+                           for topic, msgtype in kinds.items()}
+            for t, topic, msgtype, message in sorted(messages, key=lambda m: m[0]):
+                writer.write(connections[topic], int(t * 1e9), serialize(message, msgtype))
+        return path
+
+
 def write_bag(path: Path, fmt: BagFormat, recording: Recording, *, with_info: bool = True) -> Path:
     """Write ``recording`` as a bag at ``path`` (a .bag file for ROS 1, a folder for ROS 2); returns ``path``."""
-    ros1 = fmt is BagFormat.ROS1
-    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-    for name, text in (ROS1_VELODYNE if ros1 else ROS2_VELODYNE).items():
-        store.register(get_types_from_msg(text, name))
-    T = store.types
-    serialize = store.serialize_ros1 if ros1 else store.serialize_cdr
-
-    def time(t: float) -> object:
-        sec = int(np.floor(t))
-        return T["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((t - sec) * 1e9)))
-
-    def header(t: float, frame: str) -> object:
-        Header = T["std_msgs/msg/Header"]
-        return Header(seq=0, stamp=time(t), frame_id=frame) if ros1 else Header(stamp=time(t), frame_id=frame)
-
+    types = BagTypes.of(fmt)
     jpeg, K, (width, height) = pinhole_jpeg()
     turns = legacy_turns()
     messages: list[tuple[float, str, str, object]] = []
     for k, (t, yaw) in enumerate(recording.sweeps):
         packets = turned(turns[k % len(turns)], yaw)
-        step = 0.05 / len(packets)
-        body = [T["velodyne_msgs/msg/VelodynePacket"](stamp=time(t + i * step), data=p) for i, p in enumerate(packets)]
-        scan = T["velodyne_msgs/msg/VelodyneScan"](header=header(t, recording.lidar_frame), packets=body)
+        scan = types.velodyne_scan(t, recording.lidar_frame, packets, t + np.arange(len(packets)) * 0.05 / len(packets))
         messages.append((t + 0.05, recording.cloud_topic, "velodyne_msgs/msg/VelodyneScan", scan))
     for t in recording.image_t_s:
-        image = T["sensor_msgs/msg/CompressedImage"](header=header(t, recording.camera_frame), format="jpeg",
-                                                     data=np.frombuffer(jpeg, np.uint8))
+        image = types.new("sensor_msgs/msg/CompressedImage", header=types.header(t, recording.camera_frame),
+                          format="jpeg", data=np.frombuffer(jpeg, np.uint8))
         messages.append((t + 0.01, recording.image_topic, "sensor_msgs/msg/CompressedImage", image))
     if with_info:
-        Roi = T["sensor_msgs/msg/RegionOfInterest"]
+        Roi = "sensor_msgs/msg/RegionOfInterest"
         fields = dict(height=height, width=width, distortion_model="plumb_bob", binning_x=0, binning_y=0,
-                      roi=Roi(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
-        cal = dict(D=np.zeros(5), K=K.ravel(), R=np.eye(3).ravel(), P=np.zeros(12)) if ros1 else \
+                      roi=types.new(Roi, x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
+        cal = dict(D=np.zeros(5), K=K.ravel(), R=np.eye(3).ravel(), P=np.zeros(12)) if fmt is BagFormat.ROS1 else \
             dict(d=np.zeros(5), k=K.ravel(), r=np.eye(3).ravel(), p=np.zeros(12))
-        info = T["sensor_msgs/msg/CameraInfo"](header=header(recording.image_t_s[0], recording.camera_frame),
-                                               **fields, **cal)
+        info = types.new("sensor_msgs/msg/CameraInfo", header=types.header(recording.image_t_s[0],
+                                                                            recording.camera_frame), **fields, **cal)
         messages.append((recording.image_t_s[0], recording.info_topic, "sensor_msgs/msg/CameraInfo", info))
-    with _writer(path, fmt) as writer:
-        kinds = {topic: msgtype for _, topic, msgtype, _ in messages}
-        connections = {topic: writer.add_connection(topic, msgtype, typestore=store)
-                       for topic, msgtype in kinds.items()}
-        for t, topic, msgtype, message in sorted(messages, key=lambda m: m[0]):
-            writer.write(connections[topic], int(t * 1e9), serialize(message, msgtype))
-    return path
+    return types.write(path, messages)
 
 
 def bag_file(path: Path, fmt: BagFormat) -> Path:
