@@ -57,3 +57,8 @@ class UnsupportedFormatError(Ladybug5Error):
 
 class HeadCalibrationError(Ladybug5Error):
     """The head's calibration (per-sensor intrinsics, poses, rectification) cannot be read or is not usable."""
+
+
+class RendererError(Ladybug5Error):
+    """The SDK's panorama renderer cannot be set up (ladybugConfigureOutputImages, ladybugSetOffScreenImageSize):
+    it renders with OpenGL and needs a GPU and an OpenGL context on the rig computer."""

@@ -1,6 +1,7 @@
 /*
  * Prints, as YAML, the numbers rigd's ctypes binding (drivers/ladybug5/sdk_library.py) needs from the
- * installed Ladybug SDK's headers: struct offsets and sizes, and the values of the enum members it uses.
+ * installed Ladybug SDK's headers: struct offsets and sizes (LadybugImage, LadybugCameraInfo,
+ * LadybugProcessedImage), and the values of the enum members it uses.
  * FLIR's headers are the only authority on these and they change between SDK versions, so they are measured
  * here instead of being written into the Python code.
  *
@@ -46,6 +47,12 @@ static void image_fields(void)
     printf("camera_info_fields:\n");
     FIELD("serial_head", LadybugCameraInfo, serialHead);
     FIELD("model_name", LadybugCameraInfo, pszModelName);
+    printf("processed_image_size: %lu\n", (unsigned long)sizeof(LadybugProcessedImage));
+    printf("processed_image_fields:\n");
+    FIELD("cols", LadybugProcessedImage, uiCols);
+    FIELD("rows", LadybugProcessedImage, uiRows);
+    FIELD("data", LadybugProcessedImage, pData);
+    FIELD("pixel_format", LadybugProcessedImage, pixelFormat);
 }
 
 static void enum_values(void)
@@ -87,6 +94,16 @@ static void enum_values(void)
     VALUE("DEFAULT", LADYBUG_DEFAULT);
     printf("output_images:\n");
     VALUE("ALL_RECTIFIED_IMAGES", LADYBUG_ALL_RECTIFIED_IMAGES);
+    VALUE("PANORAMIC", LADYBUG_PANORAMIC);
+    printf("pixel_formats:\n");
+    VALUE("BGR", LADYBUG_BGR);
+    VALUE("BGRU", LADYBUG_BGRU);
+    VALUE("BGRU16", LADYBUG_BGRU16);
+    printf("color_methods:\n");
+    VALUE("EDGE_SENSING", LADYBUG_EDGE_SENSING);
+    VALUE("NEAREST_NEIGHBOR_FAST", LADYBUG_NEAREST_NEIGHBOR_FAST);
+    VALUE("RIGOROUS", LADYBUG_RIGOROUS);
+    VALUE("HQLINEAR", LADYBUG_HQLINEAR);
 }
 
 int main(void)

@@ -114,6 +114,7 @@ class SdkCamera:
         self.grab_timeout_ms = grab_timeout_ms
         self.info: CameraInfo | None = None
         self.tile_pattern: BayerPattern | None = None
+        self.last: GrabbedImage | None = None  # the latest grab (its LadybugImage is still in the image buffer)
         self._context = ctypes.c_void_p()
         self._started = False
         self._image = library.new_image_buffer()
@@ -170,8 +171,16 @@ class SdkCamera:
 
     def grab(self) -> GrabbedImage:
         self._require_started("grab")
+        self.last = None
         self.lib.call("ladybugGrabImage", self._context, self._image)
-        return self.lib.read_image(self._image, time.time())
+        self.last = self.lib.read_image(self._image, time.time())
+        return self.last
+
+    def sdk_handles(self, what: str) -> tuple[ctypes.c_void_p, ctypes.Array[ctypes.c_char]]:
+        """The open context and the LadybugImage of the latest grab, for SDK calls made outside this class (the
+        panorama renderer, :mod:`drivers.ladybug5.sdk_render`)."""
+        self._require_started(what)
+        return self._context, self._image
 
     def exposure(self) -> Exposure:
         """Shutter (the SDK reports ms) and gain (dB) from ladybugGetAbsProperty; raises SdkError on a failure."""

@@ -1,10 +1,10 @@
 """What the ctypes binding needs from the installed SDK's headers, measured by layout_probe.c (never written here).
 
 ``rigd camera sdk-layout --include DIR`` compiles ``layout_probe.c`` against ``DIR/ladybug.h``,
-``ladybuggeom.h`` and ``ladybugrenderer.h`` and saves its YAML: struct offsets and sizes of ``LadybugImage``
-and ``LadybugCameraInfo``, and the values of the enum members the binding uses (errors, data formats,
-properties, Bayer formats, output image types). The SDK's enums are ordinal and grew between versions, so
-these numbers belong to the installed SDK, not to rigd.
+``ladybuggeom.h`` and ``ladybugrenderer.h`` and saves its YAML: struct offsets and sizes of ``LadybugImage``,
+``LadybugCameraInfo`` and ``LadybugProcessedImage``, and the values of the enum members the binding uses (errors,
+data formats, properties, Bayer formats, output image types, pixel formats, colour processing methods). The SDK's
+enums are ordinal and grew between versions, so these numbers belong to the installed SDK, not to rigd.
 """
 
 from __future__ import annotations
@@ -24,6 +24,10 @@ IMAGE_FIELDS = ("cols", "rows", "full_cols", "full_rows", "border_top", "border_
                 "border_right", "data_format", "stippled_format", "cycle_seconds", "cycle_count", "embedded_seconds",
                 "embedded_microseconds", "sequence_id", "data", "data_size")
 CAMERA_INFO_FIELDS = ("serial_head", "model_name")
+PROCESSED_IMAGE_FIELDS = ("cols", "rows", "data", "pixel_format")
+# enum members the binding needs by name, per section (the probe prints more)
+REQUIRED_VALUES = {"output_images": ("ALL_RECTIFIED_IMAGES", "PANORAMIC"), "pixel_formats": ("BGR", "BGRU", "BGRU16"),
+                   "color_methods": ("EDGE_SENSING", "NEAREST_NEIGHBOR_FAST", "RIGOROUS", "HQLINEAR")}
 
 
 def _fields(data: Any, key: str) -> dict[str, tuple[int, int]]:
@@ -48,6 +52,10 @@ class SdkLayout:
     properties: dict[str, int]
     stippled: dict[str, int]
     output_images: dict[str, int]
+    processed_image_size: int
+    processed_image_fields: dict[str, tuple[int, int]]
+    pixel_formats: dict[str, int]
+    color_methods: dict[str, int]
 
     def format_name(self, code: int) -> str | None:
         """The data format's name of an SDK value (None when the probe did not list it)."""
@@ -64,11 +72,16 @@ class SdkLayout:
         try:
             layout = cls(int(data["image_size"]), _fields(data, "image_fields"), int(data["camera_info_size"]),
                          _fields(data, "camera_info_fields"), _values(data, "errors"), _values(data, "formats"),
-                         _values(data, "properties"), _values(data, "stippled"), _values(data, "output_images"))
+                         _values(data, "properties"), _values(data, "stippled"), _values(data, "output_images"),
+                         int(data["processed_image_size"]), _fields(data, "processed_image_fields"),
+                         _values(data, "pixel_formats"), _values(data, "color_methods"))
         except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
             raise Ladybug5Error(f"{where}: not a Ladybug SDK layout from layout_probe.c ({exc!r})") from exc
         absent = [f for f in IMAGE_FIELDS if f not in layout.image_fields]
         absent += [f for f in CAMERA_INFO_FIELDS if f not in layout.camera_info_fields]
+        absent += [f for f in PROCESSED_IMAGE_FIELDS if f not in layout.processed_image_fields]
+        absent += [f"{section}.{name}" for section, names in REQUIRED_VALUES.items() for name in names
+                   if name not in getattr(layout, section)]
         if absent:
             raise Ladybug5Error(f"{where}: the layout lacks {', '.join(absent)}; measure it again with this rigd's "
                                 "rigd camera sdk-layout")

@@ -30,6 +30,7 @@ CYCLES_PER_SECOND = 8000  # 125 us cycle ticks
 _CTX = ctypes.c_void_p
 _P_DOUBLE = ctypes.POINTER(ctypes.c_double)
 _PIXEL_MAP = [_CTX, ctypes.c_uint, ctypes.c_double, ctypes.c_double, _P_DOUBLE, _P_DOUBLE]
+_BUFFERS = ctypes.POINTER(ctypes.c_void_p)  # unsigned char ** (one buffer per camera)
 # name -> argument types; every one returns a LadybugError (an int-sized enum).
 FUNCTIONS: dict[str, list[Any]] = {
     "ladybugCreateContext": [ctypes.POINTER(_CTX)],
@@ -50,6 +51,12 @@ FUNCTIONS: dict[str, list[Any]] = {
     "ladybugGetCameraUnitExtrinsics": [_CTX, ctypes.c_uint, _P_DOUBLE],
     "ladybugRectifyPixel": _PIXEL_MAP,
     "ladybugUnrectifyPixel": _PIXEL_MAP,
+    # the SDK's panorama renderer (ladybug.h, ladybugrenderer.h): enum arguments are int-sized
+    "ladybugSetColorProcessingMethod": [_CTX, ctypes.c_int],
+    "ladybugConfigureOutputImages": [_CTX, ctypes.c_uint],
+    "ladybugConvertImage": [_CTX, ctypes.c_void_p, _BUFFERS, ctypes.c_int],
+    "ladybugUpdateTextures": [_CTX, ctypes.c_uint, _BUFFERS, ctypes.c_int],
+    "ladybugRenderOffScreenImage": [_CTX, ctypes.c_int, ctypes.c_int, ctypes.c_void_p],
 }
 _CORRUPT_FRAME_ERRORS = ("IMAGE_TOO_SMALL", "JPEG_ERROR", "JPEG_HEADER_ERROR", "JPEG_INCOMPLETE_COMPRESSION",
                          "JPEG_NO_IMAGE", "CORRUPTED_IMAGE_DATA")
@@ -73,6 +80,17 @@ class GrabbedImage:
     sequence_id: int
     data: bytes
     host_receive_s: float  # host clock right after ladybugGrabImage returned (before copying the pixels)
+
+
+@dataclass(frozen=True)
+class ProcessedImage:
+    """The fields rigd reads from a LadybugProcessedImage, the pixels copied out of the SDK's buffer: ``cols`` x
+    ``rows`` px, ``pixel_format`` the SDK's value, ``data`` ``rows * cols * 3`` bytes for BGR."""
+
+    cols: int
+    rows: int
+    pixel_format: int
+    data: bytes
 
 
 @dataclass(frozen=True)
@@ -164,6 +182,19 @@ class LadybugLibrary:
             sequence_id=field("sequence_id"), data=ctypes.string_at(pointer, field("data_size")),
             host_receive_s=host_receive_s,
         )
+
+    def new_processed_buffer(self) -> ctypes.Array[ctypes.c_char]:
+        return ctypes.create_string_buffer(self.layout.processed_image_size)
+
+    def read_processed(self, buf: ctypes.Array[ctypes.c_char], *, bytes_per_pixel: int) -> ProcessedImage:
+        """The image ladybugRenderOffScreenImage wrote into ``buf`` (its pixels still in the SDK's buffer)."""
+        raw, fields = buf.raw, self.layout.processed_image_fields
+        cols, rows = _read_uint(raw, fields["cols"]), _read_uint(raw, fields["rows"])
+        pointer = _read_uint(raw, fields["data"])
+        if not pointer or not cols or not rows:
+            raise CorruptFrameError(f"ladybugRenderOffScreenImage returned a {cols}x{rows} image without pixel data")
+        data = ctypes.string_at(pointer, cols * rows * bytes_per_pixel)
+        return ProcessedImage(cols, rows, _read_uint(raw, fields["pixel_format"]), data)
 
     def read_camera_infos(self, buf: ctypes.Array[ctypes.c_char], count: int) -> list[CameraInfo]:
         size, fields = self.layout.camera_info_size, self.layout.camera_info_fields

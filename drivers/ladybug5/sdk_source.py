@@ -1,6 +1,7 @@
-"""Live frames from the SDK: the six raw sensor images with the head calibration, or stitched panoramas.
+"""Live frames from the SDK: the six raw sensor images with the head calibration, or panoramas (rigd's stitcher or
+the SDK's renderer, :mod:`drivers.ladybug5.sdk_render`).
 
-A frame that fails -- a grab error or timeout, a corrupt buffer, a stitch that does not fit -- is skipped and
+A frame that fails -- a grab error or timeout, a corrupt buffer, a stitch or render that fails -- is skipped and
 counted (``skipped``), never the end of the stream; ``max_consecutive_failures`` failures in a row end it with
 the last error. A failed exposure read (``ladybugGetAbsProperty``) gives the frame an unknown exposure and is
 counted in ``exposure_errors``. A data format rigd does not decode ends the stream at once (every frame would
@@ -14,15 +15,15 @@ from enum import Enum
 from typing import Any
 
 from drivers.ladybug5.clock import ClockSync
-from drivers.ladybug5.errors import CorruptFrameError, HeadCalibrationError, Ladybug5Error, SdkError
+from drivers.ladybug5.errors import CorruptFrameError, HeadCalibrationError, Ladybug5Error, RendererError, SdkError
 from drivers.ladybug5.formats import BayerPattern
 from drivers.ladybug5.frames import Exposure, PanoramaFrame, SensorFrame, SkipCounter, TimeBase
 from drivers.ladybug5.head import HeadCalibration, HeadSource
 from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrLayout
-from drivers.ladybug5.raw import to_uint8
 from drivers.ladybug5.sdk import CYCLE_PERIOD_S, DeviceTimeField, SdkCamera, decode_grab, frame_pattern
 from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX
 from drivers.ladybug5.sdk_library import GrabbedImage
+from drivers.ladybug5.sdk_render import PanoramaBackend, PanoramaRenderer, StitcherBackend, panorama_renderer
 from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 
 
@@ -119,33 +120,43 @@ class SdkSensorSource:
 
 
 class SdkFrameSource:
-    """Live panoramas: :class:`SdkSensorSource` frames stitched.
+    """Live panoramas: :class:`SdkSensorSource` frames, each made into a panorama by the ``panorama`` backend.
 
     ``stitcher``: a ready :class:`Stitcher` (its rig is the head used), or a :class:`PanoramaSpec`: then the
     head comes from ``head`` (default: the factory head read through the SDK) and the stitcher is built from it
-    at the first frame. ``skipped`` counts failed grabs and failed stitches alike.
+    at the first frame. ``panorama`` :attr:`PanoramaBackend.SDK_RENDERER` renders with FLIR's renderer instead, at
+    the spec's size (:mod:`drivers.ladybug5.sdk_render`). ``skipped`` counts failed grabs and failed panoramas
+    alike; a renderer that cannot be set up (no OpenGL) ends the stream.
     """
 
     def __init__(self, camera: SdkCamera, stitcher: Stitcher | PanoramaSpec,
                  bayer_pattern: BayerPattern | None = None, pgr_layout: PgrLayout = DEFAULT_LAYOUT,
                  time_field: DeviceTimeField = DeviceTimeField.CYCLE, max_consecutive_failures: int = 30,
-                 head: HeadCalibration | HeadPolicy = HeadPolicy.FACTORY) -> None:
-        if isinstance(stitcher, Stitcher):
-            head = HeadCalibration.from_rig(stitcher.rig, HeadSource.FILE, stitcher.rig.model)
-        self.stitcher = stitcher if isinstance(stitcher, Stitcher) else None
-        self.spec = stitcher.spec if isinstance(stitcher, Stitcher) else stitcher
+                 head: HeadCalibration | HeadPolicy = HeadPolicy.FACTORY, *,
+                 panorama: PanoramaBackend = PanoramaBackend.RIGD_STITCHER) -> None:
+        ready = stitcher if isinstance(stitcher, Stitcher) else None
+        self.spec: PanoramaSpec = stitcher.spec if isinstance(stitcher, Stitcher) else stitcher
+        if ready is not None:
+            head = HeadCalibration.from_rig(ready.rig, HeadSource.FILE, ready.rig.model)
+        self.backend = panorama
+        self.renderer: PanoramaRenderer = panorama_renderer(panorama, camera, spec=self.spec, stitcher=ready)
         self.sensors = SdkSensorSource(camera, head, bayer_pattern, pgr_layout, time_field, max_consecutive_failures)
         self.camera = camera
         self.clock = self.sensors.clock
         self.skipped = self.sensors.skipped
         self.exposure_errors = self.sensors.exposure_errors
 
-    def _stitch(self, frame: SensorFrame) -> PanoramaFrame | None:
-        if self.stitcher is None:
-            self.stitcher = Stitcher(frame.head.to_rig(), self.spec)
+    @property
+    def stitcher(self) -> Stitcher | None:
+        """rigd's stitcher (None before the first frame, and with the SDK's renderer)."""
+        return self.renderer.stitcher if isinstance(self.renderer, StitcherBackend) else None
+
+    def _panorama(self, frame: SensorFrame) -> PanoramaFrame | None:
         try:
-            pano = self.stitcher.stitch([to_uint8(im) for im in frame.images])
-        except Ladybug5Error as exc:  # one frame that does not stitch is one frame lost
+            pano = self.renderer.panorama(frame)
+        except RendererError:
+            raise  # no frame can be rendered
+        except Ladybug5Error as exc:  # one frame that does not stitch or render is one frame lost
             self.sensors.failed(exc)
             return None
         return PanoramaFrame(pano, frame.device_time_s, frame.host_time_s, frame.sequence_id, frame.exposure,
@@ -155,7 +166,7 @@ class SdkFrameSource:
         """Each panorama with the sensor frame it was stitched from: for a capture whose stillness check looks at
         panoramas and whose head dataset takes the six sensor images (and their head) of the same frame."""
         for frame in self.sensors.frames():
-            pano = self._stitch(frame)
+            pano = self._panorama(frame)
             if pano is not None:
                 yield pano, frame
 

@@ -17,6 +17,7 @@ from calib.geometry import Transform
 from calib.initial import SearchOptions
 from calib.prior import Prior
 from drivers.ladybug5.sdk import DEFAULT_GRAB_TIMEOUT_MS, DEFAULT_LIBRARY
+from drivers.ladybug5.sdk_render import PanoramaBackend
 from drivers.ladybug5.stitch import DEFAULT_RADIUS_M
 from rigd.capture.errors import ConfigError
 from rigd.dataset import CameraKind, RigConfig
@@ -54,6 +55,7 @@ class SdkSettings:
     radius_m: float = DEFAULT_RADIUS_M  # stitching sphere
     serial: int | None = None  # the camera's head serial number; None: the only camera on the bus
     grab_timeout_ms: int = DEFAULT_GRAB_TIMEOUT_MS  # ladybugSetGrabTimeout: a stalled camera times out
+    panorama: PanoramaBackend = PanoramaBackend.RIGD_STITCHER  # rigd's stitcher, or the SDK's renderer (OpenGL)
 
 
 @dataclass(frozen=True)
@@ -190,7 +192,15 @@ def _sdk(section: dict[str, Any], where: str) -> SdkSettings:
         radius_m=_number(section, "radius_m", base.radius_m, f"{where}: camera.sdk", 0.0, strict=True, infinite=True),
         serial=_serial(section.get("serial"), f"{where}: camera.sdk"),
         grab_timeout_ms=_integer(section, "grab_timeout_ms", base.grab_timeout_ms, f"{where}: camera.sdk"),
+        panorama=_panorama_backend(section.get("panorama", base.panorama.value), f"{where}: camera.sdk"),
     )
+
+
+def _panorama_backend(value: Any, where: str) -> PanoramaBackend:
+    choices = [b.value for b in PanoramaBackend]
+    if value not in choices:
+        raise ConfigError(f"{where}.panorama: must be one of {', '.join(choices)}, got {value!r}")
+    return PanoramaBackend(value)
 
 
 def _serial(value: Any, where: str) -> int | None:

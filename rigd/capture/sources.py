@@ -392,7 +392,7 @@ def sdk_head(settings: RigSettings, *, nominal_head: bool) -> HeadCalibration | 
 
 def _sdk_feed(settings: RigSettings, *, nominal_head: bool) -> ThreadedCameraFeed:
     """The live Ladybug5 through FLIR's SDK: each frame's six sensor images with the head calibration, and the
-    panorama stitched from them at the rig file's panorama size."""
+    panorama at the rig file's panorama size, stitched by rigd or rendered by the SDK (camera.sdk.panorama)."""
     sdk = settings.sdk
     if not sdk.layout.exists():
         # The usual first-run state of a rig computer: say where the file comes from, not only that it is missing.
@@ -405,7 +405,8 @@ def _sdk_feed(settings: RigSettings, *, nominal_head: bool) -> ThreadedCameraFee
     head = sdk_head(settings, nominal_head=nominal_head)
     library = LadybugLibrary(SdkLayout.load(sdk.layout), sdk.library)
     camera = SdkCamera(library, serial=sdk.serial, grab_timeout_ms=sdk.grab_timeout_ms)
-    source = SdkFrameSource(camera, PanoramaSpec(settings.width, settings.height, sdk.radius_m), head=head)
+    source = SdkFrameSource(camera, PanoramaSpec(settings.width, settings.height, sdk.radius_m), head=head,
+                            panorama=sdk.panorama)
 
     def frames() -> Iterator[CameraFrame]:
         try:

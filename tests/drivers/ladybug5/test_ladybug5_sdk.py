@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from fake_ladybug_sdk import BORDER, COLS, COMPILER, ROWS, Fake, build, private_copy
+from fake_ladybug_sdk import BORDER, COLS, COMPILER, ROWS, build, private_copy
 from ladybug5_helpers import scaled_rig
 
 from drivers.ladybug5.errors import (
@@ -47,17 +47,6 @@ from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 
 pytestmark = pytest.mark.skipif(COMPILER is None, reason="no C compiler (gcc/cc) to build the fake Ladybug SDK")
 SHIFT = 40
-
-
-@pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    """(library path, probed layout) of the fake with the real enum values; one build per module."""
-    return build(tmp_path_factory.mktemp("fake_sdk"))
-
-
-@pytest.fixture
-def fake(built, tmp_path) -> Fake:
-    return private_copy(built, tmp_path)
 
 
 def tiny_rig(cols: int = COLS, rows: int = ROWS) -> RigCameras:

@@ -7,6 +7,10 @@
  * loaded frame block. The camera clock starts at 127.5 s of the 128 s cycle and ticks 0.1 s a frame.
  * Geometry: per camera an OpenCV-like lens (focal fake_focal, centre, k1, k2) and Euler ZYX extrinsics; a
  * configuration file "FAKECAL <k1> <k2> <focal>" replaces the lens. Globals steer faults and record calls.
+ * Renderer: ladybugConvertImage fills each camera's texture with its flat colour (from the image's sequence id),
+ * ladybugRenderOffScreenImage places the six textures side by side (camera c in the c-th sixth of the columns,
+ * nearest-neighbour resampled) in a BGR image of the panoramic off-screen size; fake_render_log records the
+ * renderer calls in order (M method, C configure, S panoramic size, V convert, U update textures, R render).
  */
 #include <math.h>
 #include <stdio.h>
@@ -33,13 +37,31 @@ int fake_grab_timeout = -1, fake_timeout_set_after_start = 0;
 int fake_rect_cols = 0, fake_rect_rows = 0;
 char fake_config_path[256] = "";
 double fake_focal = 10.0, fake_k1 = -0.05, fake_k2 = 0.01;
+int fake_pano_cols = 2048, fake_pano_rows = 1024; /* the SDK's default panoramic size */
+int fake_color_method = -1, fake_configured = 0, fake_texture_format = -1;
+int fake_configure_error = 0;        /* returned by ladybugConfigureOutputImages when non-zero */
+int fake_render_error_at = -1;       /* this render call (0-based) returns LADYBUG_GPU_ERROR */
+int fake_renders = 0;
+char fake_render_log[256] = "";
 
 struct fake_context {
     int initialized, running, frame;
     LadybugDataFormat format;
     unsigned char *buffer;
     size_t buffer_size;
+    int tex_cols, tex_rows, textures_ready;
+    unsigned char *textures[6]; /* BGR, 8 bit, tex_cols x tex_rows */
+    unsigned char *rendered;
 };
+
+static void log_call(char c)
+{
+    size_t n = strlen(fake_render_log);
+    if (n + 1 < sizeof fake_render_log) {
+        fake_render_log[n] = c;
+        fake_render_log[n + 1] = '\0';
+    }
+}
 
 static unsigned char *block = NULL;
 static size_t block_size = 0;
@@ -241,6 +263,9 @@ LadybugError ladybugStop(LadybugContext context)
 
 LadybugError ladybugDestroyContext(LadybugContext *context)
 {
+    struct fake_context *c = *context;
+    for (int cam = 0; cam < 6; cam++) free(c->textures[cam]);
+    free(c->rendered);
     free(*context);
     *context = NULL;
     fake_destroyed++;
@@ -263,6 +288,11 @@ LadybugError ladybugSetOffScreenImageSize(LadybugContext context, LadybugOutputI
     if (type & LADYBUG_ALL_RECTIFIED_IMAGES) {
         fake_rect_cols = (int)width;
         fake_rect_rows = (int)height;
+    }
+    if (type & LADYBUG_PANORAMIC) {
+        log_call('S');
+        fake_pano_cols = (int)width;
+        fake_pano_rows = (int)height;
     }
     return LADYBUG_OK;
 }
@@ -338,5 +368,107 @@ LadybugError ladybugUnrectifyPixel(LadybugContext context, unsigned int cam, dou
     *col = fake_focal * x * r + centre_x(cam);
     *row = fake_focal * y * r + centre_y(cam);
     if (*col < 0 || *col > fake_cols - 1 || *row < 0 || *row > fake_rows - 1) *row = *col = -1.0; /* outside */
+    return LADYBUG_OK;
+}
+
+/* -- renderer ------------------------------------------------------------------------------------------------ */
+
+LadybugError ladybugSetColorProcessingMethod(LadybugContext context, LadybugColorProcessingMethod method)
+{
+    (void)context;
+    log_call('M');
+    fake_color_method = (int)method;
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugConfigureOutputImages(LadybugContext context, unsigned int types)
+{
+    (void)context;
+    log_call('C');
+    if (fake_configure_error) return (LadybugError)fake_configure_error;
+    fake_configured = (int)types;
+    return LADYBUG_OK;
+}
+
+static int texture_bytes(LadybugPixelFormat format)
+{
+    return format == LADYBUG_BGRU ? 4 : format == LADYBUG_BGRU16 ? 8 : 0;
+}
+
+/* Each camera's useful image as its flat colour (fill_raw's), BGRU or BGRU16 (the value in the top byte). */
+LadybugError ladybugConvertImage(LadybugContext context, const LadybugImage *image, unsigned char **buffers,
+                                 LadybugPixelFormat format)
+{
+    struct fake_context *c = context;
+    log_call('V');
+    int bytes = texture_bytes(format);
+    if (!image || !image->pData || !buffers || !bytes) return LADYBUG_INVALID_ARGUMENT;
+    int frame = (int)image->imageInfo.ulSequenceId - 1000;
+    size_t pixels = (size_t)image->uiCols * image->uiRows;
+    for (int cam = 0; cam < 6; cam++) {
+        int bgr[4] = {20 + 30 * cam, 100 + frame, 220 - 20 * cam, 255};
+        for (size_t i = 0; i < pixels; i++) {
+            for (int ch = 0; ch < 4; ch++) {
+                if (bytes == 4) {
+                    buffers[cam][4 * i + ch] = (unsigned char)bgr[ch];
+                } else {
+                    buffers[cam][8 * i + 2 * ch] = 0;
+                    buffers[cam][8 * i + 2 * ch + 1] = (unsigned char)bgr[ch];
+                }
+            }
+        }
+    }
+    c->tex_cols = (int)image->uiCols;
+    c->tex_rows = (int)image->uiRows;
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugUpdateTextures(LadybugContext context, unsigned int cameras, const unsigned char **buffers,
+                                   LadybugPixelFormat format)
+{
+    struct fake_context *c = context;
+    log_call('U');
+    int bytes = texture_bytes(format);
+    if (cameras != LADYBUG_NUM_CAMERAS || !buffers || !bytes || !c->tex_cols) return LADYBUG_INVALID_ARGUMENT;
+    fake_texture_format = (int)format;
+    size_t pixels = (size_t)c->tex_cols * c->tex_rows;
+    for (int cam = 0; cam < 6; cam++) {
+        free(c->textures[cam]);
+        c->textures[cam] = malloc(3 * pixels);
+        for (size_t i = 0; i < pixels; i++)
+            for (int ch = 0; ch < 3; ch++) /* the top byte of a 16-bit little-endian word */
+                c->textures[cam][3 * i + ch] = buffers[cam][bytes * i + (bytes / 4) * ch + (bytes / 4 - 1)];
+    }
+    c->textures_ready = 1;
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugRenderOffScreenImage(LadybugContext context, LadybugOutputImage type, LadybugPixelFormat format,
+                                         LadybugProcessedImage *out)
+{
+    struct fake_context *c = context;
+    log_call('R');
+    int k = fake_renders++;
+    if (!(fake_configured & (int)type)) return LADYBUG_OFFSCREEN_BUFFER_INIT_ERROR;
+    if (!c->textures_ready) return LADYBUG_OPENGL_TEXTUREIMAGE_NOT_UPDATED;
+    if (format != LADYBUG_BGR || type != LADYBUG_PANORAMIC) return LADYBUG_NOT_SUPPORTED;
+    if (k == fake_render_error_at) return LADYBUG_GPU_ERROR;
+    int cols = fake_pano_cols, rows = fake_pano_rows;
+    free(c->rendered);
+    c->rendered = malloc((size_t)3 * cols * rows);
+    for (int r = 0; r < rows; r++) {
+        for (int col = 0; col < cols; col++) {
+            int cam = col * 6 / cols, start = (cam * cols + 5) / 6, end = ((cam + 1) * cols + 5) / 6;
+            int sc = (col - start) * c->tex_cols / (end - start), sr = r * c->tex_rows / rows;
+            memcpy(&c->rendered[3 * ((size_t)r * cols + col)], &c->textures[cam][3 * ((size_t)sr * c->tex_cols + sc)], 3);
+        }
+    }
+    if (out) {
+        memset(out, 0, sizeof *out);
+        out->uiCols = (unsigned int)cols;
+        out->uiRows = (unsigned int)rows;
+        out->pData = c->rendered;
+        out->pixelFormat = format;
+    }
     return LADYBUG_OK;
 }

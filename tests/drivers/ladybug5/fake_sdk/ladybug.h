@@ -153,6 +153,36 @@ typedef enum LadybugStippledFormat {
     LADYBUG_STIPPLED_FORCE_QUADLET = 0x7FFFFFFF
 } LadybugStippledFormat;
 
+/* The demosaicing methods of ladybugConvertImage (2017 order; older SDKs had NEAREST_NEIGHBOR after EDGE_SENSING). */
+typedef enum LadybugColorProcessingMethod {
+    LADYBUG_DISABLE = RIGD_FAKE_SHIFT, LADYBUG_EDGE_SENSING, LADYBUG_NEAREST_NEIGHBOR_FAST, LADYBUG_RIGOROUS,
+    LADYBUG_DOWNSAMPLE4, LADYBUG_DOWNSAMPLE16, LADYBUG_MONO, LADYBUG_HQLINEAR, LADYBUG_HQLINEAR_GPU,
+    LADYBUG_DIRECTIONAL_FILTER, LADYBUG_WEIGHTED_DIRECTIONAL_FILTER,
+    LADYBUG_COLOR_FORCE_QUADLET = 0x7FFFFFFF
+} LadybugColorProcessingMethod;
+
+/* Pixel formats of converted textures and rendered images (the real bit values, moved by the shift). */
+typedef enum LadybugPixelFormat {
+    LADYBUG_MONO8 = 0x00000001 + RIGD_FAKE_SHIFT,
+    LADYBUG_MONO16 = 0x00000020 + RIGD_FAKE_SHIFT,
+    LADYBUG_RAW8 = 0x00000200 + RIGD_FAKE_SHIFT,
+    LADYBUG_RAW16 = 0x00000400 + RIGD_FAKE_SHIFT,
+    LADYBUG_BGR = 0x10000001 + RIGD_FAKE_SHIFT,
+    LADYBUG_BGRU = 0x10000002 + RIGD_FAKE_SHIFT,
+    LADYBUG_BGR16 = 0x10000004 + RIGD_FAKE_SHIFT,
+    LADYBUG_BGRU16 = 0x10000008 + RIGD_FAKE_SHIFT,
+    LADYBUG_BGR16F = 0x10000010 + RIGD_FAKE_SHIFT,
+    LADYBUG_BGR32F = 0x10000020 + RIGD_FAKE_SHIFT,
+    LADYBUG_RGB = 0x20000001 + RIGD_FAKE_SHIFT,
+    LADYBUG_RGBU = 0x20000002 + RIGD_FAKE_SHIFT,
+    LADYBUG_RGB16 = 0x20000004 + RIGD_FAKE_SHIFT,
+    LADYBUG_RGBU16 = 0x20000008 + RIGD_FAKE_SHIFT,
+    LADYBUG_RGB16F = 0x20000010 + RIGD_FAKE_SHIFT,
+    LADYBUG_RGB32F = 0x20000020 + RIGD_FAKE_SHIFT,
+    LADYBUG_PIXELFORMAT_FORCE_QUADLET = 0x7FFFFFFF,
+    LADYBUG_UNSPECIFIED_PIXEL_FORMAT = 0
+} LadybugPixelFormat;
+
 typedef enum LadybugDeviceType {
     LADYBUG_DEVICE_LADYBUG, LADYBUG_DEVICE_COMPRESSOR, LADYBUG_DEVICE_LADYBUG3, LADYBUG_DEVICE_LADYBUG5,
     LADYBUG_DEVICE_LADYBUG5P, LADYBUG_DEVICE_UNKNOWN,
@@ -232,6 +262,31 @@ typedef struct LadybugImage {
     unsigned int ulReserved[3];
 } LadybugImage;
 
+typedef struct LadybugImageMetaData {
+    unsigned char ucGPSHour;
+    unsigned char ucGPSMinute;
+    unsigned char ucGPSSecond;
+    unsigned short wGPSSubSecond;
+    unsigned char ucGPSDay;
+    unsigned char ucGPSMonth;
+    unsigned short wGPSYear;
+    double dGPSLatitude;
+    double dGPSLongitude;
+    double dGPSAltitude;
+    double dGPSGroundSpeed;
+    unsigned int ulReserved[50];
+} LadybugImageMetaData;
+
+/* What ladybugRenderOffScreenImage returns: pData points into the library's own buffer. */
+typedef struct LadybugProcessedImage {
+    unsigned int uiCols;
+    unsigned int uiRows;
+    unsigned char *pData;
+    LadybugPixelFormat pixelFormat;
+    LadybugImageMetaData metaData;
+    unsigned int ulReserved;
+} LadybugProcessedImage;
+
 typedef struct LadybugCameraInfo {
     LadybugSerialNumber serialBase;
     LadybugSerialNumber serialHead;
@@ -259,6 +314,9 @@ LadybugError ladybugSetGrabTimeout(LadybugContext context, unsigned int uiTimeou
 LadybugError ladybugGrabImage(LadybugContext context, LadybugImage *pImage);
 LadybugError ladybugGetColorTileFormat(LadybugContext context, LadybugStippledFormat *pFormat);
 LadybugError ladybugGetAbsProperty(LadybugContext context, LadybugProperty property, float *pfValue);
+LadybugError ladybugSetColorProcessingMethod(LadybugContext context, LadybugColorProcessingMethod method);
+LadybugError ladybugConvertImage(LadybugContext context, const LadybugImage *pImage, unsigned char **arpDestBuffers,
+                                 LadybugPixelFormat pixelFormat);
 
 #ifdef __cplusplus
 }

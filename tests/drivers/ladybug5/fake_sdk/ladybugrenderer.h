@@ -1,5 +1,7 @@
 /* rigd's stand-in for FLIR's ladybugrenderer.h (tests only): the output image types (the real bit values) and
- * the one renderer function rigd calls, which also sets the rectified resolution. */
+ * the renderer functions rigd calls: the off-screen size (which also sets the rectified resolution) and the
+ * panorama rendering (configure, update the six textures, render off screen). FLIR's header gives the pixel
+ * formats default arguments (C++); they are left out here. */
 #ifndef RIGD_FAKE_LADYBUGRENDERER_H
 #define RIGD_FAKE_LADYBUGRENDERER_H
 
@@ -26,6 +28,11 @@ typedef enum {
 
 LadybugError ladybugSetOffScreenImageSize(LadybugContext context, LadybugOutputImage imageType, unsigned int uiWidth,
                                           unsigned int uiHeight);
+LadybugError ladybugConfigureOutputImages(LadybugContext context, unsigned int uiImageTypes);
+LadybugError ladybugUpdateTextures(LadybugContext context, unsigned int uiCameras, const unsigned char **arpBGRABuffers,
+                                   LadybugPixelFormat pixelFormat);
+LadybugError ladybugRenderOffScreenImage(LadybugContext context, LadybugOutputImage imageType,
+                                         LadybugPixelFormat pixelFormat, LadybugProcessedImage *pImage);
 
 #ifdef __cplusplus
 }
