@@ -26,7 +26,6 @@ centre reaches few pixels, whose exact sums cost less than building and holding 
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from enum import Enum
 
@@ -81,7 +80,6 @@ class GmmOptions:
     sigma_floor_px: float = 0.7
     sigma_floor_deg: float = 0.2
     sigma_ceiling_px: float = 48.0
-    threads: int = 1  # camera groups evaluated side by side (pair_terms); results do not depend on it
 
 
 @dataclass(frozen=True)
@@ -261,52 +259,36 @@ def pair_terms(
     feats: list[PairFeatures], frozen: list[Frozen], tau: F64, sigma_in_px: list[float], opts: GmmOptions
 ) -> list[PointTerms]:
     """Eqs. 8-10 and 28-29 point by point for every pair (the frozen model at ``tau``); the projections and
-    the per-point algebra run once for all pairs that share a camera, the sums over pixels pair by pair. With
-    ``opts.threads`` > 1 the camera groups (a head's sensors) run side by side: each group reads and grows
-    only its own pairs' fields, and the compiled sums release the GIL."""
-    groups = _camera_groups(feats)
-
-    def terms(group: list[int]) -> list[PointTerms]:
-        return _group_terms([feats[i] for i in group], [frozen[i] for i in group], tau,
-                            [sigma_in_px[i] for i in group], opts)
-
-    if opts.threads > 1 and len(groups) > 1:
-        with ThreadPoolExecutor(min(opts.threads, len(groups))) as pool:
-            per_group = list(pool.map(terms, groups))
-    else:
-        per_group = [terms(group) for group in groups]
-    return [t for part in per_group for t in part]
-
-
-def _group_terms(feats: list[PairFeatures], frozen: list[Frozen], tau: F64, sigma_in_px: list[float],
-                 opts: GmmOptions) -> list[PointTerms]:
-    """:func:`pair_terms` of pairs that share one camera model object."""
-    camera = feats[0].camera
-    sizes = [len(f.points) for f in feats]
-    starts = np.concatenate([[0], np.cumsum(sizes)])
-    p_cam, rotated = transform_points(tau, np.concatenate([f.points.points_lidar for f in feats]))
-    uv, valid = camera.project(p_cam)
-    kind = np.concatenate([f.points.kind for f in feats])
-    # Points just outside the image still see edge pixels inside it; taking every valid projection
-    # (not only those inside) keeps the cost continuous when a point crosses the image border.
-    active = valid & (opts.use_folds | (kind != FOLD))
-    sel = [np.flatnonzero(active[starts[k]:starts[k + 1]]) for k in range(len(feats))]
-    parts = _slices([len(x) for x in sel])
-    glob = np.concatenate([starts[k] + sel[k] for k in range(len(feats))])
-    uv_g, sigma = uv[glob], np.concatenate([f.sigma_px for f in frozen])[glob]
-    fields = [f.fields for f in feats]
-    if opts.evaluator is Evaluator.FIELD and all(f is not None for f in fields):
-        sums = _sums_field(feats, [f for f in fields if f is not None], parts, uv_g, sigma)
-    else:
-        sums = _sums_exact(feats, parts, uv_g, sigma)
-    s_in = np.repeat(np.array(sigma_in_px, dtype=np.float64), [len(x) for x in sel])
-    p_score = np.concatenate([f.points.score for f in feats])[glob]
-    value, d_centre = _point_terms(sums, sigma, s_in, opts, p_score)
-    # eqs. 28-29: d cost / d p_cam = - dV/d(u,v) . d(u,v)/d p_cam
-    d_pcam = -np.einsum("ni,nij->nj", d_centre, camera.project_jacobian(p_cam[glob]))
-    rotated_g = rotated[glob]
-    return [PointTerms(idx, value[part], d_pcam[part], rotated_g[part], uv_g[part])
-            for idx, part in zip(sel, parts, strict=True)]
+    the per-point algebra run once for all pairs that share a camera, the sums over pixels pair by pair."""
+    out: list[PointTerms] = []
+    for group in _camera_groups(feats):
+        camera = feats[group[0]].camera
+        sizes = [len(feats[i].points) for i in group]
+        starts = np.concatenate([[0], np.cumsum(sizes)])
+        p_cam, rotated = transform_points(tau, np.concatenate([feats[i].points.points_lidar for i in group]))
+        uv, valid = camera.project(p_cam)
+        kind = np.concatenate([feats[i].points.kind for i in group])
+        # Points just outside the image still see edge pixels inside it; taking every valid projection
+        # (not only those inside) keeps the cost continuous when a point crosses the image border.
+        active = valid & (opts.use_folds | (kind != FOLD))
+        sel = [np.flatnonzero(active[starts[k]:starts[k + 1]]) for k in range(len(group))]
+        parts = _slices([len(x) for x in sel])
+        glob = np.concatenate([starts[k] + sel[k] for k in range(len(group))])
+        uv_g, sigma = uv[glob], np.concatenate([frozen[i].sigma_px for i in group])[glob]
+        fields = [feats[i].fields for i in group]
+        if opts.evaluator is Evaluator.FIELD and all(f is not None for f in fields):
+            sums = _sums_field([feats[i] for i in group], [f for f in fields if f is not None], parts, uv_g, sigma)
+        else:
+            sums = _sums_exact([feats[i] for i in group], parts, uv_g, sigma)
+        s_in = np.repeat(np.array([sigma_in_px[i] for i in group], dtype=np.float64), [len(x) for x in sel])
+        p_score = np.concatenate([feats[i].points.score for i in group])[glob]
+        value, d_centre = _point_terms(sums, sigma, s_in, opts, p_score)
+        # eqs. 28-29: d cost / d p_cam = - dV/d(u,v) . d(u,v)/d p_cam
+        d_pcam = -np.einsum("ni,nij->nj", d_centre, camera.project_jacobian(p_cam[glob]))
+        rotated_g = rotated[glob]
+        out += [PointTerms(idx, value[part], d_pcam[part], rotated_g[part], uv_g[part])
+                for idx, part in zip(sel, parts, strict=True)]
+    return out
 
 
 def _slices(sizes: list[int]) -> list[slice]:

@@ -46,7 +46,7 @@ class OptimOptions:
     max_line_search: int = 30
     tol_rel_cost: float = 1e-5
     tol_step: float = 1e-6
-    patience: int = 2  # quiet iterations that end a level (a third moved the Ford head's result by 0.1 mm)
+    patience: int = 3
     precondition: bool = True
     rotation_only_levels: int = 1  # the first level(s) move rotation only (translation held)
     fold_levels: int = 2  # fold edge points take part in the first this-many levels only

@@ -63,9 +63,6 @@ from rigd.report import (
 # Paper defaults: sigma_in = 15, 10, 5 px of a 1024-wide panorama, as angles at 1 m.
 PAPER_SIGMAS_DEG = paper_params().optim.sigmas_deg
 DEFAULT_SIGMAS_DEG = CalibParams().optim.sigmas_deg
-# PNG level 1, not OpenCV's default 3: on the Ford head's overlays it compresses in 40 % less time for files 7 %
-# larger (overlays are looked at, not archived).
-OVERLAY_PNG = [cv2.IMWRITE_PNG_COMPRESSION, 1]
 
 
 @dataclass(frozen=True)
@@ -80,8 +77,7 @@ class CalibrationRequest:
     fix_translation: bool = False  # hold the translation at the prior's (or the initial guess's) lever arm
     tolerance: TrustOptions | None = None  # None: rig.yaml's tolerance, else 0.2 deg / 2 cm
     search: bool = False  # True: the global search even if a guess exists (it runs anyway without one)
-    workers: int = 2  # processes for the pairs' edges and the independent solves, and threads for a head's sensors
-    # in the main solve (the rig computer's 2+ cores)
+    workers: int = 2  # processes for the pairs' edges and the independent solves (the rig computer's 2+ cores)
     max_width: int | None = WORKING_WIDTH_PX  # px: wider images are halved on load (rigd.dataset.working); None: as is
 
 
@@ -383,13 +379,12 @@ def _write_pair_visuals(dataset: Dataset, i: int, edge_points: list[NDArray[np.f
     for v, (image, camera) in enumerate(zip(pair.images, cameras, strict=True)):
         views = edge_views(image, camera, initial, T, edge_points[v])
         for name in OVERLAY_STAGES:
-            cv2.imwrite(str(out / "overlays" / f"{overlay_stem(dataset, i, v)}_{name}.png"), getattr(views, name),
-                        OVERLAY_PNG)
+            cv2.imwrite(str(out / "overlays" / f"{overlay_stem(dataset, i, v)}_{name}.png"), getattr(views, name))
     seen = list(zip(pair.images, cameras, dataset.masks, strict=True))
     coloured = colour_points(seen, T, pair.cloud.points_lidar)
     write_coloured_ply(out / "clouds" / f"{i:04d}.ply", seen, T, pair.cloud.points_lidar, coloured=coloured)
     top = cloud_top_view(seen, T, pair.cloud.points_lidar, coloured=coloured)
-    cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"), top, OVERLAY_PNG)
+    cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"), top)
 
 
 def _write_visuals(dataset: Dataset, feats: list[PairFeatures] | None, initial: Transform, T: Transform, out: Path,
@@ -438,10 +433,6 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
         params = dataclasses.replace(params, optim=dataclasses.replace(params.optim,
                                                                        sigmas_deg=tuple(request.sigmas_deg)))
-    if request.workers > 1 and not multiprocessing.current_process().daemon:
-        # A head's sensors are evaluated side by side, so the main solve uses the core the pool leaves idle once
-        # the alternative schedule ends (Ford head, its last two levels alone: 25 -> 17 s wall; bit-identical).
-        params = dataclasses.replace(params, gmm=dataclasses.replace(params.gmm, threads=request.workers))
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
     method = request.method

@@ -85,15 +85,3 @@ def test_field_evaluator_sums_narrow_centres_exactly_and_builds_no_full_resoluti
     assert narrow_share[3.0] == 1.0 and 0.0 < narrow_share[10.0] < 1.0 and narrow_share[20.0] == 0.0
     assert ladder.rows[ladder.factor == 1].sum() == 0  # the memory a full-resolution band would take
     assert ladder.rows[ladder.factor > 1].sum() > 0
-
-
-@pytest.mark.parametrize("opts", [EXACT, FIELD])
-def test_camera_groups_in_threads_give_the_serial_numbers_bit_for_bit(opts):
-    feats = [make_pair(seed) for seed in (1, 2, 3)]  # each its own camera object: three groups
-    tau = TRUTH.tau + np.array([0.01, -0.02, 0.01, 0.02, 0.01, -0.01])
-    s = _sigma_px(feats, 8.0)
-    serial = _frozen_cost(feats, tau, s, opts)[1]
-    threaded = _frozen_cost(feats, tau, s, dataclasses.replace(opts, threads=2))[1]
-    assert serial.n_active > 0
-    assert threaded.cost == serial.cost and np.array_equal(threaded.gradient, serial.gradient)
-    assert threaded.n_active == serial.n_active
