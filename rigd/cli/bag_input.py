@@ -29,7 +29,8 @@ ROS2_METADATA = "metadata.yaml"
 BAG_FILE = "bag.yaml"  # what the import wrote beside its pairs (rigd.importers.bag.importer.BAG_FILE)
 # The options that belong to a bag, by their argparse names and as spelt on the command line.
 BAG_OPTIONS = {"image_topic": "--image-topic", "cloud_topic": "--cloud-topic",
-               "camera_info_topic": "--camera-info-topic", "rig": "--rig", "keep_dataset": "--keep-dataset"}
+               "camera_info_topic": "--camera-info-topic", "rig": "--rig", "imu_topic": "--imu-topic",
+               "odom_topic": "--odom-topic", "keep_dataset": "--keep-dataset"}
 
 
 def is_bag(path: Path) -> bool:
@@ -40,8 +41,8 @@ def is_bag(path: Path) -> bool:
 
 
 def add_topic_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup, *, required: bool) -> None:
-    """--image-topic, --cloud-topic, --camera-info-topic and --rig, as ``rigd import bag`` and a bag as DATASET
-    take them (the first two ``required`` or not)."""
+    """--image-topic, --cloud-topic, --camera-info-topic, --rig, --imu-topic and --odom-topic, as ``rigd import
+    bag`` and a bag as DATASET take them (the first two ``required`` or not)."""
     parser.add_argument("--image-topic", required=required, default=None, metavar="TOPIC",
                         help="sensor_msgs/Image or CompressedImage")
     parser.add_argument("--cloud-topic", required=required, default=None, metavar="TOPIC",
@@ -50,6 +51,12 @@ def add_topic_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup,
                         help="sensor_msgs/CameraInfo for the intrinsics (plumb_bob: pinhole, equidistant: fisheye)")
     parser.add_argument("--rig", type=Path, default=None, metavar="RIG.yaml",
                         help="the rig file for the camera (and initial guess, prior, tolerance) instead of CameraInfo")
+    parser.add_argument("--imu-topic", default=None, metavar="TOPIC",
+                        help="sensor_msgs/Imu: a still stretch it says was turning (above 0.5 deg/s) or accelerating "
+                        "(0.5 m/s^2 off gravity) is not kept")
+    parser.add_argument("--odom-topic", default=None, metavar="TOPIC",
+                        help="nav_msgs/Odometry: a still stretch its twist says was moving (above 1 cm/s or "
+                        "0.5 deg/s) is not kept")
 
 
 def add_bag_options(parser: argparse.ArgumentParser) -> None:
@@ -115,7 +122,8 @@ def report_import(summary: ImportSummary, out: TextIO) -> None:
 def _imported(bag: Path, out: Path, args: argparse.Namespace) -> Path:
     from rigd.importers.bag import BagImportOptions, import_bag
 
-    options = BagImportOptions(args.image_topic, args.cloud_topic, args.camera_info_topic, args.rig)
+    options = BagImportOptions(args.image_topic, args.cloud_topic, args.camera_info_topic, args.rig,
+                               imu_topic=args.imu_topic, odom_topic=args.odom_topic)
     print(f"importing the bag {bag} (docs/bags.md)", file=sys.stderr)
     summary = import_bag(bag, out, options=options, report=lambda line: print(line, file=sys.stderr))
     report_import(summary, sys.stderr)

@@ -78,6 +78,10 @@ def _register_bag(formats: Any) -> None:
                      help="places at least this far apart, m of range change (default 0.5, as rigd capture)")
     bag.add_argument("--max-offset", type=non_negative_float, default=0.05, metavar="S",
                      help="an image within this many seconds of its sweep (default 0.05)")
+    bag.add_argument("--image-motion", type=non_negative_float, default=0.0, metavar="GREY",
+                     help="a still stretch where two consecutive images (grey, 64 px wide) differ by more than this "
+                     "mean grey level is not kept, e.g. 4 (default 0: the images are not consulted, as traffic "
+                     "in view changes a still rig's images too)")
     bag.set_defaults(func=_bag)
 
 
@@ -116,10 +120,13 @@ def _kitti(args: argparse.Namespace) -> int:
 def _bag(args: argparse.Namespace) -> int:
     from rigd.cli.bag_input import report_import
     from rigd.importers.bag import BagImportOptions, import_bag
+    from rigd.importers.bag.motion import MotionThresholds
     from rigd.importers.bag.stills import StillOptions
 
     still = StillOptions(n=args.n, still_seconds=args.still_seconds, sweeps=args.sweeps, min_move_m=args.min_move,
                          max_offset_s=args.max_offset)
-    options = BagImportOptions(args.image_topic, args.cloud_topic, args.camera_info_topic, args.rig, still)
+    options = BagImportOptions(args.image_topic, args.cloud_topic, args.camera_info_topic, args.rig, still,
+                               imu_topic=args.imu_topic, odom_topic=args.odom_topic,
+                               motion=MotionThresholds(image_change_grey=args.image_motion))
     report_import(import_bag(args.src, args.out, options=options, report=print), sys.stdout)
     return 0

@@ -3,7 +3,8 @@
 1. Every sweep of the cloud topic is decoded and reduced to the gate's direction grid in worker processes
    (:mod:`.sweeps`; its points are not kept: a long drive never sits in memory) and fed to the gate in bag
    order; the image topic's stamps are read (the first image is decoded, so
-   a bad encoding fails at once) and the camera-info topic's first message kept.
+   a bad encoding fails at once; every image reduced to a small grey one for :mod:`.motion`), the IMU and
+   odometry topics' samples taken (:mod:`.motion`) and the camera-info topic's first message kept.
 2. :mod:`.stills` picks the pairs; their images and sweeps are read again by their bag time and written with
    rigd.dataset's writers (atomic pairs under the writer lock), with rig.yaml from ``--rig``, else from the
    CameraInfo, else an equirectangular panorama when the image is 2:1.
@@ -32,10 +33,23 @@ from rigd.importers.bag.clouds import BagSweep
 from rigd.importers.bag.errors import BagError
 from rigd.importers.bag.images import decode_compressed, decode_image
 from rigd.importers.bag.intrinsics import camera_from_info
+from rigd.importers.bag.motion import (
+    MotionEvidence,
+    MotionSamples,
+    MotionSource,
+    MotionThresholds,
+    describe_sources,
+    intervals_yaml,
+    jpeg_small_grey,
+    moving_intervals,
+    small_grey,
+)
 from rigd.importers.bag.reader import (
     CLOUD_KINDS,
     IMAGE_KINDS,
+    IMU_KINDS,
     INFO_KINDS,
+    ODOMETRY_KINDS,
     Bag,
     Message,
     Topic,
@@ -45,14 +59,16 @@ from rigd.importers.bag.stills import Decision, StillOptions, SweepTime, Verdict
 from rigd.importers.bag.sweeps import ReducedSweep, SweepPipeline, decode_sweep, default_workers, where
 
 BAG_FILE = "bag.yaml"
+MOTION_ROLES = {"imu": (MotionSource.IMU, "--imu-topic"), "odom": (MotionSource.ODOMETRY, "--odom-topic")}
 U8 = NDArray[np.uint8]
 
 
 @dataclass(frozen=True)
 class BagImportOptions:
-    """The topics to read (``camera_info_topic`` optional), an optional rig file for the camera (and initial
-    guess, prior, tolerance), how still moments are chosen, and the processes that decode the sweeps beside this one
-    (None: one less than the processors; 0: none, all in this process; :mod:`.sweeps`)."""
+    """The topics to read (``camera_info_topic``, ``imu_topic``, ``odom_topic`` optional), an optional rig file for
+    the camera (and initial guess, prior, tolerance), how still moments are chosen, the thresholds of the other
+    evidence of motion (:mod:`.motion`), and the processes that decode the sweeps beside this one (None: one less
+    than the processors; 0: none, all in this process; :mod:`.sweeps`)."""
 
     image_topic: str
     cloud_topic: str
@@ -60,6 +76,9 @@ class BagImportOptions:
     rig: Path | None = None
     still: StillOptions = field(default_factory=StillOptions)
     workers: int | None = None
+    imu_topic: str | None = None
+    odom_topic: str | None = None
+    motion: MotionThresholds = field(default_factory=MotionThresholds)
 
 
 @dataclass(frozen=True)
@@ -85,6 +104,7 @@ class _Scan:
     image_ns: list[int] = field(default_factory=list)
     first_image: U8 | None = None
     camera_info: Message | None = None
+    motion: MotionSamples = field(default_factory=MotionSamples)
     camera_frame: str = ""
     lidar_frame: str = ""
     empty_sweeps: int = 0
@@ -109,9 +129,39 @@ def _take(scan: _Scan, tracker: WindowTracker, sweep: ReducedSweep) -> None:
     scan.lidar_frame = scan.lidar_frame or sweep.frame_id
 
 
-def _scan(bag: Bag, topics: dict[str, Topic], tracker: WindowTracker, workers: int) -> _Scan:
+def _small_grey(message: Message, kind: TopicKind, thresholds: MotionThresholds) -> U8:
+    """The image reduced for :mod:`.motion` (a compressed one decoded at an eighth of its size when it can be)."""
+    if kind is TopicKind.COMPRESSED_IMAGE:
+        reduced = jpeg_small_grey(message.body.data, width_px=thresholds.image_width_px)
+        if reduced is not None:
+            return reduced
+    return small_grey(decode_frame(message, kind), width_px=thresholds.image_width_px)
+
+
+def _take_image(scan: _Scan, message: Message, kind: TopicKind, thresholds: MotionThresholds) -> None:
+    if scan.first_image is None:
+        scan.first_image = decode_frame(message, kind)
+        scan.camera_frame = message.frame_id
+    scan.image_t_s.append(message.stamp_s)
+    scan.image_ns.append(message.bag_time_ns)
+    if thresholds.images:
+        scan.motion.add_image(t_s=message.stamp_s, grey=_small_grey(message, kind, thresholds))
+
+
+def _take_other(scan: _Scan, message: Message, topics: dict[str, Topic]) -> None:
+    """A message of the camera-info, IMU or odometry topic."""
+    if "imu" in topics and message.topic == topics["imu"].name:
+        scan.motion.add_imu(t_s=message.stamp_s, body=message.body, where=where(message))
+    elif "odom" in topics and message.topic == topics["odom"].name:
+        scan.motion.add_odometry(t_s=message.stamp_s, body=message.body, where=where(message))
+    elif scan.camera_info is None:
+        scan.camera_info = message
+
+
+def _scan(bag: Bag, topics: dict[str, Topic], tracker: WindowTracker, options: BagImportOptions) -> _Scan:
     scan = _Scan()
     image, cloud = topics["image"], topics["cloud"]
+    workers = default_workers() if options.workers is None else options.workers
     with SweepPipeline(bag=bag, kind=cloud.kind, workers=workers) as pipeline:
         for raw in bag.raw_messages(topics=list(topics.values())):
             if raw.topic == cloud.name:
@@ -120,16 +170,28 @@ def _scan(bag: Bag, topics: dict[str, Topic], tracker: WindowTracker, workers: i
                 continue
             message = bag.message(raw)
             if message.topic == image.name:
-                if scan.first_image is None:
-                    scan.first_image = decode_frame(message, image.kind)
-                    scan.camera_frame = message.frame_id
-                scan.image_t_s.append(message.stamp_s)
-                scan.image_ns.append(message.bag_time_ns)
-            elif scan.camera_info is None:
-                scan.camera_info = message
+                _take_image(scan, message, image.kind, options.motion)
+            else:
+                _take_other(scan, message, topics)
         for sweep in pipeline.finish():
             _take(scan, tracker, sweep)
     return scan
+
+
+def _optional_topics(bag: Bag, options: BagImportOptions) -> dict[str, Topic]:
+    """The camera-info, IMU and odometry topics the options name, checked for their types."""
+    wanted = (("info", options.camera_info_topic, INFO_KINDS, "--camera-info-topic"),
+              ("imu", options.imu_topic, IMU_KINDS, "--imu-topic"),
+              ("odom", options.odom_topic, ODOMETRY_KINDS, "--odom-topic"))
+    return {role: bag.topic(name=name, kinds=kinds, role=flag) for role, name, kinds, flag in wanted
+            if name is not None}
+
+
+def _check_motion_topics(bag: Bag, topics: dict[str, Topic], scan: _Scan) -> None:
+    """An IMU or odometry topic named but without a message is an error (the import would ignore it silently)."""
+    for role, (source, flag) in MOTION_ROLES.items():
+        if role in topics and source not in scan.motion.sources:
+            raise BagError(f"{bag.path}: no message on {topics[role].name} ({flag})")
 
 
 def _check_overlap(bag: Bag, topics: dict[str, Topic], scan: _Scan) -> None:
@@ -221,20 +283,21 @@ def import_bag(bag_path: Path, out: Path, *, options: BagImportOptions,
     with Bag(Path(bag_path)) as bag:
         topics = {"image": bag.topic(name=options.image_topic, kinds=IMAGE_KINDS, role="--image-topic"),
                   "cloud": bag.topic(name=options.cloud_topic, kinds=CLOUD_KINDS, role="--cloud-topic")}
-        if options.camera_info_topic is not None:
-            topics["info"] = bag.topic(name=options.camera_info_topic, kinds=INFO_KINDS, role="--camera-info-topic")
+        topics.update(_optional_topics(bag, options))
         tracker = WindowTracker(options.still)
-        scan = _scan(bag, topics, tracker, default_workers() if options.workers is None else options.workers)
+        scan = _scan(bag, topics, tracker, options)
         _check_overlap(bag, topics, scan)
         say(f"read {len(scan.sweeps)} sweeps of {topics['cloud'].name} and {len(scan.image_t_s)} images of "
-            f"{topics['image'].name}")
+            f"{topics['image'].name}" + "".join(f", {s}" for s in describe_sources(scan.motion)))
+        _check_motion_topics(bag, topics, scan)
         if options.camera_info_topic is not None and scan.camera_info is None:
             raise BagError(f"{bag.path}: no message on {options.camera_info_topic} (--camera-info-topic)")
         rig = _camera(bag, options, scan)
         order = np.argsort(scan.image_t_s, kind="stable")
         image_t_s = [scan.image_t_s[i] for i in order]
+        start_s = min(scan.sweeps[0].t_start_s, image_t_s[0])
         decisions = select_pairs(windows=tracker.finish(), image_t_s=image_t_s, sweeps=scan.sweeps,
-                                 options=options.still)
+                                 options=options.still, motion=MotionEvidence(scan.motion, options.motion, start_s))
         kept = [d for d in decisions if d.verdict is Verdict.KEPT]
         if not kept:
             raise BagError(no_still_moment(bag.path, decisions, options.still))
@@ -249,13 +312,14 @@ def import_bag(bag_path: Path, out: Path, *, options: BagImportOptions,
             write_pair(out, index, decode_frame(image, topics["image"].kind),
                        Cloud(sweep.points_lidar, sweep.intensity, sweep.ring),
                        _meta(bag, topics, decision, image, sweep, options))
-        summary = ImportSummary(out, len(kept), tuple(decisions), scan.camera_frame, scan.lidar_frame,
-                                min(scan.sweeps[0].t_start_s, image_t_s[0]))
+        summary = ImportSummary(out, len(kept), tuple(decisions), scan.camera_frame, scan.lidar_frame, start_s)
         write_yaml(out / BAG_FILE, {
             "bag": str(bag.path),
             "topics": {role: {"name": t.name, "type": t.kind.value} for role, t in topics.items()},
             "frames": {"camera": scan.camera_frame, "lidar": scan.lidar_frame},
             "options": dataclasses.asdict(options.still),
+            "motion_thresholds": dataclasses.asdict(options.motion),
+            "moving": intervals_yaml(moving_intervals(samples=scan.motion, thresholds=options.motion)),
             "stretches": _decisions_yaml(decisions),
         })
     return summary

@@ -48,11 +48,15 @@ class TopicKind(Enum):
     POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
     VELODYNE_SCAN = VELODYNE_SCAN
     CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+    IMU = "sensor_msgs/msg/Imu"
+    ODOMETRY = "nav_msgs/msg/Odometry"
 
 
 IMAGE_KINDS = (TopicKind.IMAGE, TopicKind.COMPRESSED_IMAGE)
 CLOUD_KINDS = (TopicKind.POINTCLOUD2, TopicKind.VELODYNE_SCAN)
 INFO_KINDS = (TopicKind.CAMERA_INFO,)
+IMU_KINDS = (TopicKind.IMU,)
+ODOMETRY_KINDS = (TopicKind.ODOMETRY,)
 
 
 @dataclass(frozen=True)

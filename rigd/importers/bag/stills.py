@@ -10,6 +10,7 @@ in time order, up to ``n`` stretches that
   middle, with the sweep nearest it), and
 - lie at a new place: the 90th percentile of the range change against every kept place
   (``rigd.capture.gate.range_change_m``, capture's "moved" test) is at least ``min_move_m``,
+- and that no other evidence of motion (:mod:`.motion`: an IMU, odometry, the images) says was moving,
 
 and says for every stretch not kept why not.
 """
@@ -26,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rigd.capture.gate import MOVING_SWEEPS, Motion, StillnessGate, StillThresholds, SweepSample, range_change_m
+from rigd.importers.bag.motion import MotionEvidence
 
 F32 = NDArray[np.float32]
 
@@ -181,9 +183,10 @@ def _pair_in(window: Window, image_t_s: Sequence[float], sweeps: Sequence[SweepT
 
 
 def select_pairs(*, windows: Sequence[Window], image_t_s: Sequence[float], sweeps: Sequence[SweepTime],
-                 options: StillOptions) -> list[Decision]:
+                 options: StillOptions, motion: MotionEvidence | None = None) -> list[Decision]:
     """A :class:`Decision` for every stretch of the recording, in time order (module doc). ``image_t_s``: the
-    images' stamps s, sorted; ``sweeps``: every sweep's span, in the order the windows index them."""
+    images' stamps s, sorted; ``sweeps``: every sweep's span, in the order the windows index them; ``motion``:
+    the other sources of motion (None: the LiDAR alone)."""
     decisions: list[Decision] = []
     kept: list[tuple[int, Window]] = []
     run: list[Window] = []
@@ -194,7 +197,7 @@ def select_pairs(*, windows: Sequence[Window], image_t_s: Sequence[float], sweep
         if run:
             decisions.append(_moving(run, options))
             run = []
-        decisions.append(_still(window, kept, image_t_s, sweeps, options))
+        decisions.append(_still(window, kept, image_t_s, sweeps, options, motion))
         if decisions[-1].verdict is Verdict.KEPT:
             kept.append((len(kept), window))
     if run:
@@ -203,10 +206,13 @@ def select_pairs(*, windows: Sequence[Window], image_t_s: Sequence[float], sweep
 
 
 def _still(window: Window, kept: Sequence[tuple[int, Window]], image_t_s: Sequence[float],
-           sweeps: Sequence[SweepTime], options: StillOptions) -> Decision:
+           sweeps: Sequence[SweepTime], options: StillOptions, motion: MotionEvidence | None) -> Decision:
     span = (window.t_start_s, window.t_end_s)
     what = (f"still {window.seconds:.2f} s, {window.sweeps} sweeps, within {window.rotation_deg:.3f} deg and "
             f"{window.translation_m * 1000:.1f} mm")
+    moving = None if motion is None else motion.moving_in(t_start_s=window.t_start_s, t_end_s=window.t_end_s)
+    if moving is not None:
+        return Decision(*span, Verdict.MOVING, f"the LiDAR {what}, but {moving}", window)
     if len(kept) >= options.n:
         return Decision(*span, Verdict.ENOUGH, f"{what}; {options.n} pairs kept already (--n)", window)
     for number, other in kept:

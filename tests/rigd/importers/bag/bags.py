@@ -6,6 +6,7 @@ image (reduced) as CompressedImage with its CameraInfo."""
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -74,7 +75,8 @@ def pinhole_jpeg() -> tuple[bytes, np.ndarray, tuple[int, int]]:
 
 @dataclass(frozen=True)
 class Recording:
-    """What goes into a test bag: (stamp s, yaw deg) per LiDAR turn, image stamps s, topic names."""
+    """What goes into a test bag: (stamp s, yaw deg) per LiDAR turn, image stamps s, topic names; the images
+    stamped within ``image_motion_s`` (first, last s) shifted sideways further at each (a camera that moves)."""
 
     sweeps: tuple[tuple[float, float], ...]
     image_t_s: tuple[float, ...]
@@ -84,6 +86,7 @@ class Recording:
     camera_frame: str = "camera_optical"
     lidar_frame: str = "velodyne"
     extra: dict[str, str] = field(default_factory=dict)
+    image_motion_s: tuple[float, float] | None = None
 
 
 def stops(*, yaws_deg: list[float], still_sweeps: int, move_sweeps: int, turn_s: float = 0.05,
@@ -153,19 +156,75 @@ class BagTypes:
         return path
 
 
-def write_bag(path: Path, fmt: BagFormat, recording: Recording, *, with_info: bool = True) -> Path:
-    """Write ``recording`` as a bag at ``path`` (a .bag file for ROS 1, a folder for ROS 2); returns ``path``."""
+Messages = list[tuple[float, str, str, object]]
+
+
+def _shifted_jpeg(shift_px: int) -> bytes:
+    """The pinhole sample reduced by SCALE and rolled ``shift_px`` px sideways, as JPEG bytes."""
+    image = cv2.imdecode(np.frombuffer(pinhole_jpeg()[0], np.uint8), cv2.IMREAD_COLOR)
+    ok, jpeg = cv2.imencode(".jpg", np.roll(image, shift_px, axis=1), [cv2.IMWRITE_JPEG_QUALITY, 90])
+    assert ok
+    return jpeg.tobytes()
+
+
+def _image_data(recording: Recording, k: int, t: float) -> bytes:
+    span = recording.image_motion_s
+    if span is not None and span[0] <= t <= span[1]:
+        return _shifted_jpeg(24 * (k % 8 + 1))
+    return pinhole_jpeg()[0]
+
+
+def vector3(types: BagTypes, xyz: tuple[float, float, float]) -> object:
+    return types.new("geometry_msgs/msg/Vector3", x=xyz[0], y=xyz[1], z=xyz[2])
+
+
+def imu_messages(types: BagTypes, topic: str, samples: list[tuple[float, float]]) -> Messages:
+    """sensor_msgs/Imu of a level IMU (gravity on z) turning about z at (stamp s, rate deg/s)."""
+    out: Messages = []
+    for t, rate in samples:
+        imu = types.new("sensor_msgs/msg/Imu", header=types.header(t, "imu"),
+                        orientation=types.new("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=0.0, w=1.0),
+                        orientation_covariance=np.zeros(9), angular_velocity=vector3(types, (0.0, 0.0,
+                                                                                               np.radians(rate))),
+                        angular_velocity_covariance=np.zeros(9),
+                        linear_acceleration=vector3(types, (0.0, 0.0, 9.80665)),
+                        linear_acceleration_covariance=np.zeros(9))
+        out.append((t, topic, "sensor_msgs/msg/Imu", imu))
+    return out
+
+
+def odometry_messages(types: BagTypes, topic: str, samples: list[tuple[float, float]]) -> Messages:
+    """nav_msgs/Odometry driving forward at (stamp s, speed m/s)."""
+    out: Messages = []
+    for t, speed in samples:
+        pose = types.new("geometry_msgs/msg/Pose",
+                         position=types.new("geometry_msgs/msg/Point", x=0.0, y=0.0, z=0.0),
+                         orientation=types.new("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=0.0, w=1.0))
+        twist = types.new("geometry_msgs/msg/Twist", linear=vector3(types, (speed, 0.0, 0.0)),
+                          angular=vector3(types, (0.0, 0.0, 0.0)))
+        odom = types.new("nav_msgs/msg/Odometry", header=types.header(t, "odom"), child_frame_id="base_link",
+                         pose=types.new("geometry_msgs/msg/PoseWithCovariance", pose=pose, covariance=np.zeros(36)),
+                         twist=types.new("geometry_msgs/msg/TwistWithCovariance", twist=twist,
+                                         covariance=np.zeros(36)))
+        out.append((t, topic, "nav_msgs/msg/Odometry", odom))
+    return out
+
+
+def write_bag(path: Path, fmt: BagFormat, recording: Recording, *, with_info: bool = True,
+              extra: Callable[[BagTypes], Messages] | None = None) -> Path:
+    """Write ``recording`` as a bag at ``path`` (a .bag file for ROS 1, a folder for ROS 2), with the messages
+    ``extra`` makes of the bag's types; returns ``path``."""
     types = BagTypes.of(fmt)
-    jpeg, K, (width, height) = pinhole_jpeg()
+    _, K, (width, height) = pinhole_jpeg()
     turns = legacy_turns()
     messages: list[tuple[float, str, str, object]] = []
     for k, (t, yaw) in enumerate(recording.sweeps):
         packets = turned(turns[k % len(turns)], yaw)
         scan = types.velodyne_scan(t, recording.lidar_frame, packets, t + np.arange(len(packets)) * 0.05 / len(packets))
         messages.append((t + 0.05, recording.cloud_topic, "velodyne_msgs/msg/VelodyneScan", scan))
-    for t in recording.image_t_s:
+    for k, t in enumerate(recording.image_t_s):
         image = types.new("sensor_msgs/msg/CompressedImage", header=types.header(t, recording.camera_frame),
-                          format="jpeg", data=np.frombuffer(jpeg, np.uint8))
+                          format="jpeg", data=np.frombuffer(_image_data(recording, k, t), np.uint8))
         messages.append((t + 0.01, recording.image_topic, "sensor_msgs/msg/CompressedImage", image))
     if with_info:
         Roi = "sensor_msgs/msg/RegionOfInterest"
@@ -176,7 +235,7 @@ def write_bag(path: Path, fmt: BagFormat, recording: Recording, *, with_info: bo
         info = types.new("sensor_msgs/msg/CameraInfo", header=types.header(recording.image_t_s[0],
                                                                             recording.camera_frame), **fields, **cal)
         messages.append((recording.image_t_s[0], recording.info_topic, "sensor_msgs/msg/CameraInfo", info))
-    return types.write(path, messages)
+    return types.write(path, messages + (extra(types) if extra is not None else []))
 
 
 def bag_file(path: Path, fmt: BagFormat) -> Path:
