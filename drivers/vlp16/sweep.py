@@ -197,7 +197,7 @@ def _block_delay_us(block: int, dual: bool) -> float:
     return float((_DUAL_BLOCK_US if dual else _SINGLE_BLOCK_US)[block])
 
 
-def _packet_rate(azimuth: NDArray[np.int64], dual: NDArray[np.bool_]) -> NDArray[np.float64]:
+def packet_rate(azimuth: NDArray[np.int64], dual: NDArray[np.bool_]) -> NDArray[np.float64]:
     """(P,) rotation rate of each packet from its first and last block azimuth, azimuth units per us."""
     span_us = np.where(dual, 10, 22) * SEQUENCE_US
     return ((azimuth[:, -1] - azimuth[:, 0]) % AZIMUTH_UNITS) / span_us
@@ -333,7 +333,7 @@ class SweepAssembler:
         azimuth = records["blocks"]["azimuth"].astype(np.int64)
         dual = records["return_mode"] == ReturnMode.DUAL
         block_us = pending.count_us[:, None] + np.where(dual[:, None], _DUAL_BLOCK_US, _SINGLE_BLOCK_US)
-        rate = np.repeat(_packet_rate(azimuth, dual), BLOCKS_PER_PACKET)[:-1]
+        rate = np.repeat(packet_rate(azimuth, dual), BLOCKS_PER_PACKET)[:-1]
         azimuth, block_us = azimuth.ravel(), block_us.ravel()
         step = np.diff(azimuth) % AZIMUTH_UNITS
         turns = np.rint((rate * np.diff(block_us) - step) / AZIMUTH_UNITS)
@@ -460,4 +460,4 @@ class _Emission:
         self.records = records
         self.per_block = per_block
         self.dual = records["return_mode"] == ReturnMode.DUAL
-        self.rate = _packet_rate(records["blocks"]["azimuth"].astype(np.int64), self.dual)
+        self.rate = packet_rate(records["blocks"]["azimuth"].astype(np.int64), self.dual)

@@ -37,7 +37,7 @@ from drivers.vlp16 import ClockStep, StreamStats, Sweep
 from drivers.vlp16.layout import SEQUENCE_US
 from rigd.capture.config import RigSettings, load_settings
 from rigd.capture.errors import CaptureError, DiskFullError, SensorSilenceError, SyncError
-from rigd.capture.fuse import fuse_sweeps
+from rigd.capture.fuse import fuse_sweeps, sweeps_for_frame
 from rigd.capture.gate import (
     AZIMUTH_BINS,
     MIN_INLIER_FRACTION,
@@ -455,9 +455,9 @@ class _Session:
     # -- a pair --------------------------------------------------------------------------------------------
     def _take_pair(self, frame_t: float, frame: CameraFrame, window: tuple[float, float],
                    moved_m: float | None) -> None:
-        in_window = [(s, sw) for s, sw in self.recent if s.t_start >= window[0] and s.t_end <= window[1]]
-        nearest = sorted(in_window, key=lambda x: abs(0.5 * (x[0].t_start + x[0].t_end) - frame_t))
-        chosen = sorted(nearest[: self.request.sweeps], key=lambda x: x[0].t_start)
+        recent = list(self.recent)
+        spans = [(s.t_start, s.t_end) for s, _ in recent]
+        chosen = [recent[i] for i in sweeps_for_frame(spans, frame_t, window, self.request.sweeps)]
         problem = self._sync_problem([sw for _, sw in chosen], window)
         if problem is not None:
             self.gate.reset()

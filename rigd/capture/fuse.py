@@ -9,6 +9,9 @@ return whose range is the median of the K turns' is kept whole (its point, inten
 point is invented between a foreground and a background surface: a beam on a depth edge keeps one of its
 real returns. The median of K ranges has about 1.25 / sqrt(K) of one return's noise for Gaussian noise.
 A beam that returned in fewer than half the turns (a grazing or dark surface, a depth edge) is dropped.
+
+Which sweeps a pair fuses (:func:`sweeps_for_frame`, shared by ``rigd capture`` and ``rigd import bag``): those
+lying wholly inside the still window, the ``count`` whose middles are nearest the frame's time, in time order.
 """
 
 from __future__ import annotations
@@ -27,6 +30,15 @@ LASER_OF_RING = np.argsort(NOMINAL_ELEVATION_DEG)  # (16,) firing order of each 
 def firing_step_deg(rpm: float) -> float:
     """Azimuth advance between two firing sequences (55.296 us) at ``rpm``, degrees."""
     return rpm / 60.0 * 360.0 * SEQUENCE_US * 1e-6
+
+
+def sweeps_for_frame(spans: Sequence[tuple[float, float]], frame_t: float, window: tuple[float, float],
+                     count: int) -> list[int]:
+    """Indices into ``spans`` ((start, end) s of each sweep) of the sweeps a pair with the frame at ``frame_t`` s
+    fuses: inside ``window`` (start, end) s, the ``count`` with their middles nearest ``frame_t``, by start time."""
+    inside = [i for i, (start, end) in enumerate(spans) if start >= window[0] and end <= window[1]]
+    nearest = sorted(inside, key=lambda i: abs(0.5 * (spans[i][0] + spans[i][1]) - frame_t))
+    return sorted(nearest[:count], key=lambda i: spans[i][0])
 
 
 def _single_return(sweep: Sweep) -> np.ndarray:

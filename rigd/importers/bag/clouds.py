@@ -6,7 +6,8 @@ relative to the header's stamp or absolute. Without a ring field the ring is the
 rig's LiDAR: its beams are 2 degrees apart, far more than a laser's offset moves a return's elevation).
 
 VelodyneScan: the raw 1206-byte data packets of one turn, checked and decoded by rigd's own VLP-16 decoder
-(drivers.vlp16: the manual's geometry, velodyne_decoder's arithmetic) with each packet's ROS stamp as its time.
+(drivers.vlp16: the manual's geometry, velodyne_decoder's arithmetic) with each packet's ROS stamp as its time;
+as a :class:`BagSweep`, or as the driver's own Sweep (:func:`velodyne_scan_vlp16`) for the capture's fusion.
 """
 
 from __future__ import annotations
@@ -21,10 +22,15 @@ from drivers.vlp16 import (
     DATA_PACKET_SIZE,
     LEGACY_PRODUCT_ID,
     VLP16_PRODUCT_ID,
+    ReturnMode,
+    Sweep,
+    TimePair,
+    TimeSource,
     check_packets,
     decode_packets,
 )
-from drivers.vlp16.layout import NOMINAL_ELEVATION_DEG, as_packet_records
+from drivers.vlp16.layout import AZIMUTH_UNITS, NOMINAL_ELEVATION_DEG, as_packet_records
+from drivers.vlp16.sweep import packet_rate  # the driver's rpm of a packet, so a fused pair's beams are capture's
 from rigd.importers.bag.errors import BagError
 from rigd.importers.bag.reader import stamp_seconds
 
@@ -121,9 +127,9 @@ def pointcloud2_sweep(message: Any, *, stamp_s: float, where: str) -> BagSweep:
     return BagSweep(points[keep], intensity[keep], ring, t_start, t_end, str(message.header.frame_id))
 
 
-def velodyne_scan_sweep(message: Any, *, where: str) -> BagSweep | None:
-    """A velodyne_msgs/VelodyneScan decoded by drivers.vlp16 (None: no valid data packet in it). Each point's time
-    is its packet's stamp plus its firing delay; packets that fail the driver's checks are left out."""
+def _valid_packets(message: Any, where: str) -> tuple[NDArray[np.uint8], F64] | None:
+    """A VelodyneScan's data packets (P,1206) uint8 that pass the driver's checks and their ROS stamps (P,) s;
+    None when none does."""
     packets = list(message.packets)
     if not packets:
         return None
@@ -134,10 +140,39 @@ def velodyne_scan_sweep(message: Any, *, where: str) -> BagSweep | None:
     check = check_packets(as_packet_records(payloads), PRODUCT_IDS)
     if not check.valid.any():
         return None
-    decoded = decode_packets(payloads[check.valid], None, stamps[check.valid]).points
-    if len(decoded) == 0:
+    return payloads[check.valid], stamps[check.valid]
+
+
+def velodyne_scan_sweep(message: Any, *, where: str) -> BagSweep | None:
+    """A velodyne_msgs/VelodyneScan decoded by drivers.vlp16 (None: no valid data packet in it). Each point's time
+    is its packet's stamp plus its firing delay; packets that fail the driver's checks are left out."""
+    sweep = velodyne_scan_vlp16(message, where=where)
+    if sweep is None:
         return None
-    points = np.stack([decoded["x"], decoded["y"], decoded["z"]], axis=1).astype(np.float64)
-    times = decoded["time"]
-    return BagSweep(points, decoded["intensity"].astype(np.float32), decoded["ring"].astype(np.int16),
-                    float(times.min()), float(times.max()), str(message.header.frame_id))
+    points = np.stack([sweep.points["x"], sweep.points["y"], sweep.points["z"]], axis=1).astype(np.float64)
+    return BagSweep(points, sweep.points["intensity"].astype(np.float32), sweep.points["ring"].astype(np.int16),
+                    sweep.start.device, sweep.end.device, str(message.header.frame_id))
+
+
+def velodyne_scan_vlp16(message: Any, *, where: str) -> Sweep | None:
+    """A velodyne_msgs/VelodyneScan as the VLP-16 driver's :class:`~drivers.vlp16.Sweep` (what
+    rigd.capture.fuse.fuse_sweeps takes; None: no valid data packet or return in it). Its device and host times
+    are both the header clock's: ``start``/``end`` the first and last return (a point's ``time`` is since the
+    first), ``rpm`` the packets' median rate as the driver measures it, the return mode the first packet's."""
+    valid = _valid_packets(message, where)
+    if valid is None:
+        return None
+    payloads, stamps = valid
+    points = decode_packets(payloads, None, stamps).points
+    if len(points) == 0:
+        return None
+    t_start, t_end = float(points["time"].min()), float(points["time"].max())
+    points["time"] -= t_start
+    records = as_packet_records(payloads)
+    dual = records["return_mode"] == ReturnMode.DUAL
+    rate = packet_rate(records["blocks"]["azimuth"].astype(np.int64), dual)  # azimuth units per us
+    return Sweep(index=0, points=points, start=TimePair(t_start, t_start), end=TimePair(t_end, t_end),
+                 packet_count=len(payloads), missing_packets=0,
+                 rpm=float(np.median(rate)) * 1e6 / AZIMUTH_UNITS * 60.0,
+                 return_mode=ReturnMode(int(records["return_mode"][0])), complete=True,
+                 time_source=TimeSource.HOST, clock_offset_s=0.0, pps=None, receive_offset_s=0.0)

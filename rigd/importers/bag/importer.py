@@ -5,7 +5,8 @@
    order; the image topic's stamps are read (the first image is decoded, so
    a bad encoding fails at once; every image reduced to a small grey one for :mod:`.motion`), the IMU and
    odometry topics' samples taken (:mod:`.motion`) and the camera-info topic's first message kept.
-2. :mod:`.stills` picks the pairs; their images and sweeps are read again by their bag time and written with
+2. :mod:`.stills` picks the pairs; their images and sweeps are read again by their bag time (a VelodyneScan
+   pair's cloud fuses the sweeps capture would: :func:`_pair_cloud`) and written with
    rigd.dataset's writers (atomic pairs under the writer lock), with rig.yaml from ``--rig``, else from the
    CameraInfo, else an equirectangular panorama when the image is 2:1.
 
@@ -24,12 +25,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from rigd.capture.fuse import fuse_sweeps, sweeps_for_frame
 from rigd.capture.gate import SweepSample
 from rigd.dataset.pcd import Cloud
 from rigd.dataset.records import CameraConfig, CameraKind, RigConfig
 from rigd.dataset.store import read_yaml, write_pair, write_rig, write_yaml
 from rigd.errors import DatasetError
-from rigd.importers.bag.clouds import BagSweep
+from rigd.importers.bag.clouds import velodyne_scan_vlp16
 from rigd.importers.bag.errors import BagError
 from rigd.importers.bag.images import decode_compressed, decode_image
 from rigd.importers.bag.intrinsics import camera_from_info
@@ -247,18 +249,54 @@ def _fetch(bag: Bag, topic: Topic, bag_time_ns: int, stamp_s: float | None) -> M
     return match[0]
 
 
-def _meta(bag: Bag, topics: dict[str, Topic], decision: Decision, image: Message, sweep: BagSweep,
+@dataclass(frozen=True)
+class _PairCloud:
+    """A pair's cloud, the header frame id of its sweeps and their spans (first, last return) s, in time order."""
+
+    cloud: Cloud
+    frame_id: str
+    spans: list[tuple[float, float]]
+
+
+def _pair_cloud(bag: Bag, topic: Topic, scan: _Scan, decision: Decision, frame_t: float,
+                options: StillOptions) -> _PairCloud:
+    """The cloud of a kept stretch's pair with its image at ``frame_t`` s. VelodyneScan: the sweeps capture would
+    fuse (rigd.capture.fuse.sweeps_for_frame: in the still window, the ``options.sweeps`` nearest the image),
+    decoded again and fused as capture fuses them; PointCloud2 (no packets to fuse by beam): the one sweep
+    nearest the image."""
+    window = decision.window
+    assert window is not None and decision.sweep is not None
+    if topic.kind is not TopicKind.VELODYNE_SCAN:
+        sweep = decode_sweep(_fetch(bag, topic, scan.sweep_ns[decision.sweep], None), topic.kind)
+        assert sweep is not None  # it was decoded in the first pass
+        return _PairCloud(Cloud(sweep.points_lidar, sweep.intensity, sweep.ring), sweep.frame_id,
+                          [(sweep.t_start_s, sweep.t_end_s)])
+    spans = [(s.t_start_s, s.t_end_s) for s in scan.sweeps[window.first: window.last + 1]]
+    chosen = [window.first + i for i in sweeps_for_frame(spans, frame_t, (window.t_start_s, window.t_end_s),
+                                                         options.sweeps)]
+    messages = [_fetch(bag, topic, scan.sweep_ns[k], None) for k in chosen]
+    sweeps = [velodyne_scan_vlp16(m.body, where=where(m)) for m in messages]
+    decoded = [s for s in sweeps if s is not None]
+    assert len(decoded) == len(chosen)  # each was decoded in the first pass
+    return _PairCloud(fuse_sweeps(decoded), messages[0].frame_id,
+                      [(s.start.device, s.end.device) for s in decoded])
+
+
+def _meta(bag: Bag, topics: dict[str, Topic], decision: Decision, image: Message, pair: _PairCloud,
           options: BagImportOptions) -> dict[str, Any]:
     window, still = decision.window, options.still
     assert window is not None
+    lidar_mid = 0.5 * (pair.spans[0][0] + pair.spans[-1][1])
     return {
         "source": "rosbag",
         "bag": str(bag.path),
         "camera": {"topic": image.topic, "frame_id": image.frame_id, "stamp_s": image.stamp_s,
                    "bag_time_ns": image.bag_time_ns, "type": topics["image"].kind.value},
-        "lidar": {"topic": topics["cloud"].name, "frame_id": sweep.frame_id, "stamp_s": [sweep.t_start_s,
-                  sweep.t_end_s], "points": len(sweep), "type": topics["cloud"].kind.value},
-        "camera_minus_lidar_s": image.stamp_s - 0.5 * (sweep.t_start_s + sweep.t_end_s),
+        "lidar": {"topic": topics["cloud"].name, "frame_id": pair.frame_id,
+                  "stamp_s": [pair.spans[0][0], pair.spans[-1][1]], "points": len(pair.cloud),
+                  "type": topics["cloud"].kind.value, "sweeps": len(pair.spans),
+                  "sweep_stamps_s": [list(span) for span in pair.spans]},
+        "camera_minus_lidar_s": image.stamp_s - lidar_mid,
         "still_window_s": [window.t_start_s, window.t_end_s],
         "motion": {"still_seconds": still.still_seconds, "sweeps_in_window": window.sweeps,
                    "lidar_rotation_deg": window.rotation_deg, "lidar_translation_m": window.translation_m,
@@ -306,12 +344,9 @@ def import_bag(bag_path: Path, out: Path, *, options: BagImportOptions,
             assert decision.image is not None and decision.sweep is not None
             image_index = int(order[decision.image])
             image = _fetch(bag, topics["image"], scan.image_ns[image_index], scan.image_t_s[image_index])
-            sweep_message = _fetch(bag, topics["cloud"], scan.sweep_ns[decision.sweep], None)
-            sweep = decode_sweep(sweep_message, topics["cloud"].kind)
-            assert sweep is not None  # it was decoded in the first pass
-            write_pair(out, index, decode_frame(image, topics["image"].kind),
-                       Cloud(sweep.points_lidar, sweep.intensity, sweep.ring),
-                       _meta(bag, topics, decision, image, sweep, options))
+            pair = _pair_cloud(bag, topics["cloud"], scan, decision, image.stamp_s, options.still)
+            write_pair(out, index, decode_frame(image, topics["image"].kind), pair.cloud,
+                       _meta(bag, topics, decision, image, pair, options))
         summary = ImportSummary(out, len(kept), tuple(decisions), scan.camera_frame, scan.lidar_frame, start_s)
         write_yaml(out / BAG_FILE, {
             "bag": str(bag.path),
