@@ -256,30 +256,32 @@ class _PairCloud:
     cloud: Cloud
     frame_id: str
     spans: list[tuple[float, float]]
+    window: tuple[float, float]  # the still window (start, end) s when the pair was taken, as capture's
 
 
 def _pair_cloud(bag: Bag, topic: Topic, scan: _Scan, decision: Decision, frame_t: float,
                 options: StillOptions) -> _PairCloud:
     """The cloud of a kept stretch's pair with its image at ``frame_t`` s. VelodyneScan: the sweeps capture would
-    fuse (rigd.capture.fuse.sweeps_for_frame: in the still window, the ``options.sweeps`` nearest the image),
+    fuse (rigd.capture.fuse.sweeps_for_frame: in the window as it stood when the pair was taken, the
+    ``options.sweeps`` nearest the image),
     decoded again and fused as capture fuses them; PointCloud2 (no packets to fuse by beam): the one sweep
     nearest the image."""
-    window = decision.window
-    assert window is not None and decision.sweep is not None
+    window, last = decision.window, decision.last_sweep
+    assert window is not None and decision.sweep is not None and last is not None
+    spans = [(s.t_start_s, s.t_end_s) for s in scan.sweeps[window.first: last + 1]]
+    held = (spans[0][0], spans[-1][1])  # the window when capture would take the pair
     if topic.kind is not TopicKind.VELODYNE_SCAN:
         sweep = decode_sweep(_fetch(bag, topic, scan.sweep_ns[decision.sweep], None), topic.kind)
         assert sweep is not None  # it was decoded in the first pass
         return _PairCloud(Cloud(sweep.points_lidar, sweep.intensity, sweep.ring), sweep.frame_id,
-                          [(sweep.t_start_s, sweep.t_end_s)])
-    spans = [(s.t_start_s, s.t_end_s) for s in scan.sweeps[window.first: window.last + 1]]
-    chosen = [window.first + i for i in sweeps_for_frame(spans, frame_t, (window.t_start_s, window.t_end_s),
-                                                         options.sweeps)]
+                          [(sweep.t_start_s, sweep.t_end_s)], held)
+    chosen = [window.first + i for i in sweeps_for_frame(spans, frame_t, held, options.sweeps)]
     messages = [_fetch(bag, topic, scan.sweep_ns[k], None) for k in chosen]
     sweeps = [velodyne_scan_vlp16(m.body, where=where(m)) for m in messages]
     decoded = [s for s in sweeps if s is not None]
     assert len(decoded) == len(chosen)  # each was decoded in the first pass
     return _PairCloud(fuse_sweeps(decoded), messages[0].frame_id,
-                      [(s.start.device, s.end.device) for s in decoded])
+                      [(s.start.device, s.end.device) for s in decoded], held)
 
 
 def _meta(bag: Bag, topics: dict[str, Topic], decision: Decision, image: Message, pair: _PairCloud,
@@ -297,7 +299,7 @@ def _meta(bag: Bag, topics: dict[str, Topic], decision: Decision, image: Message
                   "type": topics["cloud"].kind.value, "sweeps": len(pair.spans),
                   "sweep_stamps_s": [list(span) for span in pair.spans]},
         "camera_minus_lidar_s": image.stamp_s - lidar_mid,
-        "still_window_s": [window.t_start_s, window.t_end_s],
+        "still_window_s": list(pair.window),
         "motion": {"still_seconds": still.still_seconds, "sweeps_in_window": window.sweeps,
                    "lidar_rotation_deg": window.rotation_deg, "lidar_translation_m": window.translation_m,
                    "tolerance_deg": still.tolerance_deg, "min_move_m": still.min_move_m,

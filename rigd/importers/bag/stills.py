@@ -6,8 +6,8 @@ restarting the window. :class:`WindowTracker` records each window the gate held;
 when it spans ``still_seconds`` and ``sweeps`` sweeps (``StillnessGate.held``). :func:`select_pairs` then keeps,
 in time order, up to ``n`` stretches that
 
-- hold an image stamped within ``max_offset_s`` of one of their sweeps (the image nearest the stretch's
-  middle, with the sweep nearest it), and
+- hold an image stamped within ``max_offset_s`` of one of their sweeps, taken as ``rigd capture`` takes it: the
+  latest image inside the window when the gate first holds it (grown until one lies inside), and
 - lie at a new place: the 90th percentile of the range change against every kept place
   (``rigd.capture.gate.range_change_m``, capture's "moved" test) is at least ``min_move_m``,
 - and that no other evidence of motion (:mod:`.motion`: an IMU, odometry, the images) says was moving,
@@ -133,7 +133,8 @@ class WindowTracker:
 @dataclass(frozen=True)
 class Decision:
     """A stretch ``t_start_s`` .. ``t_end_s`` s of the recording, its :class:`Verdict` and the reason in words;
-    for a kept one the image (index into the image stamps) and the sweep (index into the sweeps) of its pair."""
+    for a kept one the image (index into the image stamps) and the sweep (index into the sweeps) of its pair, and
+    the last sweep of the window when the pair was taken (capture's window then: ``window.first`` .. it)."""
 
     t_start_s: float
     t_end_s: float
@@ -142,6 +143,7 @@ class Decision:
     window: Window | None = None
     image: int | None = None
     sweep: int | None = None
+    last_sweep: int | None = None
 
 
 def _moving(run: Sequence[Window], options: StillOptions) -> Decision:
@@ -167,19 +169,21 @@ def _moving(run: Sequence[Window], options: StillOptions) -> Decision:
 
 
 def _pair_in(window: Window, image_t_s: Sequence[float], sweeps: Sequence[SweepTime],
-             options: StillOptions) -> tuple[int, int] | None:
-    """(image, sweep) of the window: the image nearest its middle that has a sweep of the window within
-    ``max_offset_s``, with the sweep nearest it; None when no image qualifies."""
-    middle = 0.5 * (window.t_start_s + window.t_end_s)
-    best: tuple[float, int, int] | None = None
-    lo = int(np.searchsorted(image_t_s, window.t_start_s - options.max_offset_s))
-    hi = int(np.searchsorted(image_t_s, window.t_end_s + options.max_offset_s, side="right"))
-    for i in range(lo, hi):
-        t = image_t_s[i]
-        sweep = min(range(window.first, window.last + 1), key=lambda k: sweeps[k].offset_s(t))
-        if sweeps[sweep].offset_s(t) <= options.max_offset_s and (best is None or abs(t - middle) < best[0]):
-            best = (abs(t - middle), i, sweep)
-    return None if best is None else (best[1], best[2])
+             options: StillOptions) -> tuple[int, int, int] | None:
+    """(image, sweep, last) as ``rigd capture`` takes the pair: the window as it stands when the gate first holds
+    it (``still_seconds`` and ``sweeps``), grown sweep by sweep until an image lies inside it; its latest image,
+    the sweep nearest that image (within ``max_offset_s``) and the window's last sweep then. None: no image."""
+    start = sweeps[window.first].t_start_s
+    for last in range(window.first + max(options.sweeps, MOVING_SWEEPS) - 1, window.last + 1):
+        end = sweeps[last].t_end_s
+        newest = int(np.searchsorted(image_t_s, end, side="right")) - 1
+        if end - start < options.still_seconds or newest < 0 or image_t_s[newest] < start:
+            continue
+        t = image_t_s[newest]
+        sweep = min(range(window.first, last + 1), key=lambda k: sweeps[k].offset_s(t))
+        if sweeps[sweep].offset_s(t) <= options.max_offset_s:
+            return newest, sweep, last
+    return None
 
 
 def select_pairs(*, windows: Sequence[Window], image_t_s: Sequence[float], sweeps: Sequence[SweepTime],
@@ -224,4 +228,4 @@ def _still(window: Window, kept: Sequence[tuple[int, Window]], image_t_s: Sequen
     if pair is None:
         return Decision(*span, Verdict.NO_IMAGE,
                         f"{what}; no image within {options.max_offset_s:g} s of one of its sweeps", window)
-    return Decision(*span, Verdict.KEPT, what, window, pair[0], pair[1])
+    return Decision(*span, Verdict.KEPT, what, window, pair[0], pair[1], pair[2])
