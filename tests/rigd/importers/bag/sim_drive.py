@@ -29,16 +29,18 @@ ENCODINGS = {1: "mono8", 3: "bgr8"}
 
 
 def drive_bag(path: Path, pcap: Path, camera: Path, fmt: BagFormat = BagFormat.MCAP) -> Path:
-    """The recorded session as a bag: a VelodyneScan per turn of the pcap's data packets (each at its capture
-    time, the simulated sensor's own clock) and the replay folder's frames as raw sensor_msgs/Image stamped with
-    their host times."""
+    """The recorded session as a bag: a VelodyneScan per turn of the pcap's data packets from the second turn (each
+    at its capture time, the simulated sensor's own clock) and the replay folder's frames as raw
+    sensor_msgs/Image stamped with their host times."""
     types = BagTypes.of(fmt)
     batches = [b for b in read_batches(pcap) if len(b.data)]
     packets = np.concatenate([b.data for b in batches])
     times = np.concatenate([b.data_host_s for b in batches])
     turn = np.floor((times - START_S) / TURN_S + 1e-6).astype(np.int64)
     messages: list[tuple[float, str, str, object]] = []
-    for k in np.unique(turn):
+    # From the second turn: the VLP-16 driver calls a stream's first piece partial (it cannot know where the turn
+    # began), so the capture never fuses the recording's first turn; the bag holds the turns the capture can use.
+    for k in np.unique(turn)[1:]:
         inside = turn == k
         scan = types.velodyne_scan(float(times[inside][0]), "velodyne", packets[inside], times[inside])
         messages.append((float(times[inside][-1]), CLOUD_TOPIC, "velodyne_msgs/msg/VelodyneScan", scan))
