@@ -12,6 +12,7 @@ from calib.errors import CalibError
 from calib.geometry import Transform
 from rigd.dataset.records import transform_to_yaml
 from rigd.report import NoQuality, StoredQuality, Uncertainty, Verdict
+from rigd.results import CalibrateJobResult, CaptureJobResult, CheckReport
 from rigd.store.datasets import DATASET_ID_PATTERN
 from rigd.store.jsonsafe import unicode_safe
 
@@ -244,7 +245,10 @@ class JobOut(BaseModel):
     started_at: str | None
     finished_at: str | None
     params: dict[str, Any]
-    result: dict[str, Any] | None
+    result: CalibrateJobResult | CheckReport | CaptureJobResult | None = Field(
+        description="a finished job's result: the calibration's stored version and its activation, the check's "
+        "report (ok | drifted | unknown with the change and its sigma, docs/check.md) or the capture's pairs; "
+        "null until the job ends, and for a calibration or check that failed or was cancelled")
     result_link: str | None
     error: str | None
     log_tail: list[str]

@@ -19,7 +19,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 from typing import Any
@@ -32,6 +32,7 @@ from rigd.api.errors import QueueFullError
 from rigd.dataset.records import transform_to_yaml
 from rigd.errors import RigdError
 from rigd.report import CalibrationReport, StoredQuality, stored_quality, verdict_of
+from rigd.results import AutoActivation, CalibrateJobResult, CaptureJobResult, CheckReport
 from rigd.store import (
     Change,
     ConflictError,
@@ -328,8 +329,9 @@ class JobRunner:
         elif self._stopping:
             self.jobs.finish(job.id, JobStatus.FAILED, "interrupted", error="interrupted: the service stopped")
         elif result is not None and job.kind is JobKind.CHECK:
-            self.jobs.log(job.id, f"check: {result['report']['status']}")
-            self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result=result["report"])
+            report: CheckReport = result["report"]  # the worker's run_check report, through JSON
+            self.jobs.log(job.id, f"check: {report['status']}")
+            self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result=report)
         elif result is not None:
             self._store_result(job, result)
         else:
@@ -406,7 +408,7 @@ class JobRunner:
         params, pairs = job.params, result["pair_numbers"]
         report: CalibrationReport = result["report"]  # the worker's run_calibration report, through JSON
         quality = stored_quality(report, len(pairs))
-        decision: dict[str, Any] = {"requested": params["auto_activate"]}
+        decision: AutoActivation = {"requested": params["auto_activate"]}
 
         def policy(change: Change | None) -> bool:
             decision["failed_checks"] = self.bounds.failures(quality, len(pairs), change)
@@ -424,12 +426,15 @@ class JobRunner:
         )
         version = self.versions.add(new, policy)
         self.jobs.log(job.id, f"stored extrinsics version {version.number} ({version.status.value})")
-        self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result={
+        change = version.change
+        done: CalibrateJobResult = {
             "version": version.number,
             "status": version.status.value,
-            "change": asdict(version.change) if version.change else None,
+            "change": {"against": change.against, "rotation_deg": change.rotation_deg,
+                       "translation_cm": change.translation_cm} if change else None,
             "auto_activate": decision,
-        })
+        }
+        self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result=done)
 
     # -- captures -----------------------------------------------------------------------------------------------
     def capturing(self) -> set[str]:
@@ -438,7 +443,7 @@ class JobRunner:
             return {dataset for dataset, _, _ in self._captures.values()}
 
     def submit_capture(self, dataset_id: str, params: dict[str, Any],
-                       work: Callable[[Job, threading.Event], dict[str, Any]]) -> Job:
+                       work: Callable[[Job, threading.Event], CaptureJobResult]) -> Job:
         """Start ``work(job, stop)`` in a thread; ConflictError while another capture holds the sensors."""
         with self._lock:
             if self._stopping:
@@ -455,7 +460,7 @@ class JobRunner:
         thread.start()
         return job
 
-    def _run_capture(self, job: Job, stop: threading.Event, work: Callable[[Job, threading.Event], dict[str, Any]]
+    def _run_capture(self, job: Job, stop: threading.Event, work: Callable[[Job, threading.Event], CaptureJobResult]
                      ) -> None:
         try:
             result = work(job, stop)

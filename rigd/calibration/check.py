@@ -8,8 +8,6 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from typing_extensions import TypedDict
-
 from calib.check import DriftOptions, DriftResult, GroupChange, check_drift, percent
 from calib.errors import CalibError
 from calib.geometry import Transform
@@ -20,54 +18,8 @@ from rigd.dataset.records import transform_from_yaml, transform_to_yaml
 from rigd.dataset.store import read_yaml_mapping
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
-from rigd.report import TransformYaml
+from rigd.results import CheckReport, GroupYaml
 from rigd.store import Database, VersionStore
-
-
-class PerAxis(TypedDict):
-    rpy_deg: list[float]
-    xyz_cm: list[float]
-
-
-class GroupYaml(TypedDict):
-    """One group's change as a length (deg for rotation, cm for translation): ``length`` measured, ``upper`` the
-    largest the pairs allow at the ok confidence, ``t2`` Hotelling's T² of the change and ``t2_limit`` beyond
-    which it is real."""
-
-    length: float
-    upper: float
-    threshold: float
-    t2: float
-    t2_limit: float
-
-
-class Thresholds(TypedDict):
-    rotation_deg: float
-    translation_cm: float
-
-
-class Confidence(TypedDict):
-    ok: float
-    drifted: float
-
-
-class CheckReport(TypedDict):
-    """``rigd check --json`` and the service's check job result."""
-
-    status: str  # ok | drifted | unknown
-    axes: list[str]
-    reasons: list[str]
-    change: PerAxis
-    sigma: PerAxis
-    groups: dict[str, GroupYaml]  # "rotation", "translation"; empty when no group could be judged
-    places: int
-    thresholds: Thresholds
-    confidence: Confidence
-    checked: TransformYaml
-    found: TransformYaml
-    dataset: str
-    pairs: int
-    wall_time_s: float
 
 
 def group_lines(rep: CheckReport) -> list[str]:

@@ -10,12 +10,13 @@ from typing import Any
 
 from calib.check import DriftOptions, DriftStatus
 from calib.geometry import Transform
-from rigd.calibration.check import CheckReport, extrinsics_from_file, extrinsics_from_store, group_lines, run_check
+from rigd.calibration.check import extrinsics_from_file, extrinsics_from_store, group_lines, run_check
 from rigd.cli.args import parse_tolerance
 from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
 from rigd.errors import RigdError
+from rigd.results import CheckReport
 from rigd.store.jsonsafe import json_safe
 
 

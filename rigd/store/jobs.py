@@ -7,8 +7,9 @@ import json
 import sqlite3
 from collections import deque
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
+from rigd.results import JobResult
 from rigd.store.db import Database, utc_now
 from rigd.store.errors import ConflictError, NotFoundError, StoreError
 from rigd.store.jsonsafe import json_safe
@@ -22,6 +23,9 @@ def _stored(params: dict[str, Any]) -> str:
 
 
 def _row_to_job(row: sqlite3.Row) -> Job:
+    # Unchecked: the result reads back as JobStore.finish wrote it (a JobResult of the job's kind, through JSON);
+    # the API's JobOut validates it.
+    result = cast(JobResult, json.loads(row["result"])) if row["result"] else None
     return Job(
         id=row["id"],
         kind=JobKind(row["kind"]),
@@ -32,7 +36,7 @@ def _row_to_job(row: sqlite3.Row) -> Job:
         created_at=row["created_at"],
         started_at=row["started_at"],
         finished_at=row["finished_at"],
-        result=json.loads(row["result"]) if row["result"] else None,
+        result=result,
         error=row["error"],
     )
 
@@ -99,7 +103,7 @@ class JobStore:
             conn.execute("UPDATE jobs SET stage = ?, fraction = ? WHERE id = ? AND status = ?",
                          (stage, min(max(fraction, 0.0), 1.0), job_id, JobStatus.RUNNING.value))
 
-    def finish(self, job_id: int, status: JobStatus, stage: str, result: dict[str, Any] | None = None,
+    def finish(self, job_id: int, status: JobStatus, stage: str, result: JobResult | None = None,
                error: str | None = None) -> Job:
         """Mark an unfinished job finished; a job already finished is left as it is and returned."""
         if not status.finished:

@@ -8,6 +8,7 @@ from typing import Any
 
 from calib.geometry import Transform
 from rigd.report import VersionQuality
+from rigd.results import JobResult
 
 
 class VersionStatus(Enum):
@@ -88,5 +89,5 @@ class Job:
     created_at: str
     started_at: str | None
     finished_at: str | None
-    result: dict[str, Any] | None
+    result: JobResult | None  # by kind: rigd.results
     error: str | None

@@ -4,7 +4,6 @@ latest jobs with the verdicts they produced, a page of the newest versions, the 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
 from starlette.concurrency import run_in_threadpool
@@ -17,8 +16,9 @@ from rigd.api.routes.jobs import list_jobs
 from rigd.api.routes.status import get_status
 from rigd.api.runner import Start
 from rigd.api.service import Service
-from rigd.calibration.check import CheckReport, group_lines
+from rigd.calibration.check import group_lines
 from rigd.report import VersionQuality, calibrated, verdict_of
+from rigd.results import is_calibration, is_capture, is_check
 from rigd.store import ExtrinsicsVersion
 
 JOBS_SHOWN = 15
@@ -118,9 +118,12 @@ class JobView:
     @property
     def outcome(self) -> str | None:
         """trusted | weak | failed for a calibration, ok | drifted | unknown for a check; None before the end."""
-        if self.record.status != "succeeded" or not self.record.result:
+        result = self.record.result
+        if self.record.status != "succeeded" or not result:
             return None
-        return self.verdict if self.record.kind == "calibrate" else self.record.result.get("status")
+        if self.record.kind == "calibrate":
+            return self.verdict
+        return result["status"] if is_check(result) else None
 
     @property
     def tone(self) -> str:
@@ -172,17 +175,17 @@ class JobView:
         """A finished check's rotation and translation change as lengths against their bounds (rigd check's
         words); none for another job, or a check stored before the report had its groups."""
         result = self.record.result
-        if self.record.kind != "check" or not result or "groups" not in result or "confidence" not in result:
+        if not result or not is_check(result) or "groups" not in result or "confidence" not in result:
             return []
-        return group_lines(cast(CheckReport, result))
+        return group_lines(result)
 
     def _result(self) -> str:
-        result = self.record.result or {}
-        if self.record.kind == "check":
-            reasons = result.get("reasons") or []
-            return f"{result.get('status')}" + (f" ({reasons[0]})" if reasons else "")
-        if self.record.kind == "capture":
-            return f"{result.get('pairs_written')} pairs written, {result.get('pairs_in_dataset')} in the dataset"
+        result = self.record.result
+        if result is not None and is_check(result):
+            reasons = result["reasons"]
+            return result["status"] + (f" ({reasons[0]})" if reasons else "")
+        if result is not None and is_capture(result):
+            return f"{result['pairs_written']} pairs written, {result['pairs_in_dataset']} in the dataset"
         if self.version is None:
             return "no version stored"
         state = "active" if self.version_status == "active" else "not active: activate it below if you accept it"
@@ -223,8 +226,7 @@ class PageState:
 
 def stored_version(job: JobOut) -> int | None:
     """The version a calibration job stored, if any."""
-    version = job.result.get("version") if job.kind == "calibrate" and job.result else None
-    return version if isinstance(version, int) else None
+    return job.result["version"] if job.result is not None and is_calibration(job.result) else None
 
 
 def _read(service: Service, shown: int) -> tuple[list[JobView], list[VersionView], int, VersionView | None,

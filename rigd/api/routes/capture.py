@@ -6,7 +6,6 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from datetime import UTC, datetime
-from typing import Any
 
 from fastapi import APIRouter, Response, status
 
@@ -16,6 +15,7 @@ from rigd.api.routes.jobs import job_link, job_out
 from rigd.api.service import Service
 from rigd.capture import CaptureRequest, CaptureStatus, run_capture
 from rigd.capture.engine import existing_pairs
+from rigd.results import CaptureJobResult
 from rigd.store import Job
 
 router = APIRouter(tags=["capture"])
@@ -38,10 +38,10 @@ def capture_request(service: Service, body: CaptureIn, dataset_id: str) -> Captu
     )
 
 
-def capture_work(service: Service, request: CaptureRequest) -> Callable[[Job, threading.Event], dict[str, Any]]:
+def capture_work(service: Service, request: CaptureRequest) -> Callable[[Job, threading.Event], CaptureJobResult]:
     """The job body run by the runner's capture thread: progress into the job and into GET /status."""
 
-    def work(job: Job, stop: threading.Event) -> dict[str, Any]:
+    def work(job: Job, stop: threading.Event) -> CaptureJobResult:
         last_state = ""
 
         def progress(s: CaptureStatus) -> None:

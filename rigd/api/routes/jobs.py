@@ -9,6 +9,7 @@ from fastapi import APIRouter, Path, Query, Response, status
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.models import ErrorOut, JobOut
 from rigd.api.service import Service
+from rigd.results import is_calibration
 from rigd.store import Job, JobKind, JobStatus
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
@@ -22,7 +23,7 @@ def job_link(job: Job) -> str:
 
 def job_out(service: Service, job: Job, tail: int = LOG_TAIL_LINES) -> JobOut:
     link = None
-    if job.result and job.result.get("version") is not None:
+    if job.result is not None and is_calibration(job.result):
         link = f"/extrinsics/versions/{job.result['version']}"
     elif job.kind is JobKind.CAPTURE and job.result:
         link = f"/datasets/{job.params['dataset']}"

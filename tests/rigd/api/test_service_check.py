@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import sqlite3
+from contextlib import closing
+
 from api_helpers import Server, simulated_dataset, wait_job
 
 from calib.check import DriftOptions
@@ -47,6 +51,10 @@ def test_check_against_active_version_and_explicit_transform(tmp_path):
             assert result["thresholds"] == job["params"]["threshold"]
             assert result["places"] == 8
             assert job["result_link"] is None
+            raw = client.get(f"/jobs/{job['id']}").content  # answered through JobOut's typed CheckReport
+            with closing(sqlite3.connect(data / "rigd.db")) as conn:
+                stored = conn.execute("SELECT result FROM jobs WHERE id = ?", (job["id"],)).fetchone()[0]
+            assert json.dumps(json.loads(raw)["result"]) == stored  # the same keys, order and values
 
             off = {"rpy_deg": (truth.rpy_deg + [0.0, 0.0, 1.5]).tolist(),
                    "xyz_m": (truth.translation_m + [0.0, 0.06, 0.0]).tolist()}
