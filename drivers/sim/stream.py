@@ -19,6 +19,12 @@ gives a real camera's frames. Frames
 carry their exposure instant on the host clock and the camera's own clock (seconds since the rig
 started).
 
+The trajectory is known in advance, so a thread renders the next stop's view before the rig gets there (one
+render at a time, begun about two render times ahead), and a moving frame that would still be rendering when
+the rig stops is skipped: a stop's first frame is then exposed as the stop begins and arrives within a frame
+period, as a real camera's does, not one or two renders (seconds) later, which kept the capture waiting. A
+disturbed rig never stands quite still, so nothing is rendered ahead for it.
+
 Both follow one :class:`drivers.sim.motion.MotionRigSpec`; its ``start_host_s`` is time 0 of the
 trajectory, so a LiDAR emitter in one process and a camera stream in another simulate the same rig.
 """
@@ -33,6 +39,7 @@ import queue
 import signal
 import threading
 import time
+from collections import deque
 from collections.abc import Generator, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -46,7 +53,8 @@ from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 from drivers.sim.camera import panorama_display, quantise
 from drivers.sim.errors import SimError
 from drivers.sim.lidar import FIRINGS_PER_TURN, BeamReturns, LidarConfig, beam_returns, scan
-from drivers.sim.motion import MotionRigSpec
+from drivers.sim.motion import MotionRigSpec, Trajectory
+from drivers.sim.pose import Pose
 from drivers.vlp16 import PpsStatus, encode_data_packets, encode_position_packet, send_datagrams
 from drivers.vlp16.layout import HOUR_US, SEQUENCE_US
 
@@ -59,6 +67,11 @@ _TURNS_AHEAD = 2  # turns scanned ahead of the sender
 # within the turn (its later packets leave on time), as a sensor's packets delayed in a switch would.
 _LATE_S = TURN_S
 _STREAM_LIDAR, _STREAM_CAMERA = 7, 11  # random streams of the moving rig's noise
+# The next stop's view is begun this many render times before the stop (as the rig leaves the last one at the
+# latest): a busy machine renders slower than the last renders took. A render time is the longest of the last few.
+_AHEAD_RENDERS = 2.0
+_RENDERS_TIMED = 3
+_AHEAD_POLL_S = 0.05  # how often the camera's threads look again while they wait for the other one
 
 
 def _require_started(spec: MotionRigSpec) -> float:
@@ -190,6 +203,18 @@ def sim_head_rig(spec: MotionRigSpec) -> RigCameras | None:
     return None if spec.sensor_width is None else scaled_ladybug5_rig(spec.sensor_width)
 
 
+def next_stop(trajectory: Trajectory, t: float) -> tuple[float, Pose] | None:
+    """The start (s) and pose of the first stop that begins after time ``t`` s; None once the last stop has
+    begun, or when a disturbance moves the rig all the time (its pose at a stop changes: no view lasts)."""
+    if trajectory.disturbance.active:
+        return None
+    place = max(0, math.floor(t / trajectory.leg_s) + 1)
+    if place >= len(trajectory.places):
+        return None
+    start, _ = trajectory.stop_interval(place)
+    return start, trajectory.pose_at(start + trajectory.still_s / 2)  # away from the stop's ends
+
+
 class CameraStream:
     """The moving rig's panorama camera; ``frames()`` renders until ``close()`` (from any thread)."""
 
@@ -200,23 +225,58 @@ class CameraStream:
         self.spec = spec
         self.scene, self.trajectory = spec.build()
         self._stop = stop if stop is not None else threading.Event()
-        self._view: tuple[bytes, list[NDArray[np.float64]]] | None = None  # the last pose rendered, its view(s)
+        # At most two views, each keyed by its pose's bytes: the last pose frames() used, and the next stop's
+        # (rendered ahead). _lock guards them, the pose being rendered ahead and whether frames() is rendering.
+        self._view: tuple[bytes, list[NDArray[np.float64]]] | None = None
+        self._next: tuple[bytes, list[NDArray[np.float64]]] | None = None
+        self._ahead_key: bytes | None = None
+        self._rendering = False
+        self._lock = threading.Condition()
+        self._render_s: deque[float] = deque(maxlen=_RENDERS_TIMED)
+        self._ahead = next_stop(self.trajectory, 0.0) is not None  # a later stop where the rig stands still
         self.rig = sim_head_rig(spec)
         self._rays = [] if self.rig is None else [pixel_rays_optical(c) for c in self.rig.cameras]
         self._stitcher = None if self.rig is None else Stitcher(self.rig, PanoramaSpec(spec.width, spec.height))
 
     def frames(self) -> Iterator[SimFrame]:
+        done = threading.Event()  # the thread rendering ahead ends with this generator, or at the stop flag
+        if self._ahead:
+            threading.Thread(target=self._render_ahead, args=(done,), name="sim-camera-ahead", daemon=True).start()
         sequence = 0
-        while not self._stop.is_set():
-            now = time.time()
-            if now < self.start_host_s:
-                self._stop.wait(self.start_host_s - now)
-                continue
-            t = now - self.start_host_s
-            rng = np.random.default_rng([self.spec.seed, sequence, _STREAM_CAMERA])
-            yield self._frame(self._display(t), rng, now, t, sequence)
-            sequence += 1
-            self._stop.wait(max(0.0, now + self.spec.frame_period_s - time.time()))
+        try:
+            while not self._stop.is_set():
+                now = time.time()
+                if now < self.start_host_s:
+                    self._stop.wait(self.start_host_s - now)
+                    continue
+                t = now - self.start_host_s
+                hold = self._hold_s(t) if self._ahead else 0.0
+                if hold > 0:
+                    self._stop.wait(hold)
+                    continue
+                rng = np.random.default_rng([self.spec.seed, sequence, _STREAM_CAMERA])
+                yield self._frame(self._display(t), rng, now, t, sequence)
+                sequence += 1
+                self._stop.wait(max(0.0, now + self.spec.frame_period_s - time.time()))
+        finally:
+            done.set()
+
+    def _hold_s(self, t: float) -> float:
+        """How long frames() waits before a frame at time ``t`` s: none at a stop. While the rig drives, until
+        the next stop's view is rendered (one render at a time: the stop's frame matters more than a moving
+        one), then until the stop when a moving frame begun now would still be rendering as the rig stops."""
+        if self.trajectory.stop_index(t) is not None:
+            return 0.0
+        stop = next_stop(self.trajectory, t)
+        if stop is None:
+            return 0.0
+        start, pose = stop
+        left = max(start - t, 1e-3)  # never 0: the stop is ahead until stop_index says otherwise
+        with self._lock:
+            ready = self._cached(pose.matrix.tobytes()) is not None
+        if not ready:
+            return min(left, _AHEAD_POLL_S)
+        return left if t + self._render_estimate() >= start else 0.0
 
     def _frame(self, displays: list[NDArray[np.float64]], rng: np.random.Generator, host_s: float, t: float,
                sequence: int) -> SimFrame:
@@ -229,15 +289,79 @@ class CameraStream:
 
     def _display(self, t: float) -> list[NDArray[np.float64]]:
         """The noise-free view at time ``t`` s (the panorama, or each sensor's image): rendered again only when
-        the rig has moved. A real camera streams at 10 Hz whatever it sees; a render takes seconds, so without
-        this a still rig waited that long for each frame (and a busy machine's capture missed still windows)."""
+        the rig has moved, and not at a stop rendered ahead. A real camera streams at 10 Hz whatever it sees; a
+        render takes seconds, so without this a still rig waited that long for each frame (and a busy machine's
+        capture missed still windows)."""
         pose = self.trajectory.pose_at(t)
         key = pose.matrix.tobytes()
-        if self._view is None or self._view[0] != key:
-            views = ([panorama_display(self.scene, pose, self.spec.width, self.spec.height)] if self.rig is None
-                     else sensor_displays(self.scene, pose, self.rig.cameras, self._rays))
+        with self._lock:
+            while self._ahead_key == key:  # being rendered ahead: wait for it rather than render it twice
+                self._lock.wait(_AHEAD_POLL_S)
+            if self._next is not None and self._next[0] == key:  # the stop rendered ahead: now the current view
+                self._view, self._next = self._next, None
+            if self._view is not None and self._view[0] == key:
+                return self._view[1]
+            self._rendering = True
+        try:
+            views = self._render(pose)
+        finally:
+            with self._lock:
+                self._rendering = False
+        with self._lock:
             self._view = key, views
-        return self._view[1]
+        return views
+
+    def _render(self, pose: Pose) -> list[NDArray[np.float64]]:
+        """The noise-free view(s) at ``pose``, timed (the render-time estimate)."""
+        started = time.monotonic()
+        views = ([panorama_display(self.scene, pose, self.spec.width, self.spec.height)] if self.rig is None
+                 else sensor_displays(self.scene, pose, self.rig.cameras, self._rays))
+        with self._lock:
+            self._render_s.append(time.monotonic() - started)
+        return views
+
+    def _render_estimate(self) -> float:
+        with self._lock:
+            return max(self._render_s, default=0.0)
+
+    def _cached(self, key: bytes) -> list[NDArray[np.float64]] | None:
+        """The view(s) of the pose ``key`` if either cached view is of it (call with _lock held)."""
+        for view in (self._view, self._next):
+            if view is not None and view[0] == key:
+                return view[1]
+        return None
+
+    def _render_ahead(self, done: threading.Event) -> None:
+        """Render each stop's view before the rig gets there, into ``_next``: from ``_AHEAD_RENDERS`` render
+        times before the stop (as the rig leaves the last one at the latest), never while frames() renders or
+        still lacks the view of the stop the rig stands at (one render at a time). Ends once the last stop has
+        begun, or at the stop flag or ``done``, looked at between renders."""
+        while not (done.is_set() or self._stop.is_set()):
+            t = time.time() - self.start_host_s
+            stop = next_stop(self.trajectory, t)
+            if stop is None:
+                return
+            start, pose = stop
+            key = pose.matrix.tobytes()
+            begin = start - max(self.trajectory.move_s, _AHEAD_RENDERS * self._render_estimate())
+            here = None if self.trajectory.stop_index(t) is None else self.trajectory.pose_at(t).matrix.tobytes()
+            with self._lock:
+                idle = not self._rendering and (here is None or self._cached(here) is not None)
+                due = t >= begin and idle and self._cached(key) is None
+                if due:
+                    self._ahead_key = key
+            if not due:
+                self._stop.wait(_AHEAD_POLL_S)
+                continue
+            views = None
+            try:
+                views = self._render(pose)
+            finally:
+                with self._lock:
+                    if views is not None:
+                        self._next = key, views
+                    self._ahead_key = None
+                    self._lock.notify_all()
 
     def close(self) -> None:
         self._stop.set()
