@@ -77,9 +77,10 @@ UNUSABLE_NOTE_S = 1.0  # no usable sweep for this long: the status line says why
 # loop being behind for long: one of the clocks is wrong (shown at once, an error after the silence timeout).
 CLOCK_DISAGREE_S = 1.0
 FRAMES_AHEAD_KEPT = 16  # frames newer than the still window kept for it (they are full images)
-# The simulated rig stands still_seconds + this at each place: a frame exposed in the still window must also
-# have been rendered before the rig leaves, and a 1024x512 render takes 1.5-4 s on a busy 2-core machine.
-SIM_STOP_MARGIN_S = 6.0
+# The simulated rig stands still_seconds + this at each place: time for the gate to see the drive's slow end and
+# for the pair; the camera renders each stop's view before the rig gets there (drivers.sim.stream), so a frame
+# exposed in the still window arrives within a frame period. With 6 s the demo took 84 s, with 3 s 62 s (quiet).
+SIM_STOP_MARGIN_S = 3.0
 SIM_MOVE_S = 2.0
 
 
