@@ -8,9 +8,11 @@ a camera frame exposed inside the window -> fuse the ``sweeps`` sweeps nearest t
 pair is synchronised (the sweeps' own receive times against their device times, inside the window), and
 write it atomically (rigd.dataset.write_pair). A step of the LiDAR's clock restarts the window. No usable
 sweep for the silence timeout ends the capture with an error that says why (no data, a stopped head, lost
-packets, a blind sensor). ``stop`` is looked at between sweeps and never while a pair is being taken, so a
-pair is either written whole or not begun. A capture holds the dataset's writer lock (rigd.dataset.lock)
-from start to end: a second one into the same folder is refused at once.
+packets, a blind sensor). A simulated rig that has stopped at all its places and stood at the last one longer
+than a stop lasts, with pairs still missing, ends it too (:class:`SimRigEndedError`): it gives no new place.
+``stop`` is looked at between sweeps and never while a pair is being taken, so a pair is either written whole
+or not begun. A capture holds the dataset's writer lock (rigd.dataset.lock) from start to end: a second one
+into the same folder is refused at once.
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ from drivers.sim.motion import MotionRigSpec
 from drivers.vlp16 import ClockStep, StreamStats, Sweep
 from drivers.vlp16.layout import SEQUENCE_US
 from rigd.capture.config import RigSettings, load_settings
-from rigd.capture.errors import CaptureError, DiskFullError, SensorSilenceError, SyncError
+from rigd.capture.errors import CaptureError, DiskFullError, SensorSilenceError, SimRigEndedError, SyncError
 from rigd.capture.fuse import fuse_sweeps, sweeps_for_frame
 from rigd.capture.gate import (
     AZIMUTH_BINS,
@@ -56,7 +58,7 @@ from rigd.capture.gate import (
 from rigd.capture.pair_files import camera_difference, pair_bytes, pair_images, rig_camera
 from rigd.capture.sources import CameraFrame, Sources, frame_time, open_sources
 from rigd.capture.specs import CameraKind as SourceKind
-from rigd.capture.specs import parse_camera, parse_lidar
+from rigd.capture.specs import LidarKind, parse_camera, parse_lidar
 from rigd.dataset import Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
 from rigd.dataset.lock import DatasetLock
 from rigd.dataset.store import read_yaml
@@ -82,6 +84,10 @@ FRAMES_AHEAD_KEPT = 16  # frames newer than the still window kept for it (they a
 # exposed in the still window arrives within a frame period. With 6 s the demo took 84 s, with 3 s 62 s (quiet).
 SIM_STOP_MARGIN_S = 3.0
 SIM_MOVE_S = 2.0
+# The simulated rig stands at its last place for good. Once it has stood there as long as a stop lasts (or the
+# gate's --still-seconds, if longer) and this much more, with pairs still missing, no pair can come: the capture
+# ends with SimRigEndedError rather than waiting for a new place for ever. At once if the last place has its pair.
+SIM_END_GRACE_S = 5.0
 
 
 def sim_stops(pairs: int) -> int:
@@ -203,7 +209,7 @@ def run_capture(request: CaptureRequest, progress: Progress | None = None,
                                     still_s=request.still_seconds + SIM_STOP_MARGIN_S, move_s=SIM_MOVE_S)
         sources = open_sources(stack, lidar, camera, settings, sim_default, places_done=len(existing),
                                nominal_head=request.nominal_head)
-        return _Session(request, settings, sources, existing, progress, stop or threading.Event()).run()
+        return _Capture(request, settings, sources, existing, progress, stop or threading.Event()).run()
 
 
 def settings_for(request: CaptureRequest) -> RigSettings:
@@ -267,7 +273,7 @@ def thresholds_for(settings: RigSettings) -> StillThresholds:
     return StillThresholds.from_tolerance(tolerance)
 
 
-class _Session:
+class _Capture:
     """One run of the capture loop over open sources."""
 
     def __init__(self, request: CaptureRequest, settings: RigSettings, sources: Sources, existing: list[Path],
@@ -297,6 +303,8 @@ class _Session:
         self.message = ""
         self._last_emit = -math.inf
         self._since = time.monotonic()
+        self.sim_end = _SimRigEnd.of(sources.sim_spec, request, len(existing))
+        self.last_place_taken = False  # a pair at the simulated rig's last place: it gives no other
 
     # -- loop ----------------------------------------------------------------------------------------------
     def run(self) -> CaptureSummary:
@@ -322,6 +330,7 @@ class _Session:
             if now - last_usable > UNUSABLE_NOTE_S and self.unusable is not None:
                 self._show_unusable(self.unusable)
             self._check_camera()
+            self._check_sim_end()
             self._emit(force=False)
         else:
             self._set(CaptureState.DONE, f"captured {self.done}/{self.request.n}: done")
@@ -476,6 +485,8 @@ class _Session:
         self.seconds.append(now - self._since)
         self._since = now
         self.done += 1
+        if self.sim_end is not None and frame_t >= self.sim_end.last_stop_host_s:
+            self.last_place_taken = True
         assert cloud.ring is not None  # fuse_sweeps always gives the ring
         self.reference = range_image(cloud.points_lidar, cloud.ring)
         self.gate.restart()
@@ -672,6 +683,16 @@ class _Session:
             raise SensorSilenceError(f"no camera frame from {self.sources.camera.describe} for {silence[0]:.1f} s: "
                                      f"{check}")
 
+    def _check_sim_end(self) -> None:
+        """End a capture whose simulated rig can give no more pairs: it has stood at its last place longer than a
+        stop lasts, or that place already has its pair, and the dataset is not complete."""
+        end = self.sim_end
+        if end is None or self.done >= self.request.n:
+            return
+        now = time.time()
+        if self.last_place_taken or now > end.deadline_host_s:
+            raise SimRigEndedError(end.message(now, self.done, len(self.written), self.out))
+
     def _packets_lost(self) -> int:
         return 0 if self.stats is None else int(self.stats.missing_packets + self.stats.overruns)
 
@@ -691,7 +712,9 @@ class _Session:
         return sum(r[2] for r in recent) / span if span > 0 else 0.0
 
     def _set(self, state: CaptureState, message: str) -> None:
-        changed = state is not self.state or state is CaptureState.CAPTURED
+        # A new sync fault (a clock step, a pair refused) is an event: shown even when one was showing already.
+        event = state is CaptureState.NOT_SYNCHRONISED and message != self.message
+        changed = state is not self.state or state is CaptureState.CAPTURED or event
         self.state, self.message = state, message
         self._emit(force=changed or state is CaptureState.STARTING)
 
@@ -702,6 +725,65 @@ class _Session:
         self._last_emit = now
         self.progress(CaptureStatus(self.state.value, self.done, self.request.n, round(self.gate.still_for_s, 3),
                                     round(self._packet_rate(), 1), self._packets_lost(), self.message))
+
+
+@dataclass(frozen=True)
+class _SimRigEnd:
+    """When the simulated rig a capture follows has given all the places it will: it reaches its last place at
+    ``last_stop_host_s`` (UNIX s; drivers.sim.motion.Trajectory.stop_interval: stop ``i`` begins ``i`` legs
+    after the rig's start) and stands there for good; after ``deadline_host_s`` no pair is to be had there."""
+
+    source: str  # the option that names the rig, as given: "--lidar sim", "--lidar sim:FILE", "--camera sim:FILE"
+    file: Path | None  # its sim rig file (None: the rig capture builds for --lidar sim)
+    in_process: bool  # run by this capture (--lidar sim[:FILE]), not followed elsewhere (--camera sim:FILE)
+    stops: int  # its places
+    places: int  # of which the capture could use: from the one the rig was at or driving to when it began
+    asked: int  # pairs the dataset should have (--n)
+    wanted: int  # of which this capture was to add
+    still_s: float
+    move_s: float
+    last_stop_host_s: float
+    deadline_host_s: float
+
+    @classmethod
+    def of(cls, spec: MotionRigSpec | None, request: CaptureRequest, existing: int) -> _SimRigEnd | None:
+        if spec is None or spec.start_host_s is None:  # a real rig: people move it on for as long as it takes
+            return None
+        lidar = parse_lidar(request.lidar)
+        in_process = lidar.kind is LidarKind.SIM
+        file = lidar.path if in_process else parse_camera(request.camera).path
+        source = f"--lidar {request.lidar}" if in_process else f"--camera {request.camera}"
+        leg_s = spec.still_s + spec.move_s
+        last_stop = spec.start_host_s + (spec.stops - 1) * leg_s
+        began = time.time()
+        passed = min(max(math.floor((began - spec.start_host_s) / leg_s), 0), spec.stops - 1)  # legs already done
+        stand_s = max(spec.still_s, request.still_seconds)  # the gate may need longer than the rig's stops
+        return cls(source, file, in_process, spec.stops, spec.stops - passed, request.n, request.n - existing,
+                   spec.still_s, spec.move_s, last_stop, max(last_stop, began) + stand_s + SIM_END_GRACE_S)
+
+    def message(self, now: float, done: int, written: int, out: Path) -> str:
+        stood_s = max(now - self.last_stop_host_s, 0.0)
+        kept = f"{written} written by this run, complete" if written else "none written by this run"
+        head = (f"the simulated rig ({self.source}) has stopped at all its {self.stops} places and stands at the "
+                f"last one for good ({stood_s:.1f} s so far): {out} has {done} of the {self.asked} pairs asked "
+                f"({kept})")
+        if self.places < self.wanted:
+            where = "its sim rig file" if self.file is None else self.file
+            more = f"{'give it' if self.in_process else 'restart it with'} more places (stops in {where})"
+            return f"{head}; it has too few places for the {self.wanted} pairs missing: {more}, or ask for fewer (--n)"
+        if self.file is None:
+            fix = ("lengthen its stops with a larger --still-seconds (it stands --still-seconds + "
+                   f"{SIM_STOP_MARGIN_S:g} s at each place)")
+        elif self.in_process:
+            fix = (f"lengthen its stops (still_s) or shrink its panorama (width, height) in {self.file} (for `rigd "
+                   "demo`: a smaller --width)")
+        else:
+            fix = f"restart it with longer stops (still_s) or a smaller panorama (width, height) in {self.file}"
+        rerun = "; rerunning the same command adds the missing pairs at new places" if self.file is None else ""
+        missed = max(self.places - written, 0)
+        return (f"{head}; {missed} of its stops gave no pair: the simulated camera renders too slowly for this "
+                f"machine's load (each stop's view must be rendered within a leg: {self.still_s:g} s "
+                f"standing + {self.move_s:g} s driving); close other jobs, or {fix}{rerun}")
 
 
 def _reference_image(pair_dir: Path) -> np.ndarray | None:

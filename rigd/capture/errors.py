@@ -31,3 +31,8 @@ class SourceEndedError(CaptureError):
 
 class DiskFullError(CaptureError):
     """Not enough free space for the next pair; the pairs already written are complete."""
+
+
+class SimRigEndedError(SourceEndedError):
+    """The simulated rig has stopped at all its places and stands at the last one for good, and the dataset
+    still lacks pairs: no new place will come (the pairs written are complete)."""
