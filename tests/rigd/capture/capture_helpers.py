@@ -18,6 +18,7 @@ from drivers.sim.motion import MotionRigSpec, Trajectory, save_spec
 from drivers.sim.stream import TURN_S, LidarEmitter
 from drivers.vlp16 import PpsStatus, encode_position_packet, gprmc_sentence, write_pcap
 from drivers.vlp16.layout import BLOCKS_PER_PACKET, HOUR_US, POSITION_TIMESTAMP_OFFSET
+from rigd.dataset import open_dataset
 
 REPO = Path(__file__).resolve().parents[3]
 START_S = 1_700_000_000.0  # the recorded rig's time 0 on the host clock
@@ -74,6 +75,17 @@ def stop_of_pair(meta: dict, trajectory: Trajectory, start_s: float, still_toler
         stops.add(nearest)
     assert len(stops) == 1, f"pair spans several places: {stops}"
     return stops.pop()
+
+
+def complete_pairs(out: Path) -> list[str]:
+    """Names of the pair folders, each checked to load completely (image, cloud, meta); none before rig.yaml."""
+    if not (out / "rig.yaml").is_file():
+        return []
+    dataset = open_dataset(out)
+    for i in range(len(dataset)):
+        pair = dataset.load_pair(i)
+        assert len(pair.cloud) > 1000 and pair.meta["source"] == "captured"
+    return [p.name for p in dataset.pair_dirs]
 
 
 def free_udp_ports(count: int) -> list[int]:

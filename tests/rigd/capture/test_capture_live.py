@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from capture_helpers import capture_following, free_udp_ports, read_meta, stop_of_pair
+from capture_helpers import capture_following, complete_pairs, free_udp_ports, read_meta, stop_of_pair
 
 from drivers.sim.motion import MotionRigSpec, save_spec
 from drivers.sim.stream import LidarEmitter
@@ -73,17 +73,6 @@ def wait_for(condition, timeout_s: float, what: str) -> None:
     while not condition():
         assert time.monotonic() < deadline, f"timed out waiting for {what}"
         time.sleep(0.005)
-
-
-def complete_pairs(out: Path) -> list[str]:
-    """Names of the pair folders, each checked to load completely (image, cloud, meta)."""
-    if not (out / "rig.yaml").is_file():
-        return []
-    dataset = open_dataset(out)
-    for i in range(len(dataset)):
-        pair = dataset.load_pair(i)
-        assert len(pair.cloud) > 1000 and pair.meta["source"] == "captured"
-    return [p.name for p in dataset.pair_dirs]
 
 
 def test_killed_or_stopped_capture_keeps_complete_pairs_and_a_rerun_finishes(tmp_path: Path) -> None:

@@ -9,10 +9,10 @@ import time
 from pathlib import Path
 
 import pytest
+from capture_helpers import complete_pairs
 
 from drivers.sim.motion import MotionRigSpec, save_spec
 from rigd.capture import CaptureError, CaptureRequest, CaptureStatus, SimRigEndedError, SourceEndedError, run_capture
-from rigd.dataset import open_dataset
 from rigd.errors import RigdError
 
 WAIT_S = 30.0  # far beyond when the error is due: a capture still running then would wait for ever
@@ -50,17 +50,12 @@ def capture_until_it_ends(request: CaptureRequest) -> tuple[BaseException, float
     return outcome[0], elapsed
 
 
-def complete_pairs(out: Path) -> list[str]:
-    """Names of the pair folders, each loaded whole (image, cloud, meta); no half-written pair left behind."""
+def whole_pairs(out: Path) -> list[str]:
+    """:func:`complete_pairs`, and no half-written pair folder left behind."""
     pairs = out / "pairs"
-    if not pairs.is_dir():
-        return []
-    assert not [p.name for p in pairs.iterdir() if not p.name.isdigit()], "a half-written pair is left"
-    dataset = open_dataset(out)
-    for i in range(len(dataset)):
-        pair = dataset.load_pair(i)
-        assert len(pair.cloud) > 1000 and pair.meta["source"] == "captured"
-    return [p.name for p in dataset.pair_dirs]
+    assert not pairs.is_dir() or not [p.name for p in pairs.iterdir() if not p.name.isdigit()], \
+        "a half-written pair is left"
+    return complete_pairs(out)
 
 
 def test_more_pairs_than_the_sim_rig_has_places_end_with_an_error(tmp_path: Path) -> None:
@@ -74,7 +69,7 @@ def test_more_pairs_than_the_sim_rig_has_places_end_with_an_error(tmp_path: Path
     # The rig reaches its last place 3 s after it starts; it has stood there its 2.5 s stop and 5 s of grace by
     # 10.5 s (at once, if that place already has its pair); the sensors' processes take a second or two to start.
     assert elapsed < 15.0
-    written = complete_pairs(out)
+    written = whole_pairs(out)
     assert 1 <= len(written) <= 2  # one pair a place at most; the last place, where the rig stays, gives one
     message = str(error)
     assert message.startswith(f"the simulated rig (--lidar sim:{rig}) has stopped at all its 2 places and stands at "
@@ -97,7 +92,7 @@ def test_a_sim_camera_too_slow_for_the_stops_ends_the_capture_with_an_error(tmp_
     # Last stop at 1 s, stood there 0.6 s + 5 s of grace: 6.6 s after the rig starts (at once, if that place has
     # its pair), well before the camera's 20 s silence allowance.
     assert elapsed < 15.0
-    written = complete_pairs(out)
+    written = whole_pairs(out)
     assert len(written) <= 1
     message = str(error)
     kept = f"{len(written)} written by this run, complete" if written else "none written by this run"
