@@ -110,8 +110,13 @@ class Uncertainty:
     is_minimum: bool
     kappa: float
     matched_share: float
+    # Places (pair indices) the pose rests on: without any one of them the others' cost does not hold it (the
+    # jackknife's solve without it ran to the finest kernel's width, which then sets the jackknife's sigma, so
+    # that sigma says "unheld", not how it would fall with more pairs). () when the groups are image cells.
+    held_by: tuple[int, ...] = ()
 
 
+UNHELD_SHARE = 0.999  # a left-out solve this close to the kernel's width ran to it (trust_region_step's bound)
 LOCAL_ORIGINS = ("restart", "solution")  # solves from around the solution (not from the search's other starts)
 
 
@@ -219,15 +224,16 @@ def trust_region_step(h: F64, g: F64, scale: F64, radius: float) -> F64:
 
 
 def _jackknife(grads: F64, hessians: F64, extra_h: F64, groups: NDArray[np.int64], n_groups: int,
-               free: NDArray[np.bool_], scale: F64, radius: float) -> F64 | None:
+               free: NDArray[np.bool_], scale: F64, radius: float) -> tuple[F64 | None, tuple[int, ...]]:
     """Delete-a-group jackknife covariance (6,6) of the local coordinates. Each left-out solve is one Newton
     step of the finest level from the solution (the finite-difference Hessian is per cluster, so this costs
     no further evaluation): xi_g = -(H - H_g)^-1 (g - g_g), kept within the finest level's kernel width
     (``|scale * xi| <= radius``, :func:`trust_region_step`). Beyond it the quadratic model says nothing: where
     the other groups leave a direction flat or curved down, the left-out solve would slide along it to
     wherever the cost next rises, and an unbounded Newton step put thousands of degrees into the jackknife
-    of one frame. ``free`` masks the estimated coordinates."""
-    offsets = []
+    of one frame. ``free`` masks the estimated coordinates. Also returns the groups whose left-out solve
+    reached that width: without them the others do not hold the pose."""
+    offsets, unheld = [], []
     total_g, total_h = grads.sum(axis=0), hessians.sum(axis=0)
     for g in range(n_groups):
         mine = groups == g
@@ -237,12 +243,14 @@ def _jackknife(grads: F64, hessians: F64, extra_h: F64, groups: NDArray[np.int64
         step = np.zeros(6)
         step[free] = trust_region_step(h_rest, (total_g - grads[mine].sum(axis=0))[free], scale[free], radius)
         offsets.append(step)
+        if np.linalg.norm(scale * step) >= UNHELD_SHARE * radius:
+            unheld.append(g)
     if len(offsets) < 3:
-        return None
+        return None, ()
     xs = np.array(offsets)
     centred = xs - xs.mean(axis=0)
     k = len(offsets)
-    return np.asarray((k - 1.0) / k * centred.T @ centred, dtype=np.float64)
+    return np.asarray((k - 1.0) / k * centred.T @ centred, dtype=np.float64), tuple(unheld)
 
 
 def _in_image_count(feats: tuple[PairFeatures, ...], tau: F64, use_folds: bool) -> int:
@@ -290,10 +298,12 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     cov_l = np.zeros((6, 6))
     cov_l[np.ix_(free, free)] = sandwich(h, b, prior_info, radius / scale[free]) if known \
         else np.diag(np.full(int(free.sum()), np.inf))
-    groups, n_groups = _groups(clusters, int(places(feats).max()) + 1, trust)
+    n_places = int(places(feats).max()) + 1
+    groups, n_groups = _groups(clusters, n_places, trust)
     extra = np.zeros((6, 6))
     extra[np.ix_(free, free)] = kappa * solving_info
-    jack = _jackknife(grads, hessians, extra, groups, n_groups, free, scale, radius)
+    jack, unheld = _jackknife(grads, hessians, extra, groups, n_groups, free, scale, radius)
+    by_place = n_places >= trust.jackknife_min_pairs  # else the groups are image cells, not places
     laplace = sigmas_display(cov_l)
     jack_sigma = None if jack is None else sigmas_display(jack)
     sigma = laplace if jack_sigma is None else np.maximum(laplace, jack_sigma)
@@ -304,7 +314,7 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
         "the solution is not a minimum of the cost: no axis is known"
     share = matched_points(model, frozen, tau) / max(_in_image_count(model.feats, tau, model.gmm.use_folds), 1)
     return Uncertainty(cov, sigma, laplace, jack_sigma, n_groups if jack is not None else 0, weakest, is_min,
-                       kappa, share)
+                       kappa, share, unheld if by_place else ())
 
 
 def restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> str | None:

@@ -109,6 +109,8 @@ class Laplace(Sigmas):
 @with_config(_OPEN)
 class Jackknife(Sigmas):
     groups: int
+    # pairs the pose rests on: without any one, the others' edges do not hold it (calib.assess.Uncertainty)
+    held_by_pairs: NotRequired[list[int]]
 
 
 @with_config(_OPEN)

@@ -40,9 +40,20 @@ def _pairs_needed(sigma: np.ndarray, tolerance: np.ndarray, factor: float, pairs
     return math.ceil(pairs * ratio * ratio)
 
 
+def _pair_names(indices: tuple[int, ...]) -> str:
+    names = [f"pairs/{i:04d}" for i in indices]
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
 def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustOptions) -> str | None:
     if not axes:
         return None
+    held_by = a.uncertainty.held_by
+    if held_by:  # the jackknife's sigma is how far the pose slides without one place: no 1/sqrt(pairs) count
+        either = "it" if len(held_by) == 1 else "any one of them"
+        return (f"{', '.join(axes)}: the pose rests on {_pair_names(held_by)}: without {either} "
+                "the other pairs' edges do not hold it, and the sigma is how far it then slides, not noise that "
+                "averages away; capture more pairs at new places with structure like theirs (see their overlays)")
     idx = [(*ROTATION, *TRANSLATION).index(ax) for ax in axes]
     sigma = a.uncertainty.sigma[idx]
     if not np.all(np.isfinite(sigma)):

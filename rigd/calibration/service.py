@@ -245,7 +245,8 @@ def _uncertainty_yaml(a: Assessment) -> Uncertainty:
         "weakest": u.weakest,
         "laplace": {"rpy_deg": _finite(u.laplace[:3]), "xyz_cm": _finite(u.laplace[3:]), "nll_scale": u.kappa},
         "jackknife": None if u.jackknife is None else {
-            "rpy_deg": _finite(u.jackknife[:3]), "xyz_cm": _finite(u.jackknife[3:]), "groups": u.jackknife_groups},
+            "rpy_deg": _finite(u.jackknife[:3]), "xyz_cm": _finite(u.jackknife[3:]), "groups": u.jackknife_groups,
+            "held_by_pairs": list(u.held_by)},
         "matched_share": u.matched_share,
         "restarts": restarts,
     }

@@ -71,7 +71,8 @@ def test_newton_jackknife_is_exact_for_quadratic_clusters():
     b = [rng.normal(size=6) for _ in range(n)]
     theta = np.linalg.solve(sum(a), sum(b))
     grads = np.array([ai @ theta - bi for ai, bi in zip(a, b, strict=True)])
-    cov = _jackknife(grads, np.array(a), np.zeros((6, 6)), groups, 6, np.ones(6, bool), np.ones(6), 1e9)
+    cov, unheld = _jackknife(grads, np.array(a), np.zeros((6, 6)), groups, 6, np.ones(6, bool), np.ones(6), 1e9)
+    assert unheld == ()  # every left-out solve is a Newton step well inside the (huge) bound
     loo = np.array([np.linalg.solve(sum(a[i] for i in range(n) if groups[i] != g),
                                     sum(b[i] for i in range(n) if groups[i] != g)) for g in range(6)])
     centred = loo - loo.mean(axis=0)
@@ -115,9 +116,11 @@ def test_a_group_that_alone_sees_a_direction_moves_the_jackknife_by_the_kernel_w
     hessians[groups != 0, 5, 5] = -1e-3
     grads = rng.normal(scale=0.01, size=(n, 6))
     grads -= grads.mean(axis=0)  # at the solution: the gradient sums to zero
-    cov = _jackknife(grads, hessians, np.zeros((6, 6)), groups, n_groups, np.ones(6, bool), np.ones(6), radius)
-    unbounded = _jackknife(grads, hessians, np.zeros((6, 6)), groups, n_groups, np.ones(6, bool), np.ones(6), 1e9)
+    cov, unheld = _jackknife(grads, hessians, np.zeros((6, 6)), groups, n_groups, np.ones(6, bool), np.ones(6),
+                             radius)
+    unbounded, _ = _jackknife(grads, hessians, np.zeros((6, 6)), groups, n_groups, np.ones(6, bool), np.ones(6), 1e9)
     assert cov is not None and unbounded is not None
+    assert unheld == (0,)  # without group 0 nothing holds z: its left-out solve ran to the kernel's width
     sigma = np.sqrt(np.diag(cov))
     assert 0.5 * radius < sigma[5] <= np.sqrt(n_groups - 1) * radius  # z: as unknown as the kernel lets it be
     assert np.sqrt(unbounded[5, 5]) > 10 * radius

@@ -9,9 +9,9 @@ TRUST = TrustOptions()  # 0.2 deg / 2 cm, 2.5 sigma
 FAR = SceneFacts(pairs=12, typical_range_m=16.0, pixels_per_radian=1000.0, translation_prior=False)
 
 
-def assessment(sigma, status, weak, restarts=(), is_minimum=True, moved_deg=None):
+def assessment(sigma, status, weak, restarts=(), is_minimum=True, moved_deg=None, held_by=()):
     sigma = np.asarray(sigma, dtype=float)
-    unc = Uncertainty(np.eye(6), sigma, sigma, None, 0, "", is_minimum, 1.0, 0.9)
+    unc = Uncertainty(np.eye(6), sigma, sigma, None, 0, "", is_minimum, 1.0, 0.9, held_by)
     return Assessment(np.zeros(6), None, unc, tuple(restarts), Verdict(status, tuple(weak), ("r",)), moved_deg)
 
 
@@ -74,3 +74,18 @@ def test_a_solve_that_ran_far_from_its_start_points_at_the_overlays_and_the_gues
     assert steps[-1].startswith("do not use this result")
     near = next_steps(assessment(sharp, Status.FAILED, ("yaw",), moved_deg=3.0), FAR, TRUST)
     assert not any("ran" in s and "from its start" in s for s in near)
+
+
+def test_a_pose_resting_on_a_few_places_asks_for_more_places_not_for_thousands_of_pairs():
+    """Five real street places where two hold z and roll (the jackknife without either slid to the kernel's
+    width: sigma 30 cm): more pairs of such places do pin it (all ten: trusted), so no 1/sqrt(pairs) count."""
+    sigma = [1.19, 0.51, 0.097, 0.87, 2.9, 30.6]
+    few = FAR._replace(pairs=5)
+    steps = next_steps(assessment(sigma, Status.FAILED, ("roll", "pitch", "z"), held_by=(1, 4)), few, TRUST)
+    held = [s for s in steps if "rests on" in s]
+    assert len(held) == 1 and held[0].startswith("roll, pitch, z: the pose rests on pairs/0001 and pairs/0004:")
+    assert "without any one of them" in held[0] and "new places" in held[0]
+    assert not any("would not do it" in s or "needed" in s for s in steps)
+    one = next_steps(assessment(sigma, Status.WEAK, ("z",), held_by=(3,)), few, TRUST)
+    assert any("rests on pairs/0003: without it " in s for s in one)
+    assert any("would not do it" in s for s in next_steps(assessment(sigma, Status.FAILED, ("z",)), few, TRUST))
