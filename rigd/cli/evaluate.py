@@ -117,6 +117,9 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
         f"std of converged runs: {_fmt_params(stats.std_converged, 4)}",
         f"std of all finished runs: {_fmt_params(stats.std, 4)}",
     ]
+    usable = report["summary"].get("std_not_failed")
+    if usable is not None:
+        lines.append(f"std of the runs not failed (trusted or weak): {_fmt_params(Params6(**usable), 4)}")
     err = report["summary"].get("error_vs_ground_truth")
     if err is not None and stats.solution_error is not None and stats.run_error_median is not None:
         med = stats.run_error_median

@@ -170,6 +170,18 @@ def _pose_yaml(t: Transform) -> dict[str, list[float]]:
     return {"rpy_deg": t.rpy_deg.tolist(), "xyz_m": t.translation_m.tolist()}
 
 
+USABLE = ("trusted", "weak")  # verdicts whose result rigd hands over (a failed one is not to be used)
+
+
+def std_not_failed(stats: RunStats, runs: Sequence[Run]) -> Params6 | None:
+    """Sample std of the runs whose verdict is trusted or weak: the spread of the results a user is given.
+    None without verdicts (a method without an assessment) or with fewer than two such runs."""
+    usable = np.array([r.verdict in USABLE and r.result is not None for r in runs], dtype=bool)
+    if usable.sum() < 2:
+        return None
+    return Params6.from_array(stats.values[usable].std(axis=0, ddof=1))
+
+
 def _summary_yaml(stats: RunStats, runs: Sequence[Run], with_error: bool) -> dict[str, Any]:
     times = [r.wall_s for r in runs]
     out: dict[str, Any] = {
@@ -183,6 +195,7 @@ def _summary_yaml(stats: RunStats, runs: Sequence[Run], with_error: bool) -> dic
         "mean": _params_yaml(stats.mean),
         "std": _params_yaml(stats.std),
         "std_converged": _params_yaml(stats.std_converged),
+        "std_not_failed": _params_yaml(std_not_failed(stats, runs)),
         "solution": _params_yaml(stats.solution),
         "calibration_time_s": {"median": float(np.median(times)), "max": float(np.max(times))},
     }

@@ -7,10 +7,13 @@ import numpy as np
 import pytest
 import yaml
 
-from calib.evaluate import random_starts, random_subsets
+from calib.evaluate import random_starts, random_subsets, run_stats
+from calib.geometry import Transform
 from rigd.cli import main
 from rigd.dataset import open_dataset, write_pair
 from rigd.dataset.pcd import Cloud
+from rigd.evaluate.protocols import std_not_failed
+from rigd.evaluate.trials import Run
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SUMMARY_KEYS = {"runs", "finished", "converged", "converged_percent", "outlier_rule", "median", "mean", "std",
@@ -109,3 +112,19 @@ def test_the_runs_use_the_rig_file_prior_as_calibrate_does(small_dataset, tmp_pa
     assert "with rig.yaml's prior" in printed
     for run in report["runs"]:
         assert np.linalg.norm(np.array(run["result"]["xyz_m"]) - lever_arm) < 0.005
+
+
+def test_the_spread_of_the_results_a_user_is_given_leaves_out_failed_runs():
+    """Five-place subsets of a real head: the runs rigd fails (not to be used) carry most of the spread, so the
+    report also gives the std of the trusted and weak ones; without verdicts (a baseline) there is none."""
+    ref = Transform.from_rpy_xyz(np.zeros(3), np.zeros(3))
+    z_cm = [0.0, 1.0, 2.0, 30.0, -30.0]
+    verdicts = ["weak", "trusted", "weak", "failed", "failed"]
+    runs = [Run(i, (i,), ref, Transform.from_rpy_xyz(np.zeros(3), np.array([0.0, 0.0, z / 100])), None, 0.0, 1, 1.0,
+                verdict=v) for i, (z, v) in enumerate(zip(z_cm, verdicts, strict=True))]
+    stats = run_stats(ref, [r.result for r in runs])
+    usable = std_not_failed(stats, runs)
+    assert usable is not None and usable.z_m == pytest.approx(0.01)  # std of 0, 1, 2 cm
+    assert stats.std is not None and stats.std.z_m > 0.2  # the failed runs' 30 cm
+    baseline = [Run(r.index, r.pairs, r.start, r.result, None, 0.0, 1, 1.0, verdict="not_assessed") for r in runs]
+    assert std_not_failed(stats, baseline) is None
