@@ -302,13 +302,14 @@ class CameraStream:
             if self._view is not None and self._view[0] == key:
                 return self._view[1]
             self._rendering = True
+        views = None
         try:
             views = self._render(pose)
         finally:
             with self._lock:
                 self._rendering = False
-        with self._lock:
-            self._view = key, views
+                if views is not None:
+                    self._view = key, views
         return views
 
     def _render(self, pose: Pose) -> list[NDArray[np.float64]]:
