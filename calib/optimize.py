@@ -47,6 +47,9 @@ class OptimOptions:
     tol_rel_cost: float = 1e-5
     tol_step: float = 1e-6
     patience: int = 3
+    # A level before the finest stops once two steps in a row moved edges by less than this share of its
+    # sigma: it only has to place the next, narrower level's start, which that level refines anyway.
+    coarse_step_share: float = 0.01
     precondition: bool = True
     rotation_only_levels: int = 1  # the first level(s) move rotation only (translation held)
     fold_levels: int = 2  # fold edge points take part in the first this-many levels only
@@ -146,10 +149,10 @@ def typical_range_m(feats: list[PairFeatures]) -> float:
 
 def _run_level(
     prob: _Problem, tau: F64, opts: OptimOptions, scale: F64, sigma_rad: float, range_m: float,
-    on_iter: Callable[[int, float], None] | None,
+    on_iter: Callable[[int, float], None] | None, finest: bool = True,
 ) -> tuple[F64, LevelTrace]:
     """One level from ``tau``; ``range_m`` the edge points' typical range, which turns a translation step into
-    the angle it moves edges by."""
+    the angle it moves edges by. A level that is not the ``finest`` also stops at ``opts.coarse_step_share``."""
     prob.refreeze(tau)
     here = prob.evaluate(tau)
     if here.n_active == 0:
@@ -158,6 +161,8 @@ def _run_level(
     alpha_prev: float | None = None
     inverse: F64 | None = None  # quasi-Newton: the inverse-Hessian estimate (None until the first step)
     quiet = 0
+    small = 0  # consecutive steps below the coarse levels' share of sigma
+    coarse_rad = 0.0 if finest else opts.coarse_step_share * sigma_rad
     converged = False
     it = 0
     for it in range(1, opts.max_iter + 1):
@@ -191,7 +196,9 @@ def _run_level(
         if on_iter is not None:
             on_iter(it, here.cost)
         quiet = quiet + 1 if rel < opts.tol_rel_cost else 0
-        if quiet >= opts.patience or (np.abs(step) < opts.tol_step).all():
+        moved = float(np.linalg.norm(step[:3])) + float(np.linalg.norm(step[3:])) / range_m
+        small = small + 1 if moved < coarse_rad else 0
+        if quiet >= opts.patience or small >= 2 or (np.abs(step) < opts.tol_step).all():
             converged = True
             break
     return tau, LevelTrace(float(np.degrees(sigma_rad)), it, converged, tuple(costs), tau.copy())
@@ -294,7 +301,8 @@ def _coarse_to_fine(
         prob = _Problem(feats, model.gmm, list(model.sigma_in_px), opts.numerical_gradient, prior, kappa)
         cb = (lambda i, c, lv=level: on_iter(lv, i, c)) if on_iter else None
         level_scale = scale * ([1.0] * 3 + [1.0 if moves_t else 0.0] * 3)
-        tau, trace = _run_level(prob, tau, opts, level_scale, sigma_rad, range_m, cb)
+        finest = level == len(opts.sigmas_deg) - 1
+        tau, trace = _run_level(prob, tau, opts, level_scale, sigma_rad, range_m, cb, finest)
         levels.append(replace(trace, kappa=kappa))
     return OptimResult(tau, tuple(levels), all(t.converged for t in levels), levels[-1].costs[-1])
 

@@ -61,3 +61,16 @@ def test_quasi_newton_ends_where_steepest_descent_does_with_fewer_evaluations(pa
         assert np.linalg.norm(result.tau[3:] - TRUTH.translation_m) < 0.01
     assert qn.final_cost == pytest.approx(gd.final_cost, rel=1e-4)  # the same minimum, to the fields' resolution
     assert n_qn < 0.8 * n_gd, (n_qn, n_gd)
+
+
+def test_coarse_levels_stop_at_small_steps_and_the_finest_ends_at_the_same_minimum(pairs) -> None:
+    start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [3.0, -2.0, 2.5], TRUTH.translation_m + [0.06, -0.05, 0.04])
+    base = dataclasses.replace(OptimOptions(), alternative_schedules=0)
+    full = optimise(pairs, start.tau, dataclasses.replace(base, coarse_step_share=0.0), FIELD)
+    cut = optimise(pairs, start.tau, base, FIELD)
+    coarse_full = sum(level.iterations for level in full.levels[:-1])
+    coarse_cut = sum(level.iterations for level in cut.levels[:-1])
+    assert coarse_cut < coarse_full, (coarse_cut, coarse_full)
+    assert np.degrees(np.linalg.norm(cut.tau[:3] - full.tau[:3])) < 0.01
+    assert np.linalg.norm(cut.tau[3:] - full.tau[3:]) < 0.001
+    assert cut.final_cost == pytest.approx(full.final_cost, rel=1e-4)
