@@ -18,6 +18,8 @@ After the coarse-to-fine solve:
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
 from enum import Enum
@@ -151,12 +153,11 @@ class Assessment:
 
 def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptions, gmm: GmmOptions,
                   prior: Prior | None, trust: TrustOptions,
-                  executor: Executor | None) -> tuple[OptimResult, list[OptimResult]]:
+                  executor: Executor | None,
+                  while_waiting: Callable[[], None] | None = None) -> tuple[OptimResult, list[OptimResult]]:
     """Rerun the last levels from ``trust.restarts`` poses around the solution; returns the best run (the
-    solution itself unless a restart ended lower) and every restart. With ``executor``, the second half of
-    the restarts runs there, in one worker, while this process runs the first half with the field bands the
-    main solve built here (the worker has only the bands its own solves built, if the application's pool kept
-    them; a worker per restart would compete with this process for the cores of a small rig computer).
+    solution itself unless a restart ended lower) and every restart (:func:`_shared_restarts` runs them,
+    with ``while_waiting``).
     Each level weighs the prior as the solution's did: the restarts minimise the objective the solution
     minimised, so their final costs compare with its."""
     rng = np.random.default_rng(trust.seed)
@@ -173,19 +174,67 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
         offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
                                  np.zeros(3) if fixed_t else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
         starts.append(tau_at(best.tau, offset))
-    here = len(starts) if executor is None else (len(starts) + 1) // 2
-    pending = None if executor is None or here == len(starts) else \
-        executor.submit(_restart_solves, feats, starts[here:], tail, gmm, prior, kappas)
-    runs = _restart_solves(feats, starts[:here], tail, gmm, prior, kappas)
-    runs += [] if pending is None else pending.result()
+    runs = _shared_restarts(feats, starts, tail, gmm, prior, kappas, executor, while_waiting)
     winner = min([best, *runs], key=lambda r: r.final_cost)
     return winner, runs
 
 
-def _restart_solves(feats: list[PairFeatures], starts: list[F64], tail: OptimOptions, gmm: GmmOptions,
-                    prior: Prior | None, kappas: tuple[float | None, ...]) -> list[OptimResult]:
-    """The restarts from ``starts`` one after the other (in one worker they share the bands it builds)."""
-    return [optimise(feats, s, tail, gmm, None, prior, kappas=kappas) for s in starts]
+def _shared_restarts(feats: list[PairFeatures], starts: list[F64], tail: OptimOptions, gmm: GmmOptions,
+                     prior: Prior | None, kappas: tuple[float | None, ...],
+                     executor: Executor | None,
+                     while_waiting: Callable[[], None] | None = None) -> list[OptimResult]:
+    """The restarts from ``starts``, in their order. With ``executor``, this process and one worker each take
+    the next restart not yet taken when they finish one, so neither waits while restarts remain (restarts
+    differ in length: split in fixed halves, one side waited ~4 s of a 14 s phase on the Ford head). This
+    process uses the field bands the main solve built here, the worker those its own solves built (the
+    application's pool hands a features list back to the worker that holds it); a worker per restart would
+    compete with this process for the cores of a small rig computer. Same results as without ``executor``.
+    ``while_waiting`` runs here when no restart is left to take but the worker's last one has not ended."""
+    runs: list[OptimResult | None] = [None] * len(starts)
+    order = iter(range(len(starts)))
+    lock = threading.Lock()
+
+    def take() -> int | None:
+        with lock:
+            return next(order, None)
+
+    def feed() -> None:  # on a thread: one restart at a time to the worker, each when its previous ended
+        assert executor is not None
+        while (i := take()) is not None:
+            runs[i] = executor.submit(_restart_solve, feats, starts[i], tail, gmm, prior, kappas).result()
+
+    failed: list[BaseException] = []
+    feeder = None if executor is None else threading.Thread(target=_capturing, args=(feed, failed), daemon=True)
+    if feeder is not None:
+        feeder.start()
+    try:
+        while (i := take()) is not None:
+            runs[i] = _restart_solve(feats, starts[i], tail, gmm, prior, kappas)
+        if feeder is not None and feeder.is_alive() and while_waiting is not None:
+            while_waiting()
+    finally:
+        with lock:  # on an error here, the worker takes no further restart
+            for _ in order:
+                pass
+        if feeder is not None:
+            feeder.join()
+    if failed:
+        raise failed[0]
+    return [r for r in runs if r is not None]
+
+
+def _capturing(fn: Callable[[], None], failed: list[BaseException]) -> None:
+    """Run ``fn``; an exception is kept in ``failed`` for the thread that waits for it to raise."""
+    try:
+        fn()
+    except BaseException as error:  # re-raised by the thread that waits for this one
+        failed.append(error)
+
+
+def _restart_solve(feats: list[PairFeatures], start: F64, tail: OptimOptions, gmm: GmmOptions,
+                   prior: Prior | None, kappas: tuple[float | None, ...]) -> OptimResult:
+    """One restart: the tail levels from ``start`` with the solution's prior weights."""
+    return optimise(feats, start, tail, gmm, None, prior, kappas=kappas)
 
 
 def _groups(clusters: Clusters, n_pairs: int, trust: TrustOptions) -> tuple[NDArray[np.int64], int]:
@@ -391,15 +440,21 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
     restarts, so one that ends lower becomes the solution and one that ends elsewhere as low is ambiguity.
     ``prior``: the declared prior, part of the reported uncertainty; ``solving`` (default ``prior``): the prior
     the solve used (:func:`calib.pipeline.solve_prior`), with which the restarts run. ``executor``: the
-    application's process pool, where half the restarts run (same result as without it). ``starts``: the
+    application's process pool, whose worker takes restarts beside this process (same result as without it;
+    this process works out the uncertainty while the worker ends its last one). ``starts``: the
     poses (6,) tau the solves started from (the initial guess, the search's runners-up); the solution's
     rotation from the nearest one is reported, and beyond ``trust.max_move_deg`` fails the result."""
     solving = prior if solving is None else solving
     # The restarts probe the basin of the lowest full solve: a search runner-up that ends lower than the
     # search's best start is the solution, and restarts around the start's would only find that start's basin.
     first = min([result, *alternatives], key=lambda r: r.final_cost)
-    best, runs = _run_restarts(feats, first, opts, gmm, solving, trust, executor)
-    unc = _uncertainty(feats, best.tau, opts, gmm, prior, trust, solving)
+    early: list[Uncertainty] = []  # the solution's, computed while the worker ends its last restart
+
+    def uncertainty_early() -> None:
+        early.append(_uncertainty(feats, first.tau, opts, gmm, prior, trust, solving))
+
+    best, runs = _run_restarts(feats, first, opts, gmm, solving, trust, executor, uncertainty_early)
+    unc = early[0] if early and best is first else _uncertainty(feats, best.tau, opts, gmm, prior, trust, solving)
     searched = [(r, "search start" if r is result else "search runner-up")
                 for r in [result, *alternatives] if r is not first]
     solves = [(first, "solution"), *((r, "restart") for r in runs), *searched]

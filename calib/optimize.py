@@ -49,7 +49,7 @@ class OptimOptions:
     patience: int = 3
     # A level before the finest stops once two steps in a row moved edges by less than this share of its
     # sigma: it only has to place the next, narrower level's start, which that level refines anyway.
-    coarse_step_share: float = 0.01
+    coarse_step_share: float = 0.03
     precondition: bool = True
     rotation_only_levels: int = 1  # the first level(s) move rotation only (translation held)
     fold_levels: int = 2  # fold edge points take part in the first this-many levels only

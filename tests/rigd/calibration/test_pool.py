@@ -91,3 +91,24 @@ def test_workers_exit_when_their_parent_is_killed():
     while alive := [pid for pid in workers if _running(pid)]:
         assert time.monotonic() < deadline, f"pool workers {alive} outlived their parent"
         time.sleep(0.1)
+
+
+def _pid_after(wait_s: float) -> int:
+    time.sleep(wait_s)
+    return os.getpid()
+
+
+def test_tasks_wait_for_a_free_worker_instead_of_queueing_behind_a_busy_one():
+    with FeaturePool(2) as pool:
+        long = pool.submit(_pid_after, 2.0)
+        short = [pool.submit(_pid_after, 0.05) for _ in range(4)]
+        pids = [f.result() for f in short]
+        assert long.result() not in pids  # the free worker took every short task; none waited for the long one
+        assert len(set(pids)) == 1
+
+
+def test_a_shutdown_runs_the_queued_tasks_first():
+    pool = FeaturePool(1)
+    futures = [pool.submit(_pid_after, 0.05) for _ in range(3)]
+    pool.shutdown(wait=True)
+    assert all(f.done() and not f.cancelled() for f in futures)
