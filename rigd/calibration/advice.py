@@ -25,12 +25,13 @@ NEAR_M = 10.0  # edges beyond this typical range tie the translation loosely: as
 class SceneFacts(NamedTuple):
     """``pairs``: how many pairs were calibrated; ``typical_range_m``: harmonic mean range of the edge points
     (m); ``pixels_per_radian``: the camera's scale; ``translation_prior``: a translation prior or a fixed
-    translation was used."""
+    translation was used; ``pair_names``: each pair's folder, ``pairs/NNNN`` (empty: named by position)."""
 
     pairs: int
     typical_range_m: float
     pixels_per_radian: float
     translation_prior: bool
+    pair_names: tuple[str, ...] = ()
 
 
 def _pairs_needed(sigma: np.ndarray, tolerance: np.ndarray, factor: float, pairs: int) -> int:
@@ -40,8 +41,9 @@ def _pairs_needed(sigma: np.ndarray, tolerance: np.ndarray, factor: float, pairs
     return math.ceil(pairs * ratio * ratio)
 
 
-def _pair_names(indices: tuple[int, ...]) -> str:
-    names = [f"pairs/{i:04d}" for i in indices]
+def _pair_names(indices: tuple[int, ...], facts: SceneFacts) -> str:
+    """The pairs at ``indices`` by their folders (a dataset whose pairs were pruned is not numbered by position)."""
+    names = [facts.pair_names[i] if i < len(facts.pair_names) else f"pairs/{i:04d}" for i in indices]
     return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
@@ -51,7 +53,7 @@ def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustO
     held_by = a.uncertainty.held_by
     if held_by:  # the jackknife's sigma is how far the pose slides without one place: no 1/sqrt(pairs) count
         either = "it" if len(held_by) == 1 else "any one of them"
-        return (f"{', '.join(axes)}: the pose rests on {_pair_names(held_by)}: without {either} "
+        return (f"{', '.join(axes)}: the pose rests on {_pair_names(held_by, facts)}: without {either} "
                 "the other pairs' edges do not hold it, and the sigma is how far it then slides, not noise that "
                 "averages away; capture more pairs at new places with structure like theirs (see their overlays)")
     idx = [(*ROTATION, *TRANSLATION).index(ax) for ax in axes]

@@ -265,7 +265,8 @@ def assessment_yaml(a: Assessment, steps: tuple[str, ...] = ()) -> Assessed:
 
 def _scene_facts(dataset: Dataset, feats: list[PairFeatures], prior: Prior | None) -> SceneFacts:
     return SceneFacts(len(dataset), typical_range_m(feats), dataset.rig.camera.models()[0].pixels_per_radian,
-                      prior is not None and (prior.xyz_m is not None or prior.fix_translation))
+                      prior is not None and (prior.xyz_m is not None or prior.fix_translation),
+                      tuple(f"pairs/{d.name}" for d in dataset.pair_dirs))
 
 
 def _pairs_yaml(result: CalibResult, dataset: Dataset) -> list[PairQuality]:

@@ -365,3 +365,15 @@ def test_this_process_works_while_the_worker_ends_its_last_restart(monkeypatch) 
         runs = assess_module._shared_restarts([], starts, OptimOptions(), GmmOptions(), None, (), executor,
                                               lambda: waited.append(True))
     assert [side for side, _ in runs].count("worker") == 1 and waited == [True]
+
+
+def test_a_left_out_solve_that_carries_most_of_the_spread_holds_the_pose_short_of_the_kernel_width():
+    radius, scale = 1.0, np.ones(6)
+    steps = np.zeros((5, 6))
+    steps[:, 5] = [0.02, -0.26, -0.04, 0.16, 0.71]  # the Ford subset's left-out solves, in kernel widths (z)
+    assert assess_module._holding(steps, [0, 1, 2, 3, 4], scale, radius) == (4,)
+    even = np.zeros((5, 6))
+    even[:, 5] = [0.6, -0.6, 0.55, -0.58, 0.62]  # far, but no place carries most of it: noise, not one place
+    assert assess_module._holding(even, [0, 1, 2, 3, 4], scale, radius) == ()
+    small = steps * 0.5  # the same shares, nowhere near the width: the pose is held
+    assert assess_module._holding(small, [0, 1, 2, 3, 4], scale, radius) == ()

@@ -89,3 +89,11 @@ def test_a_pose_resting_on_a_few_places_asks_for_more_places_not_for_thousands_o
     one = next_steps(assessment(sigma, Status.WEAK, ("z",), held_by=(3,)), few, TRUST)
     assert any("rests on pairs/0003: without it " in s for s in one)
     assert any("would not do it" in s for s in next_steps(assessment(sigma, Status.FAILED, ("z",)), few, TRUST))
+
+
+def test_the_places_a_pose_rests_on_are_named_by_their_folders():
+    """A dataset whose pairs were pruned (pairs/0003, 0004, 0006, 0008, 0009): the fifth is pairs/0009."""
+    sigma = [0.79, 0.69, 0.04, 1.73, 1.30, 11.8]
+    pruned = FAR._replace(pairs=5, pair_names=tuple(f"pairs/{n:04d}" for n in (3, 4, 6, 8, 9)))
+    steps = next_steps(assessment(sigma, Status.FAILED, ("z",), held_by=(4,)), pruned, TRUST)
+    assert any("the pose rests on pairs/0009: without it " in s for s in steps)
