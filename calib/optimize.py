@@ -196,8 +196,7 @@ def _run_level(
         if on_iter is not None:
             on_iter(it, here.cost)
         quiet = quiet + 1 if rel < opts.tol_rel_cost else 0
-        moved = float(np.linalg.norm(step[:3])) + float(np.linalg.norm(step[3:])) / range_m
-        small = small + 1 if moved < coarse_rad else 0
+        small = small + 1 if alpha_prev * length < coarse_rad else 0  # the step's angle, as alpha_max measures it
         if quiet >= opts.patience or small >= 2 or (np.abs(step) < opts.tol_step).all():
             converged = True
             break
