@@ -41,9 +41,17 @@ def _pairs_needed(sigma: np.ndarray, tolerance: np.ndarray, factor: float, pairs
     return math.ceil(pairs * ratio * ratio)
 
 
+def _pair_name(i: int, facts: SceneFacts) -> str:
+    """Pair ``i`` by its folder; where that is not its position (a pruned dataset), with its overlays' files,
+    which are numbered by position."""
+    by_position = f"pairs/{i:04d}"
+    folder = facts.pair_names[i] if i < len(facts.pair_names) else by_position
+    return folder if folder == by_position else f"{folder} (overlays/{i:04d}_*)"
+
+
 def _pair_names(indices: tuple[int, ...], facts: SceneFacts) -> str:
     """The pairs at ``indices`` by their folders (a dataset whose pairs were pruned is not numbered by position)."""
-    names = [facts.pair_names[i] if i < len(facts.pair_names) else f"pairs/{i:04d}" for i in indices]
+    names = [_pair_name(i, facts) for i in indices]
     return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 

@@ -92,8 +92,9 @@ def test_a_pose_resting_on_a_few_places_asks_for_more_places_not_for_thousands_o
 
 
 def test_the_places_a_pose_rests_on_are_named_by_their_folders():
-    """A dataset whose pairs were pruned (pairs/0003, 0004, 0006, 0008, 0009): the fifth is pairs/0009."""
+    """A dataset whose pairs were pruned (pairs/0003, 0004, 0006, 0008, 0009): the fifth is pairs/0009, and its
+    overlays (numbered by position) are named with it."""
     sigma = [0.79, 0.69, 0.04, 1.73, 1.30, 11.8]
     pruned = FAR._replace(pairs=5, pair_names=tuple(f"pairs/{n:04d}" for n in (3, 4, 6, 8, 9)))
     steps = next_steps(assessment(sigma, Status.FAILED, ("z",), held_by=(4,)), pruned, TRUST)
-    assert any("the pose rests on pairs/0009: without it " in s for s in steps)
+    assert any("the pose rests on pairs/0009 (overlays/0004_*): without it " in s for s in steps)
