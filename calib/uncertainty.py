@@ -80,6 +80,22 @@ def places(feats: tuple[PairFeatures, ...] | list[PairFeatures]) -> I64:
     return np.array([numbers.setdefault(k, len(numbers)) for k in keys], dtype=np.int64)
 
 
+def cell_ids(cell: I64) -> I64:
+    """(N,) int64 ids of the distinct rows of ``cell`` (N,2) int64, numbered in their lexicographic order (as
+    ``np.unique(cell, axis=0, return_inverse=True)`` numbers them), through one int64 key per row: a row-wise
+    unique sorts structured rows, ten times slower."""
+    if cell.size == 0:
+        return np.zeros(0, np.int64)
+    low = cell.min(axis=0)
+    span = cell.max(axis=0) - low + 1
+    if float(span[0]) * float(span[1]) >= 2.0**62:
+        _, inverse = np.unique(cell, axis=0, return_inverse=True)
+        return np.asarray(inverse, dtype=np.int64).reshape(-1)
+    key = (cell[:, 0] - low[0]) * span[1] + (cell[:, 1] - low[1])
+    _, inverse = np.unique(key, return_inverse=True)
+    return np.asarray(inverse, dtype=np.int64).reshape(-1)
+
+
 def clusters_at(model: LevelModel, tau_hat: F64, cell_deg: float) -> Clusters:
     """Cluster each pair's edge points by the ``cell_deg`` angular cell of their projection at ``tau_hat``."""
     labels: list[I64] = []
@@ -91,9 +107,8 @@ def clusters_at(model: LevelModel, tau_hat: F64, cell_deg: float) -> Clusters:
         # Points the camera cannot see share one cluster: a pinhole's uv there is not finite or is far beyond
         # the int64 range (distortion polynomial), and they carry no cost terms.
         uv = np.where((valid & np.isfinite(uv).all(axis=1))[:, None], uv, -1.0)
-        cell = np.floor(uv / (np.radians(cell_deg) * feat.camera.pixels_per_radian))
-        _, inverse = np.unique(cell.astype(np.int64), axis=0, return_inverse=True)
-        inverse = np.asarray(inverse, dtype=np.int64).reshape(-1)
+        cell = np.floor(uv / (np.radians(cell_deg) * feat.camera.pixels_per_radian)).astype(np.int64)
+        inverse = cell_ids(cell)
         n = int(inverse.max()) + 1 if inverse.size else 0
         labels.append(inverse + first)
         pairs.append(np.full(n, place[i], dtype=np.int64))

@@ -12,6 +12,7 @@ from calib.gmm import GmmOptions, PairFeatures, point_terms
 from calib.optimize import OptimOptions, hessian_steps, level_model
 from calib.uncertainty import (
     LevelModel,
+    cell_ids,
     clusters_at,
     hessian,
     local_gradient,
@@ -40,6 +41,16 @@ def test_local_coordinates_round_trip_and_rotate_about_lidar_axes():
     tau = tau_at(TRUTH.tau, np.array([0.01, 0, 0, 0, 0, 0]))
     rx = np.array([[1, 0, 0], [0, np.cos(0.01), -np.sin(0.01)], [0, np.sin(0.01), np.cos(0.01)]])
     assert np.allclose(so3_exp(tau[:3]), TRUTH.rotation @ rx, atol=1e-12)
+
+
+def test_cell_ids_number_rows_as_a_row_wise_unique_does():
+    rng = np.random.default_rng(4)
+    cell = rng.integers(-3, 40, size=(500, 2)).astype(np.int64)
+    _, expected = np.unique(cell, axis=0, return_inverse=True)
+    np.testing.assert_array_equal(cell_ids(cell), np.asarray(expected).reshape(-1))
+    wide = np.array([[-(2**40), 0], [2**40, 2**40], [-(2**40), 0], [0, -(2**40)]], dtype=np.int64)  # no single key
+    np.testing.assert_array_equal(cell_ids(wide), [0, 2, 0, 1])
+    assert cell_ids(np.zeros((0, 2), np.int64)).shape == (0,)
 
 
 def test_points_a_pinhole_cannot_see_share_one_cluster_without_a_cast_warning():
