@@ -23,7 +23,7 @@ from calib.gmm import PairFeatures, SigmaModel
 from calib.initial import SearchOptions
 from calib.optimize import LevelTrace, OptimResult
 from calib.photometric import PhotoCost, PhotoPair, PhotoParams, PhotoResult, optimise_photometric
-from calib.pipeline import CalibParams, CalibResult, PairStats, PointEdgeMethod, calibrate, paper_params
+from calib.pipeline import CalibParams, CalibResult, PairStats, PointEdgeMethod, calibrate, paper_params, with_sigmas
 from calib.prior import Prior
 
 
@@ -79,12 +79,11 @@ def gmm_params(method: Method) -> CalibParams | None:
     if method is Method.GMM_UNIFORM:
         # the paper's uniform sigma is half its sigma_in per level (7.5, 5, 2.5 px against 15, 10, 5)
         sigmas = tuple(0.5 * s for s in rigd.optim.sigmas_deg)
-        return replace(rigd, gmm=replace(rigd.gmm, sigma_model=SigmaModel.UNIFORM),
-                       optim=replace(rigd.optim, sigmas_deg=sigmas))
+        return replace(with_sigmas(rigd, sigmas), gmm=replace(rigd.gmm, sigma_model=SigmaModel.UNIFORM))
     if method is Method.GMM_PAPER_EDGES:
         return replace(rigd, point_method=PointEdgeMethod.PAPER)
     if method is Method.GMM_PAPER_SCHEDULE:
-        return replace(rigd, optim=paper_params().optim)
+        return replace(rigd, optim=paper_params().optim, head_sigmas_deg=None)  # the ladder it names, a head's too
     return rigd
 
 

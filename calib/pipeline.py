@@ -57,6 +57,9 @@ class CalibParams:
     # undetermined it stays near the guess. Without it a real street scene's translation ran 1.6 m off from a
     # searched start 0.9 deg from the truth, to a minimum 17 NLL above the truth's (docs/method.md).
     guess_sigma_m: float = 0.10
+    # A multi-camera head's coarse-to-fine ladder (docs/method.md item 17); None: ``optim.sigmas_deg`` for every
+    # camera (a ladder the user gives applies to a head as given).
+    head_sigmas_deg: tuple[float, ...] | None = (10.5, 5.27, 1.76, 0.88)
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,21 @@ def paper_params() -> CalibParams:
         gmm=replace(GmmOptions(), kernel_norm=KernelNorm.PAPER, sigma_range_cap_m=1e9, sigma_floor_deg=0.0),
         optim=replace(OptimOptions(), sigmas_deg=(5.27, 3.52, 1.76), precondition=False, rotation_only_levels=0,
                       fold_levels=99, quasi_newton=False),  # eq. 24: plain gradient descent
+        head_sigmas_deg=None,
     )
+
+
+def with_sigmas(params: CalibParams, sigmas_deg: tuple[float, ...]) -> CalibParams:
+    """``params`` with the ladder ``sigmas_deg`` for every camera, a head's too."""
+    return replace(params, optim=replace(params.optim, sigmas_deg=tuple(sigmas_deg)), head_sigmas_deg=None)
+
+
+def sigmas_for(params: CalibParams, cameras: list[CameraModel]) -> tuple[float, ...]:
+    """The coarse-to-fine ladder for ``cameras``: a head's (all its sensors ``Mounted``) ends at 0.88 deg, one
+    level finer than a panorama's, below the 3.52 deg level (docs/method.md item 17)."""
+    if params.head_sigmas_deg is not None and cameras and all(isinstance(c, Mounted) for c in cameras):
+        return params.head_sigmas_deg
+    return params.optim.sigmas_deg
 
 
 def edge_points(points_lidar: F64, ring: NDArray[np.int16] | None, params: CalibParams) -> EdgePoints:
@@ -167,9 +184,11 @@ def check_initial_guess(feats: list[PairFeatures], tau0: F64) -> int:
 
 
 def schedule(feats: list[PairFeatures], params: CalibParams, tau0: F64) -> OptimOptions:
-    """The optimiser's options for ``feats`` solved from ``tau0``: ``params.optim``, with fold edges kept on
+    """The optimiser's options for ``feats`` solved from ``tau0``: ``params.optim`` with the ladder of
+    :func:`sigmas_for`, and fold edges kept on
     every level when the pairs hold too few occlusion edges in their cameras' view at ``tau0`` (a pinhole
     sees a fraction of the LiDAR's turn: points behind it pin nothing)."""
+    optim = replace(params.optim, sigmas_deg=sigmas_for(params, [f.camera for f in feats]))
     boundaries = sum(_in_view(f, f.points.points_lidar[f.points.kind == BOUNDARY], tau0) for f in feats)
     narrow = not all(isinstance(f.camera, Equirectangular | Mounted) for f in feats)  # a head sees all round
     if boundaries < params.min_boundary_points or (narrow and _dense_rings(feats, params.dense_ring_deg)):
@@ -181,8 +200,8 @@ def schedule(feats: list[PairFeatures], params: CalibParams, tau0: F64) -> Optim
         # lateral axis slides them along those edges; folds where dense rings cross horizontal creases (wall
         # bases, kerbs, sills) hold it. A panorama's vertical edges at its sides hold it through their tilt,
         # and a VLP-16's 2 deg rings cross too few creases (docs/method.md, item 9).
-        return replace(params.optim, fold_levels=len(params.optim.sigmas_deg))
-    return params.optim
+        return replace(optim, fold_levels=len(optim.sigmas_deg))
+    return optim
 
 
 def _dense_rings(feats: list[PairFeatures], max_deg: float) -> bool:

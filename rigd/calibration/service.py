@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from calib.assess import Assessment, Status, TrustOptions
+from calib.camera import CameraModel
 from calib.errors import CalibError, FeaturelessError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
@@ -24,7 +25,16 @@ from calib.initial import SearchOptions, SearchResult, default_search
 from calib.methods import Method, calibrate_method, gmm_params, photo_params
 from calib.optimize import typical_range_m
 from calib.photometric import PhotoCost, PhotoPair, PhotoParams, photo_pair
-from calib.pipeline import CalibParams, CalibResult, PairInput, extract_features, extract_place, paper_params
+from calib.pipeline import (
+    CalibParams,
+    CalibResult,
+    PairInput,
+    extract_features,
+    extract_place,
+    paper_params,
+    sigmas_for,
+    with_sigmas,
+)
 from calib.pipeline import edge_points as edge_points_of
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
@@ -414,10 +424,11 @@ def _search_photo(dataset: Dataset, progress: Progress | None) -> list[PhotoPair
         return None
 
 
-def _method_yaml(method: Method, params: CalibParams, photo: PhotoParams | None) -> MethodSettings:
+def _method_yaml(method: Method, params: CalibParams, photo: PhotoParams | None,
+                 cameras: list[CameraModel]) -> MethodSettings:
     out: MethodSettings = {"name": method.value}
     if method.uses_gmm:
-        out["sigmas_deg"] = list(params.optim.sigmas_deg)
+        out["sigmas_deg"] = list(sigmas_for(params, cameras))
     if photo is not None:
         out["photometric"] = {"cost": photo.cost.value, "blur_deg": list(photo.blur_deg), "bins": photo.n_bins}
     return out
@@ -433,8 +444,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     if request.sigmas_deg is not None:
         if not request.sigmas_deg or any(not np.isfinite(s) or s <= 0 for s in request.sigmas_deg):
             raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
-        params = dataclasses.replace(params, optim=dataclasses.replace(params.optim,
-                                                                       sigmas_deg=tuple(request.sigmas_deg)))
+        params = with_sigmas(params, tuple(request.sigmas_deg))
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
     method = request.method
@@ -466,7 +476,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
                     else assessment_yaml(result.assessment, steps))
         searched: _Searched = {} if result.search is None else {
             "initial_search": search_yaml(result.search, search, time.monotonic() - searched_at)}
-        settings = _settings(_method_yaml(method, params, photo), prior, trust)
+        settings = _settings(_method_yaml(method, params, photo, list(dataset.rig.camera.models())), prior, trust)
         report = _report(result, initial, dataset, time.monotonic() - started, assessed, searched, settings)
         out = Path(request.out_dir)
         out.mkdir(parents=True, exist_ok=True)

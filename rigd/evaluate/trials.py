@@ -4,7 +4,6 @@ worker keeps for all its trials (one dataset's features, extracted once). Where 
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -20,7 +19,7 @@ from calib.errors import CalibError
 from calib.evaluate import OutlierRule
 from calib.geometry import Transform
 from calib.gmm import PairFeatures
-from calib.pipeline import CalibParams
+from calib.pipeline import CalibParams, with_sigmas
 from calib.prior import Prior
 from rigd.calibration.service import dataset_features
 from rigd.dataset import Dataset, open_dataset
@@ -109,7 +108,7 @@ def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
         return params
     if not sigmas_deg or not all(np.isfinite(s) and s > 0 for s in sigmas_deg):
         raise RigdError(f"sigmas must be positive angles in degrees, got {sigmas_deg}")
-    return dataclasses.replace(params, optim=dataclasses.replace(params.optim, sigmas_deg=tuple(sigmas_deg)))
+    return with_sigmas(params, tuple(sigmas_deg))
 
 
 def open_for(settings: EvaluationSettings) -> Dataset:

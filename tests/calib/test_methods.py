@@ -22,8 +22,10 @@ def test_ablations_change_one_thing_each():
     uniform = gmm_params(Method.GMM_UNIFORM)
     assert uniform is not None and uniform.gmm.sigma_model is SigmaModel.UNIFORM
     assert np.allclose(uniform.optim.sigmas_deg, np.array(rigd.optim.sigmas_deg) / 2)
+    assert uniform.head_sigmas_deg is None
     assert gmm_params(Method.GMM_PAPER_EDGES) == replace(rigd, point_method=PointEdgeMethod.PAPER)
-    assert gmm_params(Method.GMM_PAPER_SCHEDULE) == replace(rigd, optim=paper_params().optim)
+    # the schedule ablation runs the paper's ladder on every camera, a head's too
+    assert gmm_params(Method.GMM_PAPER_SCHEDULE) == replace(rigd, optim=paper_params().optim, head_sigmas_deg=None)
     assert gmm_params(Method.PAPER) == paper_params()
     paper = paper_params().optim  # eq. 24: the paper steps along the plain negative gradient
     assert not paper.quasi_newton and not paper.precondition

@@ -10,7 +10,7 @@ from calib.edges_points import EdgePoints
 from calib.geometry import Transform, rotation_angle_deg, so3_exp, so3_log
 from calib.gmm import PairFeatures, in_image, transform_points
 from calib.initial import OPTICAL_FROM_LIDAR_AXES, base_rotation
-from calib.pipeline import CalibParams, calibrate, schedule
+from calib.pipeline import CalibParams, calibrate, schedule, with_sigmas
 from calib.uncertainty import places
 from tests.calib.synthetic import TRUTH, head_sensors, make_head_place, make_pair
 
@@ -68,6 +68,14 @@ def test_a_head_of_five_pinholes_recovers_the_head_lidar_transform():
     assert rotation_angle_deg(result.T_camera_lidar.rotation, TRUTH.rotation) < 0.05
     assert np.linalg.norm(result.T_camera_lidar.translation_m - TRUTH.translation_m) < 0.005
     assert result.assessment is not None and result.assessment.uncertainty.jackknife_groups == 4  # places, not sensors
+
+
+def test_a_head_ends_its_ladder_one_level_finer_unless_a_ladder_is_given():
+    place = make_head_place(0, head_sensors(2))
+    assert PARAMS.head_sigmas_deg is not None and PARAMS.head_sigmas_deg[-1] < PARAMS.optim.sigmas_deg[-1]
+    assert schedule(place, PARAMS, TRUTH.tau).sigmas_deg == PARAMS.head_sigmas_deg
+    assert schedule([make_pair(0)], PARAMS, TRUTH.tau).sigmas_deg == PARAMS.optim.sigmas_deg  # a panorama
+    assert schedule(place, with_sigmas(PARAMS, (5.0, 2.0)), TRUTH.tau).sigmas_deg == (5.0, 2.0)
 
 
 def test_places_number_pairs_by_their_place_and_pairs_without_one_alone():
