@@ -109,8 +109,8 @@ def with_sigmas(params: CalibParams, sigmas_deg: tuple[float, ...]) -> CalibPara
 
 
 def sigmas_for(params: CalibParams, cameras: list[CameraModel]) -> tuple[float, ...]:
-    """The coarse-to-fine ladder for ``cameras``: a head's (all its sensors ``Mounted``) ends at 0.88 deg, one
-    level finer than a panorama's, below the 3.52 deg level (docs/method.md item 17)."""
+    """The coarse-to-fine ladder for ``cameras``: ``params.head_sigmas_deg`` for a head (all its sensors
+    ``Mounted``; docs/method.md item 17), else ``params.optim.sigmas_deg``."""
     if params.head_sigmas_deg is not None and cameras and all(isinstance(c, Mounted) for c in cameras):
         return params.head_sigmas_deg
     return params.optim.sigmas_deg

@@ -424,6 +424,13 @@ def _search_photo(dataset: Dataset, progress: Progress | None) -> list[PhotoPair
         return None
 
 
+def params_with_sigmas(params: CalibParams, sigmas_deg: tuple[float, ...]) -> CalibParams:
+    """``params`` with the user's ladder ``sigmas_deg`` on every camera; RigdError unless they are positive angles."""
+    if not sigmas_deg or not all(np.isfinite(s) and s > 0 for s in sigmas_deg):
+        raise RigdError(f"sigmas must be positive angles in degrees, got {sigmas_deg}")
+    return with_sigmas(params, tuple(sigmas_deg))
+
+
 def _method_yaml(method: Method, params: CalibParams, photo: PhotoParams | None,
                  cameras: list[CameraModel]) -> MethodSettings:
     out: MethodSettings = {"name": method.value}
@@ -442,9 +449,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     initial = _initial(request, dataset)
     params = gmm_params(request.method) or CalibParams()
     if request.sigmas_deg is not None:
-        if not request.sigmas_deg or any(not np.isfinite(s) or s <= 0 for s in request.sigmas_deg):
-            raise RigdError(f"sigmas must be positive angles in degrees, got {request.sigmas_deg}")
-        params = with_sigmas(params, tuple(request.sigmas_deg))
+        params = params_with_sigmas(params, request.sigmas_deg)
     prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
     method = request.method

@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-import numpy as np
 from tqdm import tqdm
 
 from calib.assess import TrustOptions
@@ -19,9 +18,9 @@ from calib.errors import CalibError
 from calib.evaluate import OutlierRule
 from calib.geometry import Transform
 from calib.gmm import PairFeatures
-from calib.pipeline import CalibParams, with_sigmas
+from calib.pipeline import CalibParams
 from calib.prior import Prior
-from rigd.calibration.service import dataset_features
+from rigd.calibration.service import dataset_features, params_with_sigmas
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
@@ -106,9 +105,7 @@ def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
     params = CalibParams()
     if sigmas_deg is None:
         return params
-    if not sigmas_deg or not all(np.isfinite(s) and s > 0 for s in sigmas_deg):
-        raise RigdError(f"sigmas must be positive angles in degrees, got {sigmas_deg}")
-    return with_sigmas(params, tuple(sigmas_deg))
+    return params_with_sigmas(params, sigmas_deg)
 
 
 def open_for(settings: EvaluationSettings) -> Dataset:
