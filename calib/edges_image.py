@@ -188,11 +188,6 @@ def _normalise(nms: F64, percentile: float) -> F64:
     return np.asarray(np.minimum(nms / max(scale, 1e-12), 1.0), dtype=np.float64)
 
 
-def image_edge_score(image: NDArray[np.uint8], params: ImageEdgeParams, wrap_u: bool) -> F64:
-    """E_I (H,W) float64 in [0, 1] (paper 4.1): L0-smoothed Sobel magnitude after NMS, normalised."""
-    return _normalise(_edge_maps(image, params, wrap_u)[3], params.normalise_percentile)
-
-
 def edge_line_density(mask: NDArray[np.bool_], radius_px: int, wrap_u: bool) -> F64:
     """(H,W) float64: the edge pixels of ``mask`` within ``radius_px`` of each pixel, in straight lines through
     the disk (2 radius + 1 pixels each): about 1 on an isolated contour, several in texture."""

@@ -23,9 +23,6 @@ from calib.uncertainty import TO_DISPLAY, xi_of
 
 F64 = NDArray[np.float64]
 
-PARAMETER_NAMES = ("roll_deg", "pitch_deg", "yaw_deg", "x_m", "y_m", "z_m")
-
-
 class EvaluationError(CalibError):
     """Invalid settings of an evaluation protocol (counts, ranges, subset sizes)."""
 

@@ -15,7 +15,7 @@ from rigd.version import software_version
 
 # Each module defines register(subparsers) and sets a handler with parser.set_defaults(func=...).
 COMMAND_MODULES = ("simulate", "demo", "camera", "lidar", "calibrate", "check", "evaluate", "serve", "capture",
-                   "doctor", "import", "export")
+                   "doctor", "import", "export", "dataset")
 MODULE_OF = {"import": "import_"}  # a command whose module name differs ('import' is a keyword)
 
 

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from calib.assess import TrustOptions
 from calib.errors import CalibError
@@ -47,6 +49,17 @@ def positive_float(text: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
     return value
+
+
+def progress_bar(desc: str, unit: str) -> tuple[tqdm, Callable[[int, int], None]]:
+    """A progress bar (use as a context manager) and the ``progress(done, total)`` callback that moves it."""
+    bar = tqdm(desc=desc, unit=unit)
+
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    return bar, progress
 
 
 # Texts read after parsing: a refused one is a RigdError (rigd: error: ..., exit 2).

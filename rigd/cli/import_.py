@@ -7,9 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from tqdm import tqdm
-
-from rigd.cli.args import non_negative_float, positive_int
+from rigd.cli.args import non_negative_float, positive_int, progress_bar
 from rigd.cli.bag_input import add_topic_options
 
 
@@ -85,20 +83,10 @@ def _register_bag(formats: Any) -> None:
     bag.set_defaults(func=_bag)
 
 
-def _bar(desc: str, unit: str) -> tuple[tqdm, Any]:
-    bar = tqdm(desc=desc, unit=unit)
-
-    def progress(done: int, total: int) -> None:
-        bar.total = total
-        bar.update(done - bar.n)
-
-    return bar, progress
-
-
 def _ford(args: argparse.Namespace) -> int:
     from rigd.importers.ford import import_ford  # scipy/cv2 only when importing
 
-    bar, progress = _bar("import ford", "scan")
+    bar, progress = progress_bar("import ford", "scan")
     with bar:
         n = import_ford(args.src, args.out, args.camera, args.scans, progress, args.panorama)
     what = f"camera {args.camera}" if args.camera else f"panorama {args.panorama} px" if args.panorama else "head"
@@ -109,7 +97,7 @@ def _ford(args: argparse.Namespace) -> int:
 def _kitti(args: argparse.Namespace) -> int:
     from rigd.importers.kitti import import_kitti
 
-    bar, progress = _bar("import kitti", "frame")
+    bar, progress = progress_bar("import kitti", "frame")
     with bar:
         n = import_kitti(args.src, args.out, args.camera, args.frames, progress)
     print(f"written: {args.out} ({n} pairs, camera {args.camera}; KITTI's calibration in "

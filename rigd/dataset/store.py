@@ -224,26 +224,27 @@ def next_pair_index(root: Path) -> int:
     return max(done, default=-1) + 1
 
 
-def write_pair(root: Path, index: int, image: NDArray[np.uint8] | Mapping[str, NDArray[np.uint8] | Path],
+def write_pair(root: Path, index: int, image: NDArray[np.uint8] | Path | Mapping[str, NDArray[np.uint8] | Path],
                cloud: Cloud, meta: dict[str, Any], *, extras: Mapping[str, NDArray[Any]] | None = None) -> Path:
     """Write pair ``index`` atomically and return its folder; an existing pair is never overwritten.
-    ``image``: the camera's image, or a head's images by sensor name (images/NAME.png; a Path is an image file
-    copied as it is, images/NAME.jpg for a JPEG: no second lossy encoding). ``extras``: more images of the pair
-    by file name (e.g. ``panorama.png`` beside a head's images), for people: calibration does not read them.
+    ``image``: the camera's image, or a head's images by sensor name (images/NAME.png); a Path is an image file
+    copied as it is (image.jpg, images/NAME.jpg for a JPEG: no second lossy encoding). ``extras``: more images of
+    the pair by file name (e.g. ``panorama.png`` beside a head's images), for people: calibration does not read them.
     Written under the dataset's writer lock (rigd.dataset.lock): DatasetLockedError while another process writes
     the dataset."""
     with writing(Path(root)):
         return _write_pair(Path(root), index, image, cloud, meta, dict(extras or {}))
 
 
-def _write_pair(root: Path, index: int, image: NDArray[np.uint8] | Mapping[str, NDArray[np.uint8] | Path],
+def _write_pair(root: Path, index: int, image: NDArray[np.uint8] | Path | Mapping[str, NDArray[np.uint8] | Path],
                 cloud: Cloud, meta: dict[str, Any], extras: dict[str, NDArray[Any]]) -> Path:
     pairs_dir = root / "pairs"
     final = pairs_dir / f"{index:04d}"
     if final.exists():
         raise DatasetError(f"{final}: pair already exists; refusing to overwrite it")
     tmp = pairs_dir / f".{index:04d}.tmp"
-    images = {"image.png": image} if not isinstance(image, Mapping) else \
+    single = f"image{image.suffix.lower()}" if isinstance(image, Path) else "image.png"
+    images = {single: image} if not isinstance(image, Mapping) else \
         {f"images/{name}{im.suffix.lower() if isinstance(im, Path) else '.png'}": im for name, im in image.items()}
     images = {**images, **extras}
     try:

@@ -58,7 +58,7 @@ from rigd.importers.bag.reader import (
     TopicKind,
 )
 from rigd.importers.bag.stills import Decision, StillOptions, SweepTime, Verdict, WindowTracker, select_pairs
-from rigd.importers.bag.sweeps import ReducedSweep, SweepPipeline, decode_sweep, default_workers, where
+from rigd.importers.bag.sweeps import ReducedSweep, decode_sweep, reduce_sweep, where
 
 BAG_FILE = "bag.yaml"
 MOTION_ROLES = {"imu": (MotionSource.IMU, "--imu-topic"), "odom": (MotionSource.ODOMETRY, "--odom-topic")}
@@ -69,15 +69,13 @@ U8 = NDArray[np.uint8]
 class BagImportOptions:
     """The topics to read (``camera_info_topic``, ``imu_topic``, ``odom_topic`` optional), an optional rig file for
     the camera (and initial guess, prior, tolerance), how still moments are chosen, the thresholds of the other
-    evidence of motion (:mod:`.motion`), and the processes that decode the sweeps beside this one (None: one less
-    than the processors; 0: none, all in this process; :mod:`.sweeps`)."""
+    evidence of motion (:mod:`.motion`)."""
 
     image_topic: str
     cloud_topic: str
     camera_info_topic: str | None = None
     rig: Path | None = None
     still: StillOptions = field(default_factory=StillOptions)
-    workers: int | None = None
     imu_topic: str | None = None
     odom_topic: str | None = None
     motion: MotionThresholds = field(default_factory=MotionThresholds)
@@ -163,20 +161,13 @@ def _take_other(scan: _Scan, message: Message, topics: dict[str, Topic]) -> None
 def _scan(bag: Bag, topics: dict[str, Topic], tracker: WindowTracker, options: BagImportOptions) -> _Scan:
     scan = _Scan()
     image, cloud = topics["image"], topics["cloud"]
-    workers = default_workers() if options.workers is None else options.workers
-    with SweepPipeline(bag=bag, kind=cloud.kind, workers=workers) as pipeline:
-        for raw in bag.raw_messages(topics=list(topics.values())):
-            if raw.topic == cloud.name:
-                for sweep in pipeline.put(raw):
-                    _take(scan, tracker, sweep)
-                continue
-            message = bag.message(raw)
-            if message.topic == image.name:
-                _take_image(scan, message, image.kind, options.motion)
-            else:
-                _take_other(scan, message, topics)
-        for sweep in pipeline.finish():
-            _take(scan, tracker, sweep)
+    for message in bag.messages(topics=list(topics.values())):
+        if message.topic == cloud.name:
+            _take(scan, tracker, reduce_sweep(message, cloud.kind))
+        elif message.topic == image.name:
+            _take_image(scan, message, image.kind, options.motion)
+        else:
+            _take_other(scan, message, topics)
     return scan
 
 

@@ -9,7 +9,6 @@ deserialise) becomes a :class:`BagError` naming the bag.
 
 from __future__ import annotations
 
-import functools
 import struct
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -24,7 +23,6 @@ from rosbags.rosbag1 import ReaderError as Ros1ReaderError
 from rosbags.rosbag2 import ReaderError as Ros2ReaderError
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
-from rosbags.typesys.store import Typestore
 
 from rigd.importers.bag.errors import BagError
 
@@ -78,49 +76,6 @@ class Message:
     stamp_s: float
     frame_id: str
     body: Any
-
-
-@dataclass(frozen=True)
-class RawMessage:
-    """One message as the bag stores it: ``topic``, its message type ``msgtype``, the bag's receive time
-    ``bag_time_ns`` and the serialised bytes (:meth:`Deserializer.message` reads them)."""
-
-    topic: str
-    msgtype: str
-    bag_time_ns: int
-    data: bytes
-
-
-@dataclass(frozen=True)
-class Deserializer:
-    """What reading a bag's messages takes, in a form another process can receive: the bag's message definitions
-    (rosbags field definitions, its built-in ones and those the bag carries) and whether they are ROS 2 CDR or
-    ROS 1 serialised. ``path`` names the bag in errors."""
-
-    path: Path
-    fielddefs: dict[str, Any]
-    ros2: bool
-
-    @functools.cached_property
-    def _store(self) -> Typestore:
-        store = get_typestore(Stores.EMPTY)
-        store.register(self.fielddefs)
-        return store
-
-    def message(self, raw: RawMessage) -> Message:
-        """``raw`` deserialised; a message that does not deserialise is a :class:`BagError` naming the bag."""
-        return deserialized(self.path, raw, self._store, ros2=self.ros2)
-
-
-def deserialized(path: Path, raw: RawMessage, store: Typestore, *, ros2: bool) -> Message:
-    """``raw`` read with ``store`` (CDR or ROS 1); a failure is a :class:`BagError` naming the bag ``path``."""
-    try:
-        body: Any = store.deserialize_cdr(raw.data, raw.msgtype) if ros2 else store.deserialize_ros1(raw.data,
-                                                                                                      raw.msgtype)
-        header = body.header
-        return Message(raw.topic, raw.bag_time_ns, stamp_seconds(header.stamp), str(header.frame_id), body)
-    except READ_ERRORS as exc:
-        raise read_error(path, exc) from exc
 
 
 def read_error(path: Path, exc: BaseException) -> BagError:
@@ -190,27 +145,18 @@ class Bag:
                            f"{self.describe_topics()}")
         return Topic(name, kind, connections)
 
-    def deserializer(self) -> Deserializer:
-        """The bag's message definitions, for reading its raw messages here or in another process."""
-        return Deserializer(self.path, dict(self._reader.typestore.fielddefs), bool(self._reader.is2))
-
-    def raw_messages(self, *, topics: Sequence[Topic], start_ns: int | None = None,
-                     stop_ns: int | None = None) -> Iterator[RawMessage]:
-        """The serialised messages of ``topics`` in bag time order (``start_ns`` <= t < ``stop_ns`` when given)."""
-        by_connection = {id(c): t for t in topics for c in t.connections}
-        connections = [c for t in topics for c in t.connections]
-        try:
-            for connection, bag_time_ns, data in self._reader.messages(connections, start=start_ns, stop=stop_ns):
-                yield RawMessage(by_connection[id(connection)].name, connection.msgtype, int(bag_time_ns), data)
-        except READ_ERRORS as exc:
-            raise read_error(self.path, exc) from exc
-
     def messages(self, *, topics: Sequence[Topic], start_ns: int | None = None,
                  stop_ns: int | None = None) -> Iterator[Message]:
-        """The messages of ``topics`` in bag time order (``start_ns`` <= t < ``stop_ns`` when given)."""
-        for raw in self.raw_messages(topics=topics, start_ns=start_ns, stop_ns=stop_ns):
-            yield self.message(raw)
-
-    def message(self, raw: RawMessage) -> Message:
-        """A raw message of this bag deserialised (with the bag's own type store)."""
-        return deserialized(self.path, raw, self._reader.typestore, ros2=bool(self._reader.is2))
+        """The messages of ``topics`` in bag time order (``start_ns`` <= t < ``stop_ns`` when given); a message that
+        does not read is a :class:`BagError` naming the bag."""
+        by_connection = {id(c): t for t in topics for c in t.connections}
+        connections = [c for t in topics for c in t.connections]
+        store, ros2 = self._reader.typestore, bool(self._reader.is2)
+        try:
+            for connection, bag_time_ns, data in self._reader.messages(connections, start=start_ns, stop=stop_ns):
+                body: Any = (store.deserialize_cdr(data, connection.msgtype) if ros2
+                             else store.deserialize_ros1(data, connection.msgtype))
+                yield Message(by_connection[id(connection)].name, int(bag_time_ns), stamp_seconds(body.header.stamp),
+                              str(body.header.frame_id), body)
+        except READ_ERRORS as exc:
+            raise read_error(self.path, exc) from exc

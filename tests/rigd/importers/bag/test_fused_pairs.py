@@ -35,7 +35,7 @@ def imported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     recording = stops(yaws_deg=[0.0], still_sweeps=12, move_sweeps=0)
     bag = write_bag(folder / "run", BagFormat.MCAP, recording)
     options = BagImportOptions(recording.image_topic, recording.cloud_topic, recording.info_topic,
-                               still=StillOptions(still_seconds=0.5, sweeps=SWEEPS), workers=0)
+                               still=StillOptions(still_seconds=0.5, sweeps=SWEEPS))
     summary = import_bag(bag, folder / "out", options=options)
     assert summary.pairs == 1
     return bag, folder / "out"
