@@ -85,6 +85,7 @@ class TrustOptions:
     restart_trans_m: float = 0.05
     ambiguity_nll: float = 4.5  # 2 * delta NLL < 9: within 3 sigma of the best, statistically a tie
     jackknife_min_pairs: int = 4  # fewer pairs: the jackknife leaves out groups of image cells instead
+    jackknife_min_rings: int = 4  # rings with edge points needed for the jackknife over rings
     jackknife_groups: int = 8
     search_runners_up: int = 1  # without an initial guess: the global search's next starts solved in full
     failed_tolerances: float = 5.0  # ambiguity or sigma beyond this many tolerances on most axes: failed
@@ -100,8 +101,9 @@ class TrustOptions:
 @dataclass(frozen=True)
 class Uncertainty:
     """``covariance`` (6,6) of the local coordinates [rad, rad, rad, m, m, m] (calib.uncertainty);
-    ``sigma`` (6,) deg/cm the reported per-axis sigma; ``laplace`` and ``jackknife`` (6,) deg/cm its two
-    sources (``jackknife`` None when it could not be formed); ``kappa`` the cost's NLL scale."""
+    ``sigma`` (6,) deg/cm the reported per-axis sigma, the largest of its sources: ``laplace``, ``jackknife``
+    (over places) and ``jackknife_rings`` (6,) deg/cm (the jackknives None when they could not be formed);
+    ``kappa`` the cost's NLL scale."""
 
     covariance: F64
     sigma: F64
@@ -117,6 +119,11 @@ class Uncertainty:
     # jackknife's spread; either sets the jackknife's sigma, which then says "held by these", not how it would
     # fall with more pairs). () when the groups are image cells.
     held_by: tuple[int, ...] = ()
+    # The jackknife over the LiDAR's rings (each left out in turn, in every place; None: no rings known, or too
+    # few): how much the pose depends on where the rings fall on the scene's edges, which every place shares
+    # and the jackknife over places cannot see (docs/trust.md).
+    jackknife_rings: F64 | None = None
+    ring_groups: int = 0
 
 
 UNHELD_SHARE = 0.999  # a left-out solve this close to the kernel's width ran to it (trust_region_step's bound)
@@ -250,7 +257,18 @@ def _groups(clusters: Clusters, n_pairs: int, trust: TrustOptions) -> tuple[NDAr
     if n_pairs >= trust.jackknife_min_pairs:
         return clusters.pair, n_pairs
     rng = np.random.default_rng(trust.seed)
-    return rng.permutation(clusters.count) % trust.jackknife_groups, trust.jackknife_groups
+    return (rng.permutation(clusters.cells) % trust.jackknife_groups)[clusters.cell], trust.jackknife_groups
+
+
+def _ring_groups(clusters: Clusters, trust: TrustOptions) -> tuple[NDArray[np.int64], int] | None:
+    """Jackknife group (C,) of each cluster by its ring, and the number of rings; None when the points carry no
+    rings or fewer than ``trust.jackknife_min_rings`` hold edge points."""
+    if clusters.count == 0 or np.any(clusters.ring < 0):
+        return None
+    rings, group = np.unique(clusters.ring, return_inverse=True)
+    if len(rings) < trust.jackknife_min_rings:
+        return None
+    return np.asarray(group, dtype=np.int64).reshape(-1), len(rings)
 
 
 def trust_region_step(h: F64, g: F64, scale: F64, radius: float) -> F64:
@@ -342,12 +360,13 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     prior the solve used (``solving``), so they vary as the solve itself would."""
     model = level_model(feats, opts, gmm, len(opts.sigmas_deg) - 1)
     frozen = model.freeze(tau)
-    clusters = clusters_at(model, tau, opts.cluster_cell_deg)
+    by_ring = all(f.points.ring is not None for f in feats)
+    clusters = clusters_at(model, tau, opts.cluster_cell_deg, by_ring)
     grads = local_gradient(model, frozen, tau, np.zeros(6), clusters)
     hessians = hessian(model, frozen, tau, hessian_steps(feats, gmm), clusters)
     free = np.array([True] * 3 + [not (prior is not None and prior.fix_translation)] * 3)
     h = symmetric(hessians.sum(axis=0))[np.ix_(free, free)]
-    b = scatter(grads[:, free])
+    b = scatter(clusters.per_cell(grads)[:, free])
     prior_info = (prior.information() if prior is not None else np.zeros((6, 6)))[np.ix_(free, free)]
     solving_info = (solving.information() if solving is not None else np.zeros((6, 6)))[np.ix_(free, free)]
     known = bool(np.all(np.isfinite(b)))
@@ -368,9 +387,13 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     extra[np.ix_(free, free)] = kappa * solving_info
     jack, unheld = _jackknife(grads, hessians, extra, groups, n_groups, free, scale, radius)
     by_place = n_places >= trust.jackknife_min_pairs  # else the groups are image cells, not places
+    ring_groups = _ring_groups(clusters, trust)
+    jack_rings = None if ring_groups is None else \
+        _jackknife(grads, hessians, extra, *ring_groups, free, scale, radius)[0]
     laplace = sigmas_display(cov_l)
     jack_sigma = None if jack is None else sigmas_display(jack)
-    sigma = laplace if jack_sigma is None else np.maximum(laplace, jack_sigma)
+    ring_sigma = None if jack_rings is None else sigmas_display(jack_rings)
+    sigma = np.maximum.reduce([s for s in (laplace, jack_sigma, ring_sigma) if s is not None])
     if not is_min:
         sigma = np.where(free, np.inf, 0.0)
     cov = _combine(cov_l, sigma)
@@ -378,7 +401,8 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
         "the solution is not a minimum of the cost: no axis is known"
     share = matched_points(model, frozen, tau) / max(_in_image_count(model.feats, tau, model.gmm.use_folds), 1)
     return Uncertainty(cov, sigma, laplace, jack_sigma, n_groups if jack is not None else 0, weakest, is_min,
-                       kappa, share, unheld if by_place else ())
+                       kappa, share, unheld if by_place else (), ring_sigma,
+                       ring_groups[1] if ring_groups is not None and jack_rings is not None else 0)
 
 
 def restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions) -> str | None:

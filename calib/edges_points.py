@@ -29,11 +29,14 @@ I64 = NDArray[np.int64]
 @dataclass(frozen=True)
 class EdgePoints:
     """Edge points of one cloud: ``points_lidar`` (N,3) float64 m in the LiDAR frame, ``score`` (N,) in
-    (0, 1] (the normalised E_P / max(E_P) of eq. 10), ``kind`` (N,) int8: 0 boundary, 1 fold, 2 paper."""
+    (0, 1] (the normalised E_P / max(E_P) of eq. 10), ``kind`` (N,) int8: 0 boundary, 1 fold, 2 paper;
+    ``ring`` (N,) int64 the ring each point was found on (the cloud's laser index, or its half-degree elevation
+    bin when the cloud has none; the same laser has the same number in every pair), None: not known."""
 
     points_lidar: F64
     score: F64
     kind: NDArray[np.int8]
+    ring: I64 | None = None
 
     def __len__(self) -> int:
         return len(self.points_lidar)
@@ -195,23 +198,20 @@ def scanline_edge_points(points_lidar: F64, ring: NDArray[np.integer] | None, pa
     rings = _rings_from_elevation(pts_all) if ring is None else np.asarray(ring, dtype=np.int64)[keep]
     order, starts = _ring_order(pts_all, rings)
     ends = np.r_[starts[1:], len(order)]
-    chunks: list[tuple[F64, F64, NDArray[np.int8]]] = []
+    chunks: list[tuple[F64, F64, NDArray[np.int8], I64]] = []
     for s, e in zip(starts, ends, strict=True):
         sel = order[s:e]
         pts, rng = pts_all[sel], rng_all[sel]
         step = azimuth_step(pts)
+        ring_id = rings[sel[0]]
         bp, bs = _boundary_points(pts, rng, step, params)
-        chunks.append((bp, bs, np.full(len(bp), BOUNDARY, np.int8)))
+        chunks.append((bp, bs, np.full(len(bp), BOUNDARY, np.int8), np.full(len(bp), ring_id, np.int64)))
         if params.use_folds:
             fp, fs = _fold_points(pts, rng, step, params)
-            chunks.append((fp, fs, np.full(len(fp), FOLD, np.int8)))
+            chunks.append((fp, fs, np.full(len(fp), FOLD, np.int8), np.full(len(fp), ring_id, np.int64)))
     if not chunks:
-        return EdgePoints(np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int8))
-    return EdgePoints(
-        np.concatenate([c[0] for c in chunks]),
-        np.concatenate([c[1] for c in chunks]),
-        np.concatenate([c[2] for c in chunks]),
-    )
+        return EdgePoints(np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int8), np.zeros(0, np.int64))
+    return EdgePoints(*(np.concatenate([c[k] for c in chunks]) for k in range(4)))
 
 
 def paper_edge_scores(points_lidar: F64, params: PaperEdgeParams) -> F64:
@@ -242,7 +242,7 @@ def paper_edge_points(points_lidar: F64, ring: NDArray[np.integer] | None, param
     score = paper_edge_scores(pts, params)
     score = score / max(float(score.max(initial=0.0)), 1e-12)
     keep = score > params.threshold
+    rings = _rings_from_elevation(pts) if ring is None else np.asarray(ring, dtype=np.int64)
     if params.drop_extreme_rings:
-        rings = _rings_from_elevation(pts) if ring is None else np.asarray(ring, dtype=np.int64)
         keep &= (rings != rings.min()) & (rings != rings.max())
-    return EdgePoints(pts[keep], score[keep], np.full(int(keep.sum()), PAPER, np.int8))
+    return EdgePoints(pts[keep], score[keep], np.full(int(keep.sum()), PAPER, np.int8), rings[keep])

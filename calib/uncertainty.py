@@ -61,15 +61,29 @@ class LevelModel:
 @dataclass(frozen=True)
 class Clusters:
     """Edge points grouped into independent clusters: ``labels`` per pair, (N_i,) int64 cluster id of each
-    edge point (the angular image cell it projects into at the solution, unique over all pairs), ``pair``
-    (C,) int64 the place of each cluster (:func:`places`)."""
+    edge point (the angular image cell it projects into at the solution, and with ``by_ring`` its ring too;
+    unique over all pairs), ``pair`` (C,) int64 the place of each cluster (:func:`places`), ``cell`` (C,) int64
+    the image cell of each (several clusters per cell when they are split by ring), ``ring`` (C,) int64 the
+    ring of each (-1: not split by ring)."""
 
     labels: tuple[I64, ...]
     pair: I64
+    cell: I64
+    ring: I64
 
     @property
     def count(self) -> int:
         return len(self.pair)
+
+    @property
+    def cells(self) -> int:
+        return int(self.cell.max()) + 1 if self.cell.size else 0
+
+    def per_cell(self, values: F64) -> F64:
+        """``values`` (C, ...) summed over the clusters of each image cell: (cells, ...)."""
+        out = np.zeros((self.cells, *values.shape[1:]))
+        np.add.at(out, self.cell, values)
+        return out
 
 
 def places(feats: tuple[PairFeatures, ...] | list[PairFeatures]) -> I64:
@@ -96,24 +110,38 @@ def cell_ids(cell: I64) -> I64:
     return np.asarray(inverse, dtype=np.int64).reshape(-1)
 
 
-def clusters_at(model: LevelModel, tau_hat: F64, cell_deg: float) -> Clusters:
-    """Cluster each pair's edge points by the ``cell_deg`` angular cell of their projection at ``tau_hat``."""
+def clusters_at(model: LevelModel, tau_hat: F64, cell_deg: float, by_ring: bool = False) -> Clusters:
+    """Cluster each pair's edge points by the ``cell_deg`` angular cell of their projection at ``tau_hat`` (and,
+    with ``by_ring``, by the ring they were found on; every pair's points must carry one)."""
     labels: list[I64] = []
     pairs: list[I64] = []
-    first = 0
+    cells: list[I64] = []
+    rings: list[I64] = []
+    first = first_cell = 0
     place = places(model.feats)
     for i, feat in enumerate(model.feats):
         uv, valid = feat.camera.project(transform_points(tau_hat, feat.points.points_lidar)[0])
         # Points the camera cannot see share one cluster: a pinhole's uv there is not finite or is far beyond
         # the int64 range (distortion polynomial), and they carry no cost terms.
         uv = np.where((valid & np.isfinite(uv).all(axis=1))[:, None], uv, -1.0)
-        cell = np.floor(uv / (np.radians(cell_deg) * feat.camera.pixels_per_radian)).astype(np.int64)
-        inverse = cell_ids(cell)
-        n = int(inverse.max()) + 1 if inverse.size else 0
+        cell = cell_ids(np.floor(uv / (np.radians(cell_deg) * feat.camera.pixels_per_radian)).astype(np.int64))
+        ring = feat.points.ring if by_ring else None
+        if ring is None:
+            inverse, cell_of, ring_of = cell, np.arange(int(cell.max()) + 1 if cell.size else 0), None
+        else:
+            inverse = cell_ids(np.stack([cell, ring], axis=1))
+            first_of = np.zeros(int(inverse.max()) + 1 if inverse.size else 0, np.int64)
+            first_of[inverse] = np.arange(len(inverse))  # any member: all share the cell and the ring
+            cell_of, ring_of = cell[first_of], ring[first_of]
+        n = len(cell_of)
         labels.append(inverse + first)
         pairs.append(np.full(n, place[i], dtype=np.int64))
+        cells.append(cell_of + first_cell)
+        rings.append(np.full(n, -1, np.int64) if ring_of is None else ring_of.astype(np.int64))
         first += n
-    return Clusters(tuple(labels), np.concatenate(pairs) if pairs else np.zeros(0, np.int64))
+        first_cell += int(cell.max()) + 1 if cell.size else 0
+    empty = np.zeros(0, np.int64)
+    return Clusters(tuple(labels), *(np.concatenate(a) if a else empty for a in (pairs, cells, rings)))
 
 
 def local_gradient(model: LevelModel, frozen: list[Frozen], tau_hat: F64, xi: F64, clusters: Clusters) -> F64:

@@ -129,6 +129,7 @@ class Uncertainty(Sigmas):
     weakest: str
     laplace: NotRequired[Laplace]
     jackknife: NotRequired[Jackknife | None]
+    jackknife_rings: NotRequired[Jackknife | None]  # each ring of the LiDAR left out in turn (groups: rings)
     matched_share: NotRequired[float | None]
     restarts: NotRequired[list[Restart]]
 

@@ -1,9 +1,10 @@
 """What an operator can do about a calibration that is not trusted, from the assessment's own numbers.
 
 Each step follows from something the verdict measured: translation is seen only through parallax, so
-edges far away hold it loosely; per-axis sigma shrinks roughly as 1/sqrt(pairs) when pairs are independent;
-a restart that ends elsewhere as low means the scenes cannot tell two poses apart; most restarts ending at
-other minima mean the edges do not agree in one clear way.
+edges far away hold it loosely; per-axis sigma shrinks roughly as 1/sqrt(pairs) when pairs are independent,
+but not where it comes from which of a sparse LiDAR's rings cross the edges (every place samples its scene
+at the same elevations); a restart that ends elsewhere as low means the scenes cannot tell two poses apart;
+most restarts ending at other minima mean the edges do not agree in one clear way.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from calib.assess import Assessment, Status, TrustOptions, restarts_elsewhere
+from calib.uncertainty import AXES
 
 TRANSLATION = ("x", "y", "z")
 ROTATION = ("roll", "pitch", "yaw")
@@ -64,7 +66,7 @@ def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustO
         return (f"{', '.join(axes)}: the pose rests on {_pair_names(held_by, facts)}: without {either} "
                 "the other pairs' edges do not hold it, and the sigma is how far it then slides, not noise that "
                 "averages away; capture more pairs at new places with structure like theirs (see their overlays)")
-    idx = [(*ROTATION, *TRANSLATION).index(ax) for ax in axes]
+    idx = [AXES.index(ax) for ax in axes]
     sigma = a.uncertainty.sigma[idx]
     if not np.all(np.isfinite(sigma)):
         return None
@@ -76,6 +78,28 @@ def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustO
                 "directions")
     return (f"{names}: capture more pairs at new places and headings, about {needed} in all (sigma falls roughly "
             f"as 1/sqrt(pairs); now {facts.pairs}), and keep the rig still during each capture")
+
+
+def ring_set(axes: list[str], a: Assessment) -> list[str]:
+    """The ``axes`` whose sigma the jackknife over the LiDAR's rings sets (larger than the other sources)."""
+    u = a.uncertainty
+    if u.jackknife_rings is None:
+        return []
+    others = u.laplace if u.jackknife is None else np.maximum(u.laplace, u.jackknife)
+    return [ax for ax in axes if u.jackknife_rings[AXES.index(ax)] > others[AXES.index(ax)]]
+
+
+def _rings(axes: list[str], a: Assessment) -> str | None:
+    if not axes:
+        return None
+    worst = max(axes, key=lambda ax: a.uncertainty.sigma[AXES.index(ax)] / (1.0 if ax in ROTATION else 10.0))
+    k = AXES.index(worst)
+    unit = "deg" if worst in ROTATION else "cm"
+    return (f"{', '.join(axes)}: the result depends on which of the LiDAR's rings cross the scenes' edges (leaving "
+            f"out one ring moves {worst} by {a.uncertainty.sigma[k]:.2g} {unit} at 1 sigma): sparse rings sample "
+            "sloping and horizontal edges at few heights, and in every place alike; capture places whose edges "
+            "stand at other heights and distances from the rig (buildings, poles, doorways 2-10 m away), or give "
+            "the lever arm from the rig's drawing")
 
 
 def _translation(axes: list[str], facts: SceneFacts) -> str | None:
@@ -119,7 +143,10 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[s
                      "image's in one clear way; look at the 'after' overlays for edges on foliage or texture, "
                      "check the camera model (K, D) and that the rig stood still, and capture scenes with "
                      "buildings, poles or doorways")
-    steps.append(_more_pairs(weak_r + ([] if facts.translation_prior else weak_t), a, facts, trust))
+    counted = weak_r + ([] if facts.translation_prior else weak_t)
+    by_rings = ring_set(counted, a)
+    steps.append(_rings(by_rings, a))
+    steps.append(_more_pairs([ax for ax in counted if ax not in by_rings], a, facts, trust))
     if facts.pairs < MEASURED_PAIRS:
         have = "1 pair" if facts.pairs == 1 else f"{facts.pairs} pairs"
         steps.append(f"only {have}: rigd is measured with {MEASURED_PAIRS} (rigd capture --n {MEASURED_PAIRS})")

@@ -257,6 +257,9 @@ def _uncertainty_yaml(a: Assessment) -> Uncertainty:
         "jackknife": None if u.jackknife is None else {
             "rpy_deg": _finite(u.jackknife[:3]), "xyz_cm": _finite(u.jackknife[3:]), "groups": u.jackknife_groups,
             "held_by_pairs": list(u.held_by)},
+        "jackknife_rings": None if u.jackknife_rings is None else {
+            "rpy_deg": _finite(u.jackknife_rings[:3]), "xyz_cm": _finite(u.jackknife_rings[3:]),
+            "groups": u.ring_groups},
         "matched_share": u.matched_share,
         "restarts": restarts,
     }
