@@ -105,10 +105,14 @@ def quantiles(n_places: int, opts: DriftOptions) -> Quantiles | None:
     dof = n_places - 1
     if dof < GROUP_AXES:
         return None
+    return Quantiles(dof, float(stdtrit(dof, opts.ok_confidence)), t2_limit(dof, GROUP_AXES, opts))
+
+
+def t2_limit(dof: int, axes: int, opts: DriftOptions) -> float:
+    """Hotelling's T² limit of ``axes`` axes judged together, the covariance known to ``dof`` degrees of freedom."""
     alpha = (1.0 - opts.drift_confidence) / len(Group)  # Bonferroni: either group may raise the alarm
-    denominator = dof - GROUP_AXES + 1
-    t2 = dof * GROUP_AXES / denominator * float(fdtri(GROUP_AXES, denominator, 1.0 - alpha))
-    return Quantiles(dof, float(stdtrit(dof, opts.ok_confidence)), t2)
+    denominator = dof - axes + 1
+    return dof * axes / denominator * float(fdtri(axes, denominator, 1.0 - alpha))
 
 
 def _secular_root(terms: list[tuple[float, float]], lo: float, hi: float) -> float:
@@ -157,7 +161,8 @@ def hotelling_t2(change: F64, covariance: F64) -> float:
 class GroupChange:
     """One group's change (deg or cm): ``change`` per axis, ``length`` its length, ``upper`` the largest length
     consistent with the pairs at the ok confidence, ``farthest`` the change of that length (which axes carry
-    it), ``t2`` Hotelling's T² of the change over its covariance and ``t2_limit`` its limit, ``threshold``."""
+    it), ``t2`` Hotelling's T² of the change over its covariance along the determined axes and ``t2_limit`` its
+    limit, ``threshold``."""
 
     group: Group
     change: tuple[float, ...]
@@ -167,6 +172,9 @@ class GroupChange:
     t2: float
     t2_limit: float
     threshold: float
+    known_length: float  # the length of the change along the axes the pairs determine
+    known: tuple[bool, ...]  # per axis of the group: determined by the pairs (:func:`determined`)
+    sigma: tuple[float, ...]  # per axis of the group
 
     @property
     def within(self) -> bool:
@@ -174,15 +182,34 @@ class GroupChange:
 
     @property
     def drifted(self) -> bool:
-        return self.length > self.threshold and self.t2 > self.t2_limit
+        return self.known_length > self.threshold and self.t2 > self.t2_limit
+
+    @property
+    def open_axes(self) -> list[str]:
+        """The axes of the group the pairs do not determine."""
+        return [AXES[k] for k, known in zip(range(6)[self.group.axes], self.known, strict=True) if not known]
 
 
 def group_change(group: Group, change: F64, covariance: F64, q: Quantiles, opts: DriftOptions) -> GroupChange:
-    """The change of ``group`` from the 6-vector ``change`` and the (6,6) ``covariance`` (deg/cm)."""
+    """The change of ``group`` from the 6-vector ``change`` and the (6,6) ``covariance`` (deg/cm). Whether it is
+    real is asked of the axes the pairs determine (:func:`determined`) alone: along an axis they leave open the
+    minimum the search finds says nothing of a drift (its covariance describes that minimum only)."""
     c, cov = change[group.axes], covariance[group.axes, group.axes]
     far = farthest_change(c, cov, q.t)
+    sigma = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    known = determined(sigma, q, opts.threshold(group))
+    c_known = np.where(known, c, 0.0)
+    limit = t2_limit(q.dof, int(known.sum()), opts) if known.any() else q.t2_limit  # nothing known: no drift
     return GroupChange(group, tuple(c.tolist()), float(np.linalg.norm(c)), float(np.linalg.norm(far)),
-                       tuple(far.tolist()), hotelling_t2(c, cov), q.t2_limit, opts.threshold(group))
+                       tuple(far.tolist()), hotelling_t2(c[known], cov[np.ix_(known, known)]), limit,
+                       opts.threshold(group), float(np.linalg.norm(c_known)), tuple(bool(k) for k in known),
+                       tuple(sigma.tolist()))
+
+
+def determined(sigma: F64, q: Quantiles, threshold: float) -> NDArray[np.bool_]:
+    """Per axis of a group (sigma in its unit): whether the pairs pin it finely enough to resolve a change of
+    ``threshold``, the one-sided bound ``t sigma`` within it."""
+    return np.asarray(q.t * sigma <= threshold)
 
 
 @dataclass(frozen=True)
@@ -202,9 +229,10 @@ def _carriers(group: Group, values: tuple[float, ...]) -> list[str]:
 
 
 def _drift_reason(g: GroupChange) -> str:
-    parts = ", ".join(f"{AXES[k]} {v:+.3g}" for k, v in zip(range(6)[g.group.axes], g.change, strict=True))
-    return (f"{g.group.value} moved {g.length:.3g} {g.group.unit} ({parts}; threshold {g.threshold:g}); real: "
-            f"T² {g.t2:.3g} > {g.t2_limit:.3g}")
+    parts = ", ".join(f"{AXES[k]} {v:+.3g}" for k, v, known in zip(range(6)[g.group.axes], g.change, g.known,
+                                                                   strict=True) if known)
+    return (f"{g.group.value} moved {g.known_length:.3g} {g.group.unit} ({parts}; threshold {g.threshold:g}); "
+            f"real: T² {g.t2:.3g} > {g.t2_limit:.3g}")
 
 
 def _unknown_reason(g: GroupChange, n_places: int, opts: DriftOptions) -> str:
@@ -231,7 +259,7 @@ def judge(change: F64, covariance: F64, n_places: int, opts: DriftOptions) -> Ju
     groups = tuple(group_change(group, change, covariance, q, opts) for group in Group)
     drifted = [g for g in groups if g.drifted]
     if drifted:
-        return Judgement(DriftStatus.DRIFTED, tuple(a for g in drifted for a in _carriers(g.group, g.change)),
+        return Judgement(DriftStatus.DRIFTED, tuple(a for g in drifted for a in _carriers(g.group, _known(g))),
                          tuple(_drift_reason(g) for g in drifted), groups)
     if all(g.within for g in groups):
         rot, trans = groups
@@ -239,8 +267,26 @@ def judge(change: F64, covariance: F64, n_places: int, opts: DriftOptions) -> Ju
             f"within {rot.threshold:g} deg and {trans.threshold:g} cm at {percent(opts.ok_confidence)} confidence: "
             f"rotation at most {rot.upper:.2g} deg, translation at most {trans.upper:.2g} cm",), groups)
     open_groups = [g for g in groups if not g.within]
-    return Judgement(DriftStatus.UNKNOWN, tuple(a for g in open_groups for a in _carriers(g.group, g.farthest)),
-                     tuple(_unknown_reason(g, n_places, opts) for g in open_groups), groups)
+    axes = [a for g in open_groups for a in (*g.open_axes, *_carriers(g.group, g.farthest))]
+    reasons = [_unknown_reason(g, n_places, opts) for g in open_groups]
+    reasons += [_open_reason(g, q) for g in groups if g.open_axes]
+    return Judgement(DriftStatus.UNKNOWN, tuple(dict.fromkeys(axes)), tuple(reasons), groups)
+
+
+def _known(g: GroupChange) -> tuple[float, ...]:
+    """The change along the determined axes (0 along the others)."""
+    return tuple(v if known else 0.0 for v, known in zip(g.change, g.known, strict=True))
+
+
+def _open_reason(g: GroupChange, q: Quantiles) -> str:
+    """Why the open axes of ``g`` are not judged, and what would pin them."""
+    sigmas = ", ".join(f"{a} sigma {s:.2g} {g.group.unit}" for a, s, known in zip(
+        AXES[g.group.axes], g.sigma, g.known, strict=True) if not known)
+    what = ("pairs with structure 2-10 m from the rig, or the lever arm from the rig's drawing"
+            if g.group is Group.TRANSLATION else "more pairs at varied places, with edges in several directions")
+    return (f"{', '.join(g.open_axes)}: the pairs do not pin {'it' if len(g.open_axes) == 1 else 'them'} "
+            f"({sigmas}; resolving {g.threshold:g} {g.group.unit} needs a sigma below {g.threshold / q.t:.2g}): "
+            f"not judged; {what} would")
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,9 @@ class OptimOptions:
     rotation_only_levels: int = 1  # the first level(s) move rotation only (translation held)
     fold_levels: int = 2  # fold edge points take part in the first this-many levels only
     alternative_schedules: int = 1  # also run without the first 1..k levels; keep the lowest final cost
+    # Also run only the last this-many levels from the start (0: not): where the start already lies in the
+    # finest cost's deepest basin, a coarse level can carry it out (docs/method.md item 11).
+    tail_from_start: int = 2
     numerical_gradient: bool = False
     cluster_cell_deg: float = 5.0  # edge points in one angular image cell of one pair share their errors
     quasi_newton: bool = True  # BFGS directions instead of (preconditioned) steepest descent
@@ -331,6 +334,8 @@ def optimise(
     """
     shorter = [replace(opts, sigmas_deg=opts.sigmas_deg[k:], rotation_only_levels=0)
                for k in range(1, min(opts.alternative_schedules, len(opts.sigmas_deg) - 1) + 1)]
+    if 0 < opts.tail_from_start < len(opts.sigmas_deg) and opts.alternative_schedules > 0:
+        shorter.append(tail_options(opts, opts.tail_from_start))
     cut = [None if kappas is None else kappas[len(opts.sigmas_deg) - len(s.sigmas_deg):] for s in shorter]
     runs = list(zip(shorter, cut, strict=True))
     pending = [executor.submit(_coarse_to_fine, feats, tau0, s, gmm, None, prior, k) for s, k in runs] \
