@@ -6,6 +6,11 @@ format 0x78, resolution 0x7C, Bayer (stippled) format 0x80, configuration size 0
 image offset 0x94, per-frame header size 0xA0; the structure is 0xBF0 bytes and the camera's configuration
 (its factory calibration, in the SDK's own format) follows it. Frame blocks are big-endian (see
 :class:`PgrLayout`); their layout is from open-source readers of earlier Ladybug models, checked on every frame.
+
+A camera's four JPEGs are its Bayer channels, one per cell of the 2x2 tile, in row order of the frame's stippled
+format (:data:`BAYER_CELLS`): a BGGR frame's channel 0 is blue and channel 3 red, an RGGB frame's channel 0 red
+and channel 3 blue. Public code agrees: a Ladybug5 driver's colour offset per stippled format, a Ladybug2 stream
+reader (a BGGR head: channel 0 blue, 3 red) and a Ladybug3 log player's interleaving of the four channels.
 """
 
 from __future__ import annotations
@@ -23,6 +28,8 @@ NUM_CAMERAS = 6
 JPEGS_PER_CAMERA = 4
 JPEG_SOI = b"\xff\xd8"
 JPEG_EOI = b"\xff\xd9"
+# (row, col) in the 2x2 Bayer tile of channel JPEG k: row order, k = 2 row + col (module docstring)
+BAYER_CELLS: tuple[tuple[int, int], ...] = ((0, 0), (0, 1), (1, 0), (1, 1))
 
 
 class FrameHeaderStyle(Enum):
@@ -38,8 +45,8 @@ class PgrLayout:
     """Byte offsets of a .pgr file. Head info: little-endian u32 after the signature. Image info (at the start
     of a JPEG frame block, or of an INFO frame header): big-endian u32 relative to its start. The JPEG entry
     (offset, size) of camera c, slot k is at ``jpeg_table + c * 32 + k * 8``; slot k holds the Bayer cell
-    ``slot_cells[k]`` (row, col) of the mosaic. ``bayer_pattern`` overrides the stream's own (None: the head
-    info's)."""
+    ``slot_cells[k]`` (row, col) of the mosaic (:data:`BAYER_CELLS`; reader and writer both take it from here).
+    ``bayer_pattern`` overrides the stream's own (None: the head info's)."""
 
     head_version: int = 0x00
     head_serial: int = 0x0C
@@ -61,7 +68,7 @@ class PgrLayout:
     shutter: int = 0x58  # 6 x u32 registers
     jpeg_table: int = 0x340
     bayer_pattern: BayerPattern | None = None
-    slot_cells: tuple[tuple[int, int], ...] = ((1, 1), (1, 0), (0, 1), (0, 0))
+    slot_cells: tuple[tuple[int, int], ...] = BAYER_CELLS
 
     @property
     def frame_header_size(self) -> int:

@@ -7,7 +7,8 @@ Directory layout (docs/ladybug5.md, "Replay")::
                            (raw orientation; 1-channel images are Bayer mosaics when a pattern is given)
 
 ``host_time_s``, ``sequence_id``, ``shutter_s`` and ``gain_db`` may be empty; the sequence id then is the
-row number. Six-image frames are stitched with the rig camera file's :class:`Stitcher`.
+row number. Six-image frames go with a head (a rig camera or head calibration file): they are stitched with it, and
+``frames_with_sensors()`` gives each panorama with its six sensor images and that head, as the live camera does.
 """
 
 from __future__ import annotations
@@ -23,12 +24,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.ladybug5.clock import unwrap_times
-from drivers.ladybug5.errors import CorruptFrameError, Ladybug5Error, StreamFormatError
+from drivers.ladybug5.errors import CorruptFrameError, HeadCalibrationError, Ladybug5Error, StreamFormatError
 from drivers.ladybug5.formats import BayerPattern
-from drivers.ladybug5.frames import Exposure, PanoramaFrame, SkipCounter, TimeBase
+from drivers.ladybug5.frames import Exposure, PanoramaFrame, SensorFrame, SkipCounter, TimeBase
+from drivers.ladybug5.head import HeadCalibration, HeadSource
 from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrLayout, PgrStream
 from drivers.ladybug5.raw import to_uint8
-from drivers.ladybug5.stitch import Stitcher
+from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 
 TIMESTAMPS_FILE = "timestamps.csv"
 CAMERA_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -99,26 +101,40 @@ def _read_image(path: Path, flags: int) -> NDArray[Any]:
 
 
 class DirectoryFrameSource:
-    """Frames from a replay directory (see the module docstring)."""
+    """Frames from a replay directory (see the module docstring).
 
-    def __init__(self, directory: Path, stitcher: Stitcher | None = None,
-                 bayer_pattern: BayerPattern | str | None = None) -> None:
+    ``stitcher``: a ready :class:`Stitcher`, whose rig is the head of six-image frames unless ``head`` is given; or
+    a :class:`PanoramaSpec` (None: the default one), at which six-image frames are stitched from ``head`` (the
+    stitcher is built at the first of them). ``head``: the calibration six-image frames go with (their sensors'
+    sizes are checked against it). Panorama frames need neither.
+    """
+
+    def __init__(self, directory: Path, stitcher: Stitcher | PanoramaSpec | None = None,
+                 bayer_pattern: BayerPattern | str | None = None, head: HeadCalibration | None = None) -> None:
         self.directory = Path(directory)
-        self.stitcher = stitcher
+        self.stitcher: Stitcher | None = stitcher if isinstance(stitcher, Stitcher) else None
+        self.spec = stitcher.spec if isinstance(stitcher, Stitcher) else stitcher or PanoramaSpec()
+        if head is None and self.stitcher is not None:  # the stitcher's rig file is the head, as for a live camera
+            head = HeadCalibration.from_rig(self.stitcher.rig, HeadSource.FILE, self.stitcher.rig.model)
+        self.head = head
         self.bayer_pattern = BayerPattern(bayer_pattern) if isinstance(bayer_pattern, str) else bayer_pattern
         self.rows = read_timestamps(self.directory)
         self.skipped = SkipCounter()
 
     def _panorama(self, row: _Row) -> NDArray[np.uint8]:
-        if not row.image.is_dir():
-            image = _read_image(row.image, cv2.IMREAD_COLOR)
-            if image.shape[1] != 2 * image.shape[0]:
-                raise CorruptFrameError(f"{row.image}: a panorama must be 2:1, got {image.shape[1]}x{image.shape[0]}")
-            return image
-        if self.stitcher is None:
-            raise StreamFormatError(f"{row.image}: six-camera frames need a rig camera file to stitch them")
-        images = [self._camera_image(row.image, c) for c in range(len(self.stitcher.rig.cameras))]
-        return self.stitcher.stitch(images)
+        image = _read_image(row.image, cv2.IMREAD_COLOR)
+        if image.shape[1] != 2 * image.shape[0]:
+            raise CorruptFrameError(f"{row.image}: a panorama must be 2:1, got {image.shape[1]}x{image.shape[0]}")
+        return image
+
+    def _sensor_images(self, row: _Row, head: HeadCalibration) -> list[NDArray[np.uint8]]:
+        """A six-image frame's (H, W, 3) BGR uint8 images, one per sensor of ``head`` and of its sizes."""
+        images = [self._camera_image(row.image, c) for c in range(len(head.sensors))]
+        sizes = [(im.shape[1], im.shape[0]) for im in images]
+        if sizes != list(head.sizes):  # every frame would fail alike: an error, not a skipped frame
+            raise HeadCalibrationError(f"{row.image}: the head ({head.description}) is for sensors "
+                                       f"{list(head.sizes)}, the images are {sizes}")
+        return images
 
     def _camera_image(self, frame_dir: Path, camera: int) -> NDArray[np.uint8]:
         for suffix in CAMERA_IMAGE_SUFFIXES:
@@ -127,14 +143,33 @@ class DirectoryFrameSource:
                 return _to_bgr8(_read_image(path, cv2.IMREAD_UNCHANGED), self.bayer_pattern, str(path))
         raise CorruptFrameError(f"{frame_dir}: no cam{camera} image ({'/'.join(CAMERA_IMAGE_SUFFIXES)})")
 
-    def frames(self) -> Iterator[PanoramaFrame]:
+    def _frame(self, row: _Row) -> tuple[PanoramaFrame, SensorFrame | None]:
+        times = (row.device_time_s, row.host_time_s, row.sequence_id, row.exposure)
+        if not row.image.is_dir():
+            return PanoramaFrame(self._panorama(row), *times), None
+        if self.head is None:
+            raise StreamFormatError(f"{row.image}: six-camera frames need the head they go with (a rig camera file "
+                                    "or head calibration file) to stitch them")
+        images = self._sensor_images(row, self.head)
+        if self.stitcher is None:
+            self.stitcher = Stitcher(self.head.to_rig(), self.spec)
+        pano = PanoramaFrame(self.stitcher.stitch(images), *times)
+        return pano, SensorFrame(tuple(images), self.head, *times)
+
+    def frames_with_sensors(self) -> Iterator[tuple[PanoramaFrame, SensorFrame | None]]:
+        """Each panorama with, for a six-image frame, its sensor images and head (the head dataset's images);
+        None beside a panorama frame."""
         for row in self.rows:
             try:
-                image = self._panorama(row)
+                frame = self._frame(row)
             except CorruptFrameError as exc:
                 self.skipped.record(exc)
                 continue
-            yield PanoramaFrame(image, row.device_time_s, row.host_time_s, row.sequence_id, row.exposure)
+            yield frame
+
+    def frames(self) -> Iterator[PanoramaFrame]:
+        for pano, _ in self.frames_with_sensors():
+            yield pano
 
     def close(self) -> None:
         """Nothing is held open between frames."""

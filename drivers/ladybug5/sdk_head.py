@@ -2,16 +2,20 @@
 
 The SDK must hold a configuration: ``ladybugLoadConfig`` with NULL (from the camera head) after initialising a
 camera, or with the path of a configuration file (a ``.cal``, or a .pgr stream's embedded configuration
-written to a file) on a context with no camera. Then, per FLIR's ladybuggeom.h / ladybugrenderer.h:
-``ladybugSetOffScreenImageSize(LADYBUG_ALL_RECTIFIED_IMAGES, cols, rows)`` sets the rectified resolution
+written to a file) on a context with no camera. Then, per FLIR's ladybuggeom.h / ladybugrenderer.h and in the
+order every public caller uses: ``ladybugConfigureOutputImages(LADYBUG_ALL_RECTIFIED_IMAGES)``,
+``ladybugSetOffScreenImageSize(LADYBUG_ALL_RECTIFIED_IMAGES, cols, rows)`` to set the rectified resolution
 (here: the raw size, so focal lengths are in raw pixels), and per sensor ``ladybugGetCameraUnitFocalLength``,
 ``ladybugGetCameraUnitImageCenter``, ``ladybugGetCameraUnitExtrinsics`` and the rectification sampled with
-``ladybugRectifyPixel`` / ``ladybugUnrectifyPixel`` (row, column order; negative or failing: outside).
+``ladybugRectifyPixel`` / ``ladybugUnrectifyPixel`` (row, column order; negative or failing: outside). A refused
+configuration (it may want OpenGL) is logged and the reading goes on; should a later call fail too, its error
+says both.
 """
 
 from __future__ import annotations
 
 import ctypes
+import logging
 import tempfile
 from pathlib import Path
 
@@ -25,6 +29,7 @@ from drivers.ladybug5.raw import NUM_SENSORS
 from drivers.ladybug5.sdk_library import LadybugLibrary
 
 DEFAULT_MAP_STEP_PX = 16  # every 16 px: ~19 000 points a sensor of 2448x2048; the head reads in a few s
+log = logging.getLogger(__name__)
 
 
 def grid(size: int, step: int) -> NDArray[np.float64]:
@@ -73,14 +78,30 @@ def read_head(lib: LadybugLibrary, context: ctypes.c_void_p, size_px: tuple[int,
     cols, rows = size_px
     if cols <= 0 or rows <= 0 or step_px <= 0:
         raise HeadCalibrationError(f"read_head: bad sensor size {size_px} or map step {step_px}")
+    refused = _configure_rectified(lib, context, description)
     try:
         lib.call("ladybugSetOffScreenImageSize", context, lib.layout.output_images["ALL_RECTIFIED_IMAGES"], cols, rows)
         sensors = tuple(_sensor(lib, context, c, size_px, step_px) for c in range(NUM_SENSORS))
-    except HeadCalibrationError:
-        raise
+    except HeadCalibrationError as exc:
+        if refused is None:
+            raise
+        raise HeadCalibrationError(f"{exc} (after {refused})") from exc
     except Ladybug5Error as exc:
-        raise HeadCalibrationError(f"cannot read the head calibration of {description}: {exc}") from exc
+        after = f" (after {refused})" if refused else ""
+        raise HeadCalibrationError(f"cannot read the head calibration of {description}: {exc}{after}") from exc
     return HeadCalibration(sensors, HeadSource.FACTORY, description, serial)
+
+
+def _configure_rectified(lib: LadybugLibrary, context: ctypes.c_void_p, description: str) -> str | None:
+    """``ladybugConfigureOutputImages(LADYBUG_ALL_RECTIFIED_IMAGES)``, which public callers make before setting the
+    rectified size and reading the geometry; None when done, else the refusal (logged), for a later error to name.
+    Not fatal: the SDK may want OpenGL for it and still give the geometry without."""
+    try:
+        lib.call("ladybugConfigureOutputImages", context, lib.layout.output_images["ALL_RECTIFIED_IMAGES"])
+    except Ladybug5Error as exc:
+        log.warning("%s: the rectified images are not configured (%s); reading the geometry anyway", description, exc)
+        return str(exc)
+    return None
 
 
 def head_from_config_file(lib: LadybugLibrary, config: Path, size_px: tuple[int, int], description: str = "",

@@ -1,7 +1,7 @@
 """Sensor feeds for the capture loop: the LiDAR's sweeps and the camera's frames, each from its own thread.
 
-A camera frame is a panorama and, from a source that has them (the SDK, the simulated head), the raw sensor
-images it was stitched from with their head calibration (:class:`CameraFrame`).
+A camera frame is a panorama and, from a source that has them (the SDK, the simulated head, a replay directory of
+six-image frames), the raw sensor images it was stitched from with their head calibration (:class:`CameraFrame`).
 
 A live source (UDP, the SDK, the simulated rig) is read by a thread that hands items over through a
 bounded buffer, so the capture loop never blocks on a sensor and can check its stop flag and the sensors'
@@ -19,6 +19,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Protocol, TypeVar, cast
 
 import cv2
@@ -213,11 +214,11 @@ class ThreadedCameraFeed:
 class PulledCameraFeed:
     """A recorded camera: frames are read up to the LiDAR's host time, so the two replays stay in step."""
 
-    def __init__(self, describe: str, frames: Iterator[PanoramaFrame]) -> None:
+    def __init__(self, describe: str, frames: Iterator[CameraFrame]) -> None:
         self.describe = describe
         self.frame_gap_s = 0.0
         self._frames = frames
-        self._pending: PanoramaFrame | None = None
+        self._pending: CameraFrame | None = None
         self._ended = False
 
     def poll(self, until_host_s: float) -> list[CameraFrame]:
@@ -230,9 +231,9 @@ class PulledCameraFeed:
                 if self._pending is None:
                     self._ended = True
                     return out
-            if frame_time(self._pending, self.describe) > until_host_s:
+            if frame_time(self._pending.panorama, self.describe) > until_host_s:
                 return out
-            out.append(CameraFrame(self._pending))
+            out.append(self._pending)
             self._pending = None
 
     def seconds_since_frame(self) -> tuple[float, bool] | None:
@@ -302,10 +303,20 @@ def open_sources(stack: contextlib.ExitStack, lidar: LidarSpec, camera: CameraSp
         return Sources(feed, _sim_camera(stack, str(camera), spec), spec)
     if camera.kind is CameraKind.REPLAY:
         assert camera.path is not None
-        pulled = PulledCameraFeed(str(camera), DirectoryFrameSource(camera.path).frames())
+        pulled = PulledCameraFeed(str(camera), _replay_frames(camera.path, settings, nominal_head=nominal_head))
         stack.callback(pulled.close)
         return Sources(feed, pulled, None)
     return Sources(feed, _start_camera(stack, _sdk_feed(settings, nominal_head=nominal_head)), None)
+
+
+def _replay_frames(directory: Path, settings: RigSettings, *, nominal_head: bool) -> Iterator[CameraFrame]:
+    """A replay directory's frames: panoramas, or six-image frames stitched at the rig file's panorama size with the
+    head the live camera's frames would go with (:func:`sdk_head`; a head file, as no camera is there to read the
+    factory head from), each with its sensor images: the head dataset's, as from the live camera."""
+    head = sdk_head(settings, nominal_head=nominal_head)
+    spec = PanoramaSpec(settings.width, settings.height, settings.sdk.radius_m)
+    source = DirectoryFrameSource(directory, spec, head=head if isinstance(head, HeadCalibration) else None)
+    return _converted(source.frames_with_sensors(), lambda pair: CameraFrame(*pair))
 
 
 def _start_camera(stack: contextlib.ExitStack, feed: ThreadedCameraFeed) -> ThreadedCameraFeed:

@@ -49,6 +49,10 @@ class Fake:
         for name, value in values.items():
             self.g(f"fake_{name}").value = value
 
+    def call_log(self) -> str:
+        """The configuration, geometry and renderer calls so far, a letter each, in order (fake_ladybug.c)."""
+        return (ctypes.c_char * 256).in_dll(self.handle, "fake_render_log").value.decode()
+
     def lens(self, camera: int) -> tuple[np.ndarray, np.ndarray]:
         """The fake's true raw-image K (3,3) and D (5,) of ``camera`` (fake_ladybug.c)."""
         focal = ctypes.c_double.in_dll(self.handle, "fake_focal").value

@@ -35,3 +35,34 @@ def pixel_rays_head(camera: RigCamera) -> np.ndarray:
 def smooth_field(rays: np.ndarray) -> np.ndarray:
     """A smooth brightness as a function of direction only (so any correct stitch reproduces it)."""
     return 127.0 + 60.0 * np.sin(3.0 * rays[..., 0]) + 50.0 * np.cos(2.0 * rays[..., 1] + rays[..., 2])
+
+
+# The colour of each of a camera's four channel JPEGs, per stippled format, as public Ladybug code has it (a
+# Ladybug5 driver's colour offsets: BGGR blue 0 / red 3, GBRG blue 1 / red 2, GRBG red 1 / blue 2, RGGB red 0 /
+# blue 3; Ladybug2 stream readers: channel 0 blue, 3 red). Written out here, not derived from rigd's table.
+DOCUMENTED_CHANNELS = {"BGGR": "BGGR", "GBRG": "GBRG", "GRBG": "GRBG", "RGGB": "RGGB"}
+BLUE, RED, GREEN_TOP, GREEN_BOTTOM = 200, 40, 110, 130  # the greens of a tile's first and second row differ
+
+
+def documented_mosaic(pattern: str, rows: int, cols: int) -> np.ndarray:
+    """A (rows, cols) uint8 mosaic of ``pattern`` (its top-left 2x2 cells row by row): blue cells BLUE, red cells
+    RED, green cells GREEN_TOP in a tile's first row and GREEN_BOTTOM in its second."""
+    mosaic = np.empty((rows, cols), np.uint8)
+    for r in (0, 1):
+        for c in (0, 1):
+            colour = pattern[2 * r + c]
+            mosaic[r::2, c::2] = {"B": BLUE, "R": RED}.get(colour, GREEN_TOP if r == 0 else GREEN_BOTTOM)
+    return mosaic
+
+
+def documented_channel_jpegs(pattern: str, rows: int, cols: int) -> list[bytes]:
+    """The four channel JPEGs of ``documented_mosaic``, built by hand in the documented order: channel k a flat
+    (rows/2, cols/2) image of the colour DOCUMENTED_CHANNELS gives it (its first green the top row's)."""
+    planes, greens = [], [GREEN_TOP, GREEN_BOTTOM]
+    for colour in DOCUMENTED_CHANNELS[pattern]:
+        value = {"B": BLUE, "R": RED}.get(colour) or greens.pop(0)
+        ok, data = cv2.imencode(".jpg", np.full((rows // 2, cols // 2), value, np.uint8),
+                                [cv2.IMWRITE_JPEG_QUALITY, 100])
+        assert ok
+        planes.append(data.tobytes())
+    return planes

@@ -5,10 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from ladybug5_helpers import BLUE, RED, documented_channel_jpegs, documented_mosaic
 
 from drivers.ladybug5.errors import CorruptFrameError, StreamFormatError, UnsupportedFormatError
 from drivers.ladybug5.formats import STREAM_RESOLUTIONS, BayerPattern, DataFormat
-from drivers.ladybug5.pgr import DEFAULT_LAYOUT, FrameHeaderStyle, PgrFrameData, PgrStream, PgrWriteOptions, write_pgr
+from drivers.ladybug5.pgr import (
+    DEFAULT_LAYOUT,
+    FrameHeaderStyle,
+    PgrFrameData,
+    PgrStream,
+    PgrWriteOptions,
+    assemble_mosaic,
+    write_pgr,
+)
 from drivers.ladybug5.pgr_layout import PgrLayout
 from drivers.ladybug5.pgr_write import bayer_planes, mosaic_from_bgr
 from drivers.ladybug5.replay import PgrFrameSource
@@ -99,6 +108,19 @@ def test_the_streams_bayer_pattern_matters(tmp_path):
     want = smooth(0)[0].astype(float)
     assert np.abs(right - want).mean() < 3.0
     assert np.abs(wrong[..., ::-1] - want)[2:-2, 2:-2].mean() < 6.0  # red and blue swapped
+
+
+@pytest.mark.parametrize("pattern", list(BayerPattern))
+def test_channel_jpegs_in_the_documented_order_decode_with_blue_as_blue(tmp_path, pattern):
+    # Built by hand (not by rigd's writer's mapping): channel k holds the k-th cell of the tile, row by row.
+    planes = documented_channel_jpegs(pattern.value, ROWS, COLS)
+    options = PgrWriteOptions(bayer=pattern, resolution=(COLS, ROWS))
+    write_pgr(tmp_path / "s.pgr", [PgrFrameData(100, 0, 7, [planes] * 6)], options=options)
+    stream = PgrStream(tmp_path / "s.pgr")
+    mosaic = assemble_mosaic(stream.jpegs(0)[0], stream.layout, "test")
+    np.testing.assert_array_equal(mosaic, documented_mosaic(pattern.value, ROWS, COLS))  # every cell in place
+    image = stream.camera_images(0)[0].astype(int)
+    assert np.all(image[..., 0] == BLUE) and np.all(image[..., 2] == RED)  # blue as blue, red as red
 
 
 def test_a_stream_without_a_bayer_pattern_says_so(tmp_path):

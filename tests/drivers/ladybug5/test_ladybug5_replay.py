@@ -1,7 +1,9 @@
-"""Replay: .pgr streams written by our own writer, replay directories, and the camera->host clock."""
+"""Replay: .pgr streams written by our own writer, replay directories (panoramas, or six-image frames with their
+head, as capture takes them for the head dataset), and the camera->host clock."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import cv2
@@ -10,9 +12,11 @@ import pytest
 from ladybug5_helpers import pixel_rays_head, scaled_rig, smooth_field
 
 from drivers.ladybug5.clock import ClockSync, unwrap_times
-from drivers.ladybug5.errors import Ladybug5Error, StreamFormatError
+from drivers.ladybug5.errors import HeadCalibrationError, Ladybug5Error, StreamFormatError
 from drivers.ladybug5.formats import BayerPattern
 from drivers.ladybug5.frames import TimeBase
+from drivers.ladybug5.head import HeadCalibration, HeadSource
+from drivers.ladybug5.head_file import save_head
 from drivers.ladybug5.pgr import (
     DEFAULT_LAYOUT,
     PgrFrameData,
@@ -25,6 +29,12 @@ from drivers.ladybug5.raw import demosaic
 from drivers.ladybug5.replay import DirectoryFrameSource, PgrFrameSource
 from drivers.ladybug5.rig import default_ladybug5_rig
 from drivers.ladybug5.stitch import PanoramaSpec, Stitcher, panorama_rays
+from drivers.sim.motion import MotionRigSpec
+from rigd.capture.config import RigSettings, SdkSettings
+from rigd.capture.pair_files import rig_camera
+from rigd.capture.sources import open_sources
+from rigd.capture.specs import CameraKind, CameraSpec, LidarKind, LidarSpec
+from rigd.dataset.records import HeadConfig
 
 RIG = scaled_rig(default_ladybug5_rig(), 1 / 16)  # 153 x 128 px cameras
 PANO = (128, 64)
@@ -197,6 +207,75 @@ def test_directory_replay_errors_name_the_file(tmp_path, images):
     write_directory(tmp_path, images)
     with pytest.raises(StreamFormatError, match="rig camera file"):
         list(DirectoryFrameSource(tmp_path).frames())
+
+
+def rolled(images, k):
+    """Frame k's six images: the test images rolled k columns (each frame its own images)."""
+    return [np.roll(im, k, axis=1) for im in images]
+
+
+def write_sensor_frames(root, images, host_times=(1700000000.25, 1700000000.45)):
+    """A replay directory of six-image frames at ``host_times`` (device time 10 s earlier), a panorama frame, and a
+    frame without its cam3 image (corrupt)."""
+    lines = ["image,device_time_s,host_time_s,sequence_id,shutter_s,gain_db"]
+    for k, host_s in enumerate(host_times):
+        (root / f"f{k}").mkdir()
+        for i, im in enumerate(rolled(images, k)):
+            cv2.imwrite(str(root / f"f{k}" / f"cam{i}.png"), im)
+        lines.append(f"f{k},{host_s - 10.0},{host_s},{5 + k},0.002,1.5")
+    cv2.imwrite(str(root / "p.png"), np.zeros((PANO[1], PANO[0], 3), np.uint8))
+    lines.append(f"p.png,{host_times[-1] - 9.8},{host_times[-1] + 0.2},9,,")
+    (root / "broken").mkdir()
+    for i, im in enumerate(images[:3]):
+        cv2.imwrite(str(root / "broken" / f"cam{i}.png"), im)
+    lines.append(f"broken,{host_times[-1] - 9.6},{host_times[-1] + 0.4},10,,")
+    (root / "timestamps.csv").write_text("\n".join(lines) + "\n")
+
+
+def test_six_image_frames_give_each_panorama_its_sensor_images_and_head(tmp_path, images):
+    head = HeadCalibration.from_rig(RIG, HeadSource.FACTORY, "camera 17092345 (test)")
+    write_sensor_frames(tmp_path, images)
+    source = DirectoryFrameSource(tmp_path, PanoramaSpec(*PANO, radius_m=math.inf), head=head)
+    pairs = list(source.frames_with_sensors())
+    assert [(p.sequence_id, s is not None) for p, s in pairs] == [(5, True), (6, True), (9, False)]
+    assert source.skipped.count == 1 and "no cam3 image" in source.skipped.reasons[0]
+    for k, (pano, sensors) in enumerate(pairs[:2]):
+        assert sensors.head is head and sensors.exposure.gain_db == 1.5
+        assert (sensors.device_time_s, sensors.host_time_s, sensors.sequence_id) == (
+            pano.device_time_s, pano.host_time_s, pano.sequence_id)
+        for got, want in zip(sensors.images, rolled(images, k), strict=True):  # one image per sensor, as written
+            np.testing.assert_array_equal(got, want)
+    # The panorama is stitched from the head's geometry: it reproduces the field seen from the head centre.
+    assert source.stitcher is not None and source.stitcher.rig.cameras[3].K.tolist() == RIG.cameras[3].K.tolist()
+    expected = smooth_field(panorama_rays(*PANO))
+    assert np.abs(pairs[0][0].image[..., 1].astype(float) - expected)[source.stitcher.coverage].mean() < 1.0
+
+
+def test_the_head_of_six_image_frames_is_checked_or_comes_from_the_stitcher(tmp_path, images):
+    write_sensor_frames(tmp_path, images)
+    wrong = HeadCalibration.from_rig(scaled_rig(RIG, 0.5), HeadSource.FACTORY, "another head")
+    with pytest.raises(HeadCalibrationError, match=r"another head\) is for sensors \[\(76, 64\).*images are \[\(153"):
+        list(DirectoryFrameSource(tmp_path, head=wrong).frames_with_sensors())
+    source = DirectoryFrameSource(tmp_path, Stitcher(RIG, PanoramaSpec(*PANO)))  # a rig camera file: the head
+    _, sensors = next(source.frames_with_sensors())
+    assert sensors.head.source is HeadSource.FILE and sensors.head.sizes == tuple((c.width, c.height)
+                                                                                  for c in RIG.cameras)
+
+
+def test_capture_takes_a_replays_six_image_frames_as_the_head_dataset(tmp_path, images):
+    head = HeadCalibration.from_rig(RIG, HeadSource.FACTORY, "camera 17092345 (test)")
+    save_head(head, tmp_path / "head.yaml")  # as `rigd camera export-head` writes it
+    (tmp_path / "replay").mkdir()
+    write_sensor_frames(tmp_path / "replay", images)
+    settings = RigSettings(width=PANO[0], height=PANO[1], sdk=SdkSettings(rig_file=tmp_path / "head.yaml"))
+    with contextlib.ExitStack() as stack:
+        sources = open_sources(stack, LidarSpec(LidarKind.UDP, "127.0.0.1", 0, 0),
+                               CameraSpec(CameraKind.REPLAY, tmp_path / "replay"), settings, MotionRigSpec(), 0)
+        frames = sources.camera.poll(1700000000.5)
+    assert [f.panorama.sequence_id for f in frames] == [5, 6] and frames[0].panorama.image.shape == (64, 128, 3)
+    camera = rig_camera(frames[0])  # the dataset's rig.yaml: the head, its sensors the images' sizes
+    assert isinstance(camera, HeadConfig) and [s.name for s in camera.sensors] == [c.name for c in RIG.cameras]
+    assert all(np.array_equal(a, b) for a, b in zip(frames[1].sensors.images, rolled(images, 1), strict=True))
 
 
 def test_clock_offset_is_the_least_delayed_sample():

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 from fake_ladybug_sdk import BORDER, COLS, COMPILER, ROWS, build, private_copy
-from ladybug5_helpers import scaled_rig
+from ladybug5_helpers import BLUE, RED, documented_channel_jpegs, scaled_rig
 
 from drivers.ladybug5.errors import (
     CameraNotFoundError,
@@ -269,6 +269,27 @@ def test_the_factory_head_is_read_through_the_sdk(fake):
     assert side.R_head_camera[:, 2] @ [np.cos(yaw), np.sin(yaw), 0.0] > 0.999  # its optical axis looks out
 
 
+def test_the_rectified_images_are_configured_before_their_size_and_geometry(fake):
+    fake.set(size_needs_configure=1)  # the fake takes the rectified size only for configured rectified images
+    with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera:
+        head = camera.read_head((COLS, ROWS), step_px=2)
+    assert fake.call_log() == "CS" + "F" * 6  # configure, size, then each sensor's geometry
+    assert fake.g("fake_configured").value == fake.library.layout.output_images["ALL_RECTIFIED_IMAGES"]
+    assert head.sensors[0].focal_px == pytest.approx(10.0)
+
+
+def test_a_refused_configuration_is_named_when_the_geometry_is_refused_too(fake, caplog):
+    fake.set(configure_error=1)  # LADYBUG_FAILED, as perhaps on a rig without OpenGL
+    with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera:
+        # This SDK gives the geometry without the configuration: a warning, no error.
+        assert camera.read_head((COLS, ROWS), step_px=2).sensors[5].focal_px == pytest.approx(10.0)
+        assert "ladybugConfigureOutputImages failed with Ladybug error 1" in caplog.text
+        fake.set(size_needs_configure=1, rect_cols=0)  # an SDK that needs it, and no size set yet
+        with pytest.raises(HeadCalibrationError, match=r"ladybugGetCameraUnitFocalLength failed with Ladybug error "
+                           r"\d+ .*\(after ladybugConfigureOutputImages failed with Ladybug error 1"):
+            camera.read_head((COLS, ROWS), step_px=2)
+
+
 def craig_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
     """The rotation ladybuggeom.h documents for ladybugGetCameraUnitExtrinsics, element by element."""
     s, c = np.sin, np.cos
@@ -326,6 +347,20 @@ def test_color_sep_jpeg_buffers_decode_like_pgr_frames(fake, tmp_path):
     assert first.device_time_s == pytest.approx(1700000000.25)
     assert first.time_base.value == "gps"
     assert fake.g("fake_stopped").value == 2 and fake.g("fake_destroyed").value == 2
+
+
+@pytest.mark.parametrize("pattern", [BayerPattern.BGGR, BayerPattern.RGGB])
+def test_a_grabbed_jpeg_frame_in_the_documented_channel_order_keeps_blue_blue(fake, tmp_path, pattern):
+    # The four channel JPEGs built by hand in the order public Ladybug code reads them; the SDK hands the block over.
+    write_pgr(tmp_path / "one.pgr", [PgrFrameData(5, 0, 1, [documented_channel_jpegs(pattern.value, ROWS, COLS)] * 6)])
+    entry = PgrStream(tmp_path / "one.pgr").index[0]
+    (tmp_path / "block.bin").write_bytes((tmp_path / "one.pgr").read_bytes()[entry.offset : entry.end])
+    assert fake.handle.fake_load_block(str(tmp_path / "block.bin").encode()) == 0
+    fake.set(stippled=fake.library.layout.stippled[pattern.value])
+    with SdkCamera(fake.library, data_format=DataFormat.COLOR_SEP_JPEG8) as camera:
+        grabbed = camera.grab()
+        images = decode_grab(grabbed, fake.library.layout, frame_pattern(grabbed, fake.library, camera.tile_pattern))
+    assert all(np.all(im[..., 0] == BLUE) and np.all(im[..., 2] == RED) for im in images)
 
 
 def test_the_head_of_a_pgr_streams_embedded_configuration(fake, tmp_path):

@@ -6,11 +6,14 @@
  * pattern fake_stippled (for the full image's top-left pixel); RAW16 is the same << 8. COLOR_SEP_JPEG8 serves a
  * loaded frame block. The camera clock starts at 127.5 s of the 128 s cycle and ticks 0.1 s a frame.
  * Geometry: per camera an OpenCV-like lens (focal fake_focal, centre, k1, k2) and Euler ZYX extrinsics; a
- * configuration file "FAKECAL <k1> <k2> <focal>" replaces the lens. Globals steer faults and record calls.
+ * configuration file "FAKECAL <k1> <k2> <focal>" replaces the lens. The rectified resolution is the rectified
+ * off-screen size; with fake_size_needs_configure that size is ignored unless the rectified images were configured
+ * first (then the geometry asks for a resolution). Globals steer faults and record calls.
  * Renderer: ladybugConvertImage fills each camera's texture with its flat colour (from the image's sequence id),
  * ladybugRenderOffScreenImage places the six textures side by side (camera c in the c-th sixth of the columns,
  * nearest-neighbour resampled) in a BGR image of the panoramic off-screen size; fake_render_log records the
- * renderer calls in order (M method, C configure, S panoramic size, V convert, U update textures, R render).
+ * configuration, geometry and renderer calls in order (M method, C configure, S off-screen size, F focal length,
+ * V convert, U update textures, R render).
  */
 #include <math.h>
 #include <stdio.h>
@@ -35,6 +38,7 @@ int fake_initialized_serial = -1, fake_initialized_index = -1;
 int fake_enumerated_before_init = 0; /* ladybugBusEnumerateCameras was called on a context not yet initialised */
 int fake_grab_timeout = -1, fake_timeout_set_after_start = 0;
 int fake_rect_cols = 0, fake_rect_rows = 0;
+int fake_size_needs_configure = 0; /* the rectified size is taken only for configured rectified images */
 char fake_config_path[256] = "";
 double fake_focal = 10.0, fake_k1 = -0.05, fake_k2 = 0.01;
 int fake_pano_cols = 2048, fake_pano_rows = 1024; /* the SDK's default panoramic size */
@@ -285,12 +289,13 @@ LadybugError ladybugSetOffScreenImageSize(LadybugContext context, LadybugOutputI
                                           unsigned int height)
 {
     (void)context;
-    if (type & LADYBUG_ALL_RECTIFIED_IMAGES) {
+    log_call('S');
+    int rectified = (fake_configured & LADYBUG_ALL_RECTIFIED_IMAGES) == LADYBUG_ALL_RECTIFIED_IMAGES;
+    if ((type & LADYBUG_ALL_RECTIFIED_IMAGES) && (rectified || !fake_size_needs_configure)) {
         fake_rect_cols = (int)width;
         fake_rect_rows = (int)height;
     }
     if (type & LADYBUG_PANORAMIC) {
-        log_call('S');
         fake_pano_cols = (int)width;
         fake_pano_rows = (int)height;
     }
@@ -300,21 +305,32 @@ LadybugError ladybugSetOffScreenImageSize(LadybugContext context, LadybugOutputI
 static double centre_x(unsigned int cam) { return (fake_cols - 1) / 2.0 + 0.3 * cam; }
 static double centre_y(unsigned int cam) { return (fake_rows - 1) / 2.0 - 0.2 * cam; }
 static double scale(void) { return (double)fake_rect_cols / fake_cols; }
+static double rect_focal(void) { return fake_focal * scale(); }
+static double rect_cx(unsigned int cam) { return (centre_x(cam) + 0.5) * scale() - 0.5; }
+static double rect_cy(unsigned int cam) { return (centre_y(cam) + 0.5) * scale() - 0.5; }
+
+static LadybugError geometry_ready(unsigned int cam)
+{
+    if (!fake_rect_cols) return LADYBUG_NEED_RECTIFY_RESOLUTION;
+    return cam < 6 ? LADYBUG_OK : LADYBUG_INVALID_ARGUMENT;
+}
 
 LadybugError ladybugGetCameraUnitFocalLength(LadybugContext context, unsigned int cam, double *focal)
 {
     (void)context;
-    if (!fake_rect_cols || cam >= 6) return fake_rect_cols ? LADYBUG_INVALID_ARGUMENT : LADYBUG_NEED_RECTIFY_RESOLUTION;
-    *focal = fake_focal * scale();
-    return LADYBUG_OK;
+    log_call('F');
+    LadybugError error = geometry_ready(cam);
+    if (error == LADYBUG_OK) *focal = rect_focal();
+    return error;
 }
 
 LadybugError ladybugGetCameraUnitImageCenter(LadybugContext context, unsigned int cam, double *cx, double *cy)
 {
     (void)context;
-    if (!fake_rect_cols || cam >= 6) return fake_rect_cols ? LADYBUG_INVALID_ARGUMENT : LADYBUG_NEED_RECTIFY_RESOLUTION;
-    *cx = (centre_x(cam) + 0.5) * scale() - 0.5;
-    *cy = (centre_y(cam) + 0.5) * scale() - 0.5;
+    LadybugError error = geometry_ready(cam);
+    if (error != LADYBUG_OK) return error;
+    *cx = rect_cx(cam);
+    *cy = rect_cy(cam);
     return LADYBUG_OK;
 }
 
@@ -342,29 +358,26 @@ LadybugError ladybugRectifyPixel(LadybugContext context, unsigned int cam, doubl
                                  double *rcol)
 {
     (void)context;
-    if (!fake_rect_cols) return LADYBUG_NEED_RECTIFY_RESOLUTION;
+    LadybugError error = geometry_ready(cam);
+    if (error != LADYBUG_OK) return error;
     double xd = (col - centre_x(cam)) / fake_focal, yd = (row - centre_y(cam)) / fake_focal, x = xd, y = yd;
     for (int i = 0; i < 100; i++) {
         double r = radial(x, y);
         x = xd / r;
         y = yd / r;
     }
-    double cx, cy, f;
-    ladybugGetCameraUnitImageCenter(context, cam, &cx, &cy);
-    ladybugGetCameraUnitFocalLength(context, cam, &f);
-    *rcol = f * x + cx;
-    *rrow = f * y + cy;
+    *rcol = rect_focal() * x + rect_cx(cam);
+    *rrow = rect_focal() * y + rect_cy(cam);
     return LADYBUG_OK;
 }
 
 LadybugError ladybugUnrectifyPixel(LadybugContext context, unsigned int cam, double rrow, double rcol, double *row,
                                    double *col)
 {
-    double cx, cy, f;
-    if (!fake_rect_cols) return LADYBUG_NEED_RECTIFY_RESOLUTION;
-    ladybugGetCameraUnitImageCenter(context, cam, &cx, &cy);
-    ladybugGetCameraUnitFocalLength(context, cam, &f);
-    double x = (rcol - cx) / f, y = (rrow - cy) / f, r = radial(x, y);
+    (void)context;
+    LadybugError error = geometry_ready(cam);
+    if (error != LADYBUG_OK) return error;
+    double x = (rcol - rect_cx(cam)) / rect_focal(), y = (rrow - rect_cy(cam)) / rect_focal(), r = radial(x, y);
     *col = fake_focal * x * r + centre_x(cam);
     *row = fake_focal * y * r + centre_y(cam);
     if (*col < 0 || *col > fake_cols - 1 || *row < 0 || *row > fake_rows - 1) *row = *col = -1.0; /* outside */
