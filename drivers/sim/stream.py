@@ -120,7 +120,7 @@ class LidarEmitter:
         scanner = threading.Thread(target=self._scan_ahead, args=(ahead,), name="sim-vlp16-scanner", daemon=True)
         scanner.start()
         try:
-            send_datagrams(self._datagrams(ahead), self.host, speed=1.0)
+            send_datagrams(self._datagrams(ahead), self.host, on_host_clock=True)
         finally:
             self._stop.set()
             scanner.join()
@@ -149,8 +149,8 @@ class LidarEmitter:
                    ) -> Iterator[tuple[float, int, bytes]]:
         start = _require_started(self.spec)
         # A sensor started before anyone listens has been turning all along: begin with the first turn not
-        # yet due. The sender paces every datagram from the moment the first one leaves, so that must be its
-        # own time; a turn that would leave late is dropped (lost), as a sensor's packets are never late.
+        # yet due (waiting for it here, where close() can interrupt). Each datagram leaves at its own host time;
+        # a turn that would leave late is dropped (lost), as a sensor's packets are never late.
         first = True
         while not self._stop.is_set():
             try:

@@ -213,8 +213,9 @@ def _death(code: int, log_path: Path) -> str:
 
 class JobRunner:
     def __init__(self, jobs: JobStore, versions: VersionStore, datasets: DatasetCatalog, bounds: ActivationBounds,
-                 code_version: str, max_queued: int = 4) -> None:
+                 code_version: str, max_queued: int = 4, workers: int = 2) -> None:
         self.jobs = jobs
+        self.workers = workers
         self.max_queued = max_queued
         self.versions = versions
         self.datasets = datasets
@@ -297,7 +298,7 @@ class JobRunner:
                 "initial_matrix": params["initial"]["matrix"] if params["initial"] else None,
                 "sigmas_deg": params["sigmas_deg"],
                 "prior": params.get("prior"), "fix_translation": params.get("fix_translation", False),
-                "tolerance": params.get("tolerance")}
+                "tolerance": params.get("tolerance"), "workers": self.workers}
 
     def _run_in_worker(self, job: Job) -> None:
         payload = self._payload(job)
@@ -515,4 +516,7 @@ class JobRunner:
         for thread in (self._thread, *threads):
             if thread.is_alive():
                 thread.join(timeout_s)
-        self.jobs.fail_unfinished("interrupted: the service stopped")
+        try:
+            self.jobs.fail_unfinished("interrupted: the service stopped")
+        except StoreError as exc:  # the data directory was deleted: nothing can be recorded, the service still stops
+            LOG.error("rigd: the unfinished jobs cannot be marked interrupted: %s", exc)

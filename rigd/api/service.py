@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
@@ -64,10 +65,13 @@ class Service:
         self.sensors.start()
 
     def stop(self) -> None:
-        self.runner.shutdown()
-        self.sensors.stop()
-        self.db.close()
-        self.lock.release()
+        """Jobs stopped, sensors stopped, the database closed and the data directory released, each even when the
+        one before failed (a data directory deleted under the service fails the jobs' last records)."""
+        with contextlib.ExitStack() as later:  # run last to first, each whatever happened before it
+            later.callback(self.lock.release)
+            later.callback(self.db.close)
+            later.callback(self.sensors.stop)
+            self.runner.shutdown()
 
 
 def build_service(settings: Settings) -> Service:
@@ -105,7 +109,7 @@ def _open_service(settings: Settings, rig: RigSettings, lock: DataDirLock) -> Se
         versions=versions,
         jobs=jobs,
         datasets=datasets,
-        runner=JobRunner(jobs, versions, datasets, bounds, code_version, settings.max_queued_jobs),
+        runner=JobRunner(jobs, versions, datasets, bounds, code_version, settings.max_queued_jobs, settings.workers),
         sensors=SensorMonitor(rig.camera_source, rig.lidar_source, settings.sensor_poll_s, figures.get),
         capture_figures=figures,
         software_version=code_version,

@@ -46,6 +46,8 @@ class Settings(BaseSettings):
                                  "open-file limit)")
     max_queued_jobs: int = Field(4, ge=1, le=1000, description="calibrations that may wait behind the running "
                                  "one; more get 429")
+    workers: int = Field(2, ge=1, le=64, description="processes a calibration job works in (its pairs' edges and "
+                         "independent solves side by side; 1: the least memory and no process start-ups)")
     log_level: str = Field("info", description="uvicorn log level")
 
     @classmethod

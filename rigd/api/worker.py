@@ -95,6 +95,7 @@ def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
         prior=prior_from_yaml(job["prior"], "request prior") if job.get("prior") else None,
         fix_translation=bool(job.get("fix_translation", False)),
         tolerance=tolerance_from_yaml(job["tolerance"], "request tolerance") if job.get("tolerance") else None,
+        workers=int(job.get("workers", 2)),
         **schedule,
     )
     outcome = run_calibration(request, reporter.progress, reporter.iteration)

@@ -249,16 +249,17 @@ def test_independent_solves_in_a_process_pool_end_exactly_where_serial_ones_do(p
     from concurrent.futures import ProcessPoolExecutor
 
     from calib.initial import SearchOptions
-    from calib.pipeline import CalibParams, calibrate
+    from calib.pipeline import CalibParams, calibrate, with_sigmas
 
     trust = TrustOptions(restarts=2)  # one here, one in a worker
     search = SearchOptions(yaw_range_deg=30.0, tilt_deg=0.0)  # a few mounts: a runner-up, quickly
+    params = with_sigmas(CalibParams(), (4.0, 2.0))  # two levels: an alternative schedule still, in half the time
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
-        serial = calibrate(pairs, None, CalibParams(), trust=trust, search=search)
+        serial = calibrate(pairs, None, params, trust=trust, search=search)
         assert all(p.fields is None or len(p.fields.flat) > 0 for p in pairs)  # the run built bands ...
         shipped = pickle.loads(pickle.dumps(pairs))
         assert all(p.fields is None or len(p.fields.flat) == 0 for p in shipped)  # ... not shipped
-        pooled = calibrate(pairs, None, CalibParams(), trust=trust, search=search, executor=pool)
+        pooled = calibrate(pairs, None, params, trust=trust, search=search, executor=pool)
         assert serial.assessment is not None and pooled.assessment is not None
         assert np.array_equal(serial.T_camera_lidar.tau, pooled.T_camera_lidar.tau)
         assert serial.optim.final_cost == pooled.optim.final_cost

@@ -64,7 +64,9 @@ def test_a_head_of_five_pinholes_recovers_the_head_lidar_transform():
     by_place = [make_head_place(seed, sensors) for seed in (0, 1, 2, 3)]
     feats = [place[k] for k in range(len(sensors)) for place in by_place]
     start = Transform(so3_exp(np.radians([1.5, -1.0, 2.0])) @ TRUTH.rotation, TRUTH.translation_m + [0.03, -0.02, 0.02])
-    result = calibrate(feats, start, PARAMS, trust=TrustOptions())
+    # No restarts: they change nothing asserted here and took two thirds of the time (4 s of 6); a head's
+    # restarts run in tests/rigd/test_head_commands.py, the restarts' logic is tests/calib/test_assess.py's
+    result = calibrate(feats, start, PARAMS, trust=TrustOptions(restarts=0))
     assert rotation_angle_deg(result.T_camera_lidar.rotation, TRUTH.rotation) < 0.05
     assert np.linalg.norm(result.T_camera_lidar.translation_m - TRUTH.translation_m) < 0.005
     assert result.assessment is not None and result.assessment.uncertainty.jackknife_groups == 4  # places, not sensors

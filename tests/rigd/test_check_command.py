@@ -20,7 +20,9 @@ CODES = {"ok": 0, "drifted": 1, "unknown": 2}
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("ds") / "outdoor"
-    write_simulated_dataset(root, "outdoor", 5, seed=5, width=512, height=256, progress=False)
+    # 384 x 192: 3.2 s of rendering instead of 5 s at 512 x 256, with the same outcomes (drifted on yaw; the truth
+    # not drifted, its translation bound over 3 cm); at 256 x 128 every check here says unknown
+    write_simulated_dataset(root, "outdoor", 5, seed=5, width=384, height=192, progress=False)
     return root
 
 

@@ -44,8 +44,9 @@ def test_calibrate_a_head_writes_each_sensors_overlays_and_finds_the_truth(head_
     truth = open_dataset(head_dataset).ground_truth
     assert truth is not None
     init = np.r_[truth.rpy_deg + [1.5, -1.0, 2.0], truth.translation_m + [0.03, -0.02, 0.02]]
+    # --workers 1: the same numbers as the pool's (tests/rigd/calibration/test_pool.py) for half the CPU
     code = main(["calibrate", str(head_dataset), "--init", ",".join(map(str, init)), "--out", str(tmp_path / "c"),
-                 "--json"])
+                 "--json", "--workers", "1"])
     report = json.loads(capsys.readouterr().out)
     assert code == {"trusted": 0, "weak": 3, "failed": 4}[report["verdict"]["status"]]
     err = report["error_vs_ground_truth"]

@@ -1,4 +1,5 @@
-"""A real ``rigd serve`` process on a loopback port, driven over HTTP with httpx."""
+"""A real ``rigd serve`` process on a loopback port, driven over HTTP with httpx (:class:`Server`: crashes,
+cancels, signals, restarts, security), or rigd's application in this process (:class:`App`: route behaviour)."""
 
 from __future__ import annotations
 
@@ -9,18 +10,31 @@ import socket
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 import httpx
 import numpy as np
 import yaml
 
+with warnings.catch_warnings():  # Starlette 1.x would rather its TestClient ran on httpx2; httpx serves it here
+    warnings.filterwarnings("ignore", "Using `httpx` with `starlette.testclient`")
+    from fastapi.testclient import TestClient
+
+from rigd.api.main import create_app
+from rigd.api.service import Service, build_service
+from rigd.api.settings import load_settings
 from rigd.dataset import open_dataset
 from rigd.simulate import write_simulated_dataset
 
 REPO = Path(__file__).resolve().parents[3]
 FINISHED = {"succeeded", "failed", "cancelled"}
+# A calibration job in one process: no pool start-ups (~2.5 s CPU a job). Tests of the pool itself (cancel, crash,
+# a killed worker) ask for POOL.
+ONE_WORKER = {"RIGD_WORKERS": "1"}
+POOL = {"RIGD_WORKERS": "2"}
 
 
 def free_port() -> int:
@@ -70,7 +84,7 @@ class Server:
         self.data_dir = Path(data_dir)
         self.env = {k: v for k, v in os.environ.items() if not k.startswith("RIGD_")}
         config = rig_file(self.data_dir.parent / f"{self.data_dir.name}-rig.yaml")
-        self.env.update({"RIGD_DATA_DIR": str(self.data_dir), "RIGD_CONFIG": str(config), **(env or {})})
+        self.env.update({"RIGD_DATA_DIR": str(self.data_dir), "RIGD_CONFIG": str(config), **ONE_WORKER, **(env or {})})
         self.args = args
         self.proc: subprocess.Popen[bytes] | None = None
         self.port = 0
@@ -119,6 +133,58 @@ class Server:
         assert self.proc is not None
         self.proc.kill()
         self.proc.wait(timeout=30)
+
+
+class _Client(TestClient):
+    """A client of a started :class:`App`: on its event loop, and entering it does not run the lifespan again
+    (a TestClient's ``with`` would start the service a second time)."""
+
+    def __enter__(self) -> _Client:
+        return self
+
+    def __exit__(self, *args: object) -> None:
+        self.close()
+
+
+class App:
+    """rigd's application (``create_app(build_service(settings))``, as ``rigd serve`` builds it) run in this
+    process by Starlette's TestClient: the same routes, service and worker processes without the ~2.5 s CPU of
+    starting a ``rigd serve`` (imports). Settings as :class:`Server`'s: :func:`rig_file`'s rig, ``env``'s
+    ``RIGD_*`` values, nothing from this process's environment. A route that raises fails the test."""
+
+    def __init__(self, data_dir: Path, env: dict[str, str] | None = None) -> None:
+        self.data_dir = Path(data_dir)
+        config = rig_file(self.data_dir.parent / f"{self.data_dir.name}-rig.yaml")
+        self.env = {"RIGD_DATA_DIR": str(self.data_dir), "RIGD_CONFIG": str(config), **ONE_WORKER, **(env or {})}
+        self._main: TestClient | None = None
+        self.service: Service | None = None
+
+    def start(self) -> App:
+        outside = {k: v for k, v in os.environ.items() if not k.startswith("RIGD_")}
+        with mock.patch.dict(os.environ, {**outside, **self.env}, clear=True):
+            settings = load_settings()
+        self.service = build_service(settings)
+        self.app = create_app(self.service)
+        self._main = TestClient(self.app)
+        self._main.__enter__()  # the lifespan: the service starts (its job runner and sensor monitor)
+        return self
+
+    def client(self, token: str | None = None) -> _Client:
+        assert self._main is not None and self._main.portal is not None, "start() the app first"
+        client = _Client(self.app, headers={"Authorization": f"Bearer {token}"} if token else None)
+        client.portal = self._main.portal  # the app's event loop, as one server's requests share one
+        return client
+
+    def stop(self) -> None:
+        """The lifespan's end, as a SIGTERM'd ``rigd serve``: jobs stopped, the database closed, the lock released."""
+        if self._main is not None:
+            main, self._main = self._main, None
+            main.__exit__(None, None, None)
+
+    def kill(self) -> None:
+        """The end of a service whose data directory is gone (where a test kills ``rigd serve``): the lifespan's
+        end, which records what it can."""
+        self.stop()
 
 
 def wait_job(client: httpx.Client, job_id: int, timeout_s: float = 180.0) -> dict[str, Any]:

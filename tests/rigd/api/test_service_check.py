@@ -6,7 +6,7 @@ import json
 import sqlite3
 from contextlib import closing
 
-from api_helpers import Server, simulated_dataset, wait_job
+from api_helpers import App, simulated_dataset, wait_job
 
 from calib.check import DriftOptions
 from rigd.api.models import ThresholdIn
@@ -19,7 +19,7 @@ def test_check_against_active_version_and_explicit_transform(tmp_path):
     truth = open_dataset(dataset).ground_truth
     assert truth is not None
     at_truth = {"rpy_deg": truth.rpy_deg.tolist(), "xyz_m": truth.translation_m.tolist()}
-    server = Server(data).start()
+    server = App(data).start()  # route behaviour and the worker: rigd's app in this process
     try:
         with server.client() as client:
             response = client.post("/check", json={"dataset": "ds"})

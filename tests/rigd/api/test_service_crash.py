@@ -1,6 +1,10 @@
 """The service killed with SIGKILL: versions written until then survive intact, running jobs are marked
 failed (interrupted) at the next start, and the orphaned calibration worker and its pool processes exit by
-themselves. Stopped, it stops its calibration's processes too."""
+themselves. Stopped, it stops its calibration's processes too.
+
+The service killed or stopped is a real ``rigd serve``; what the next start finds is read through rigd's app
+built on the same data directory in this process (:class:`App`: the start's own code, without a second
+interpreter's imports)."""
 
 from __future__ import annotations
 
@@ -11,6 +15,8 @@ import time
 import httpx
 import numpy as np
 from api_helpers import (
+    POOL,
+    App,
     Server,
     descendants,
     gone,
@@ -62,10 +68,10 @@ def test_sigkill_while_writing_versions_keeps_the_history_intact(tmp_path):
     db = tmp_path / "data" / "rigd.db"
     with sqlite3.connect(db) as conn:  # the file is consistent as SQLite sees it
         assert conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
-    server.start()
-    with server.client() as client:
+    restarted = App(tmp_path / "data").start()
+    with restarted.client() as client:
         versions = client.get("/extrinsics/versions").json()
-    server.stop()
+    restarted.stop()
     numbers = [v["number"] for v in versions]
     assert numbers == list(range(1, len(numbers) + 1))  # no gap, nothing half-written
     assert set(acked) <= set(numbers)  # every acknowledged version survived ...
@@ -90,7 +96,7 @@ def test_sigkill_while_writing_versions_keeps_the_history_intact(tmp_path):
 def test_sigkill_during_a_calibration_marks_it_interrupted_and_leaves_no_process(tmp_path):
     data = tmp_path / "data"
     dataset = simulated_dataset(data, "ds", pairs=3)
-    server = Server(data).start()
+    server = Server(data, env=POOL).start()
     assert server.proc is not None
     with server.client() as client:
         job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
@@ -106,20 +112,20 @@ def test_sigkill_during_a_calibration_marks_it_interrupted_and_leaves_no_process
         time.sleep(0.1)
     print(f"no process of the killed service after {time.monotonic() - killed:.2f} s")
 
-    server.start()
-    with server.client() as client:
+    restarted = App(data).start()
+    with restarted.client() as client:
         after = client.get(f"/jobs/{job['id']}").json()
         assert after["status"] == "failed" and "interrupted" in after["error"]
         assert after["finished_at"] is not None
         assert client.get("/extrinsics/versions").json() == []  # nothing half-stored
         assert client.get("/status").json()["running_jobs"] == []
-    server.stop()
+    restarted.stop()
 
 
 def test_stopping_the_service_fails_a_running_calibration_cleanly(tmp_path):
     data = tmp_path / "data"
     dataset = simulated_dataset(data, "ds", pairs=3)
-    server = Server(data).start()
+    server = Server(data, env=POOL).start()
     assert server.proc is not None
     with server.client() as client:
         job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
@@ -131,10 +137,10 @@ def test_stopping_the_service_fails_a_running_calibration_cleanly(tmp_path):
     print(f"rigd serve stopped in {took:.2f} s")
     assert took < 10, f"stopping took {took:.1f} s"
     assert [p for p in started if not gone(p)] == []  # its calibration's processes went with it
-    server.start()
-    with server.client() as client:
+    restarted = App(data).start()
+    with restarted.client() as client:
         after = client.get(f"/jobs/{job['id']}").json()
-    server.stop()
+    restarted.stop()
     assert after["status"] in {"failed", "succeeded"}  # it may finish in the shutdown window
     if after["status"] == "failed":
         assert after["error"] == "interrupted: the service stopped"

@@ -1,5 +1,10 @@
 """The service end to end over HTTP: capture (simulated rig) -> calibrate -> job polling -> versions ->
-activate -> export, field recalibration from the active version, and a restart that keeps versions and jobs."""
+activate -> export, field recalibration from the active version, and a restart that keeps versions and jobs.
+
+Tests on data directories of their own, so that none runs more than one calibration: the capture and the first
+calibration of what it captured, and the calibrations from an active version, on rigd's app in this process
+(route behaviour); activation, exports and the restart on a real ``rigd serve`` (a process stopped with SIGTERM
+and started again)."""
 
 from __future__ import annotations
 
@@ -11,18 +16,21 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from api_helpers import RIG_GUESS, Server, matrix, wait_job
+from api_helpers import RIG_GUESS, App, Server, matrix, perturbed_truth, simulated_dataset, wait_job
 from scipy.spatial.transform import Rotation
 
 from calib.geometry import Transform
+from rigd.dataset import open_dataset
+from rigd.store.datasets import content_hash
+
+AUTO_ACTIVATE = {"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "2"}
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    server = Server(tmp_path_factory.mktemp("flow") / "data", env={"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "2"}).start()
-    yield server
-    if server.proc is not None and server.proc.poll() is None:
-        server.stop()
+@pytest.fixture
+def app(tmp_path):
+    app = App(tmp_path / "data", env=AUTO_ACTIVATE).start()
+    yield app
+    app.stop()
 
 
 def calibrate(client, body):
@@ -60,8 +68,8 @@ def capture(client):
     return done
 
 
-def test_capture_calibrate_version_activate_export_and_restart(server):
-    with server.client() as client:
+def test_capture_then_calibrate_the_captured_dataset(app):
+    with app.client() as client:
         capture(client)
         dataset = client.get("/datasets/field").json()
         assert dataset["pair_count"] == 2 and [p["number"] for p in dataset["pairs"]] == [0, 1]
@@ -93,7 +101,34 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
                                                                  RIG_GUESS["rpy_deg"])
         assert v1["dataset_id"] == "field" and v1["dataset_hash"].startswith("sha256:")
         assert v1["job_id"] == first["id"] and v1["code_version"]
+        check_overlays(client, v1)
 
+
+@pytest.fixture
+def field(app):
+    """(app, dataset "field", version 1): a simulated dataset, and a version measured elsewhere as the active one
+    that calibrations start from and are compared with."""
+    dataset = simulated_dataset(app.data_dir, "field")
+    with app.client() as client:
+        stored = client.post("/extrinsics/versions", json={"T_camera_lidar": RIG_GUESS, "activate": True})
+    assert stored.status_code == 201 and stored.json()["status"] == "active"
+    return app, dataset, stored.json()
+
+
+def test_without_auto_activate_a_result_stays_a_candidate(field):
+    app, dataset, _ = field
+    with app.client() as client:
+        start = perturbed_truth(dataset, (-1.0, -1.0, -1.0), (0.02, 0.02, 0.02))
+        second = calibrate(client, {"dataset": "field", "init": start, "sigmas_deg": [4.0, 2.0]})
+        v2 = client.get(second["result_link"]).json()
+        assert v2["status"] == "candidate"
+        assert [level["sigma_in_deg"] for level in v2["quality"]["levels"]] == [4.0, 2.0]  # the schedule asked for
+        assert v2["dataset_hash"] == content_hash(open_dataset(dataset))  # the files' hash, whichever job hashed them
+
+
+def test_recalibration_from_the_active_version_reports_its_change(field):
+    app, dataset, v1 = field
+    with app.client() as client:
         # Field recalibration from the active version: the change against it is reported.
         second = calibrate(client, {"dataset": "field", "init": "active", "auto_activate": True})
         v2 = client.get(second["result_link"]).json()
@@ -104,7 +139,7 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
             np.degrees(Rotation.from_matrix(delta[:3, :3]).magnitude()), abs=1e-6)
         t1, t2 = matrix(v1["T_camera_lidar"])[:3, 3], matrix(v2["T_camera_lidar"])[:3, 3]
         assert v2["change"]["translation_cm"] == pytest.approx(np.linalg.norm(t2 - t1) * 100, abs=1e-6)
-        assert v2["dataset_hash"] == v1["dataset_hash"]  # same files, same hash
+        assert v2["dataset_hash"] == content_hash(open_dataset(dataset))  # same files, same hash
         # auto_activate: the service's bounds (verdict trusted, converged, >= 2 pairs here, <= 5 deg and <= 10 cm
         # of change). The verdict and uncertainty are stored with the version and shown at its top level.
         assert v2["verdict"] == v2["quality"]["verdict"] and v2["verdict"]["status"] in ("trusted", "weak", "failed")
@@ -116,34 +151,44 @@ def test_capture_calibrate_version_activate_export_and_restart(server):
         assert checks["requested"] is True and len(checks["failed_checks"]) == sum(expected_failures)
         assert v2["status"] == ("candidate" if any(expected_failures) else "active")
 
-        # Without auto_activate a result stays a candidate.
-        start = {"rpy_deg": (truth.rpy_deg - 1.0).tolist(), "xyz_m": (truth.translation_m + 0.02).tolist()}
-        third = calibrate(client, {"dataset": "field", "init": start, "sigmas_deg": [4.0, 2.0]})
-        v3 = client.get(third["result_link"]).json()
-        assert v3["status"] == "candidate"
-        assert [level["sigma_in_deg"] for level in v3["quality"]["levels"]] == [4.0, 2.0]  # the schedule asked for
 
-        # Activate version 1 again: it becomes the active one, the others are not.
-        response = client.post("/extrinsics/versions/1/activate")
-        assert response.status_code == 200 and response.json()["status"] == "active"
-        statuses = {v["number"]: v["status"] for v in client.get("/extrinsics/versions").json()}
-        assert statuses[1] == "active" and list(statuses.values()).count("active") == 1
-        assert statuses[3] == "candidate"
-        assert client.get("/extrinsics").json()["number"] == 1
+def test_activation_exports_and_a_restart_that_keeps_versions_and_jobs(tmp_path):
+    simulated_dataset(tmp_path / "data", "field")
+    server = Server(tmp_path / "data").start()
+    try:
+        with server.client() as client:
+            for number, activate in ((1, True), (2, True), (3, False)):  # 2 supersedes 1; 3 is a candidate
+                transform = {"rpy_deg": [0.0, 15.0, -55.0 + number], "xyz_m": [0.09, 0.06, -0.17]}
+                stored = client.post("/extrinsics/versions", json={"T_camera_lidar": transform, "activate": activate})
+                assert stored.status_code == 201 and stored.json()["number"] == number
+            v1 = client.get("/extrinsics/versions/1").json()
+            # A job to outlive the restart: a capture into a complete dataset, which has nothing left to take.
+            job = client.post("/capture", json={"dataset": "field", "n": 2}).json()
+            assert wait_job(client, job["id"])["result"]["pairs_written"] == 0
 
-        check_exports(client, matrix(v1["T_camera_lidar"]))
-        check_overlays(client, v1)
-        versions_before = client.get("/extrinsics/versions").json()
-        jobs_before = client.get("/jobs").json()
+            # Activate version 1 again: it becomes the active one, the others are not.
+            response = client.post("/extrinsics/versions/1/activate")
+            assert response.status_code == 200 and response.json()["status"] == "active"
+            statuses = {v["number"]: v["status"] for v in client.get("/extrinsics/versions").json()}
+            assert statuses[1] == "active" and list(statuses.values()).count("active") == 1
+            assert statuses[3] == "candidate"
+            assert client.get("/extrinsics").json()["number"] == 1
 
-    assert server.stop() in (0, -signal.SIGTERM)  # uvicorn re-raises the signal after a clean shutdown
-    server.start()
-    with server.client() as client:
-        assert client.get("/extrinsics/versions").json() == versions_before
-        jobs_after = client.get("/jobs").json()
-        assert [(j["id"], j["status"], j["result"]) for j in jobs_after] == [
-            (j["id"], j["status"], j["result"]) for j in jobs_before]
-        assert client.get("/status").json()["active_extrinsics"]["version"] == 1
+            check_exports(client, matrix(v1["T_camera_lidar"]))
+            versions_before = client.get("/extrinsics/versions").json()
+            jobs_before = client.get("/jobs").json()
+
+        assert server.stop() in (0, -signal.SIGTERM)  # uvicorn re-raises the signal after a clean shutdown
+        server.start()
+        with server.client() as client:
+            assert client.get("/extrinsics/versions").json() == versions_before
+            jobs_after = client.get("/jobs").json()
+            assert [(j["id"], j["status"], j["result"]) for j in jobs_after] == [
+                (j["id"], j["status"], j["result"]) for j in jobs_before]
+            assert client.get("/status").json()["active_extrinsics"]["version"] == 1
+    finally:
+        if server.proc is not None and server.proc.poll() is None:
+            server.stop()
 
 
 def check_exports(client, T):

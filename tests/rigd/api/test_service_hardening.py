@@ -16,6 +16,7 @@ import pytest
 import yaml
 from api_helpers import (
     REPO,
+    App,
     Server,
     free_port,
     gone,
@@ -210,7 +211,7 @@ def test_a_slow_body_within_the_timeout_is_served(server):
 def test_the_queue_is_bounded_and_an_identical_request_gets_the_same_job(tmp_path):
     data = tmp_path / "data"
     dataset = simulated_dataset(data, "ds", pairs=3)
-    server = Server(data, env={"RIGD_MAX_QUEUED_JOBS": "2"}).start()
+    server = App(data, env={"RIGD_MAX_QUEUED_JOBS": "2"}).start()  # the runner's queue: no process needed
     try:
         with server.client() as client:
             body = {"dataset": "ds", "init": perturbed_truth(dataset)}
@@ -243,33 +244,29 @@ def test_the_queue_is_bounded_and_an_identical_request_gets_the_same_job(tmp_pat
         server.stop()
 
 
-def test_a_second_service_on_the_same_data_dir_exits(tmp_path):
-    data = tmp_path / "data"
-    dataset = simulated_dataset(data, "ds", pairs=2)
-    first = Server(data).start()
-    try:
-        with first.client() as client:
-            job = client.post("/calibrate", json={"dataset": "ds", "init": perturbed_truth(dataset)}).json()
-            second = subprocess.run([sys.executable, "-m", "rigd", "serve", "--port", str(free_port())],
-                                    env=first.env, cwd=REPO, capture_output=True, text=True, timeout=30)
-            assert second.returncode == 2, second.stderr
-            assert f"rigd: error: data directory {data} is in use by another rigd serve (pid {first.proc.pid})" in (
-                second.stderr)
-            assert "Traceback" not in second.stderr
-            # The first one's job was left alone: it was not marked interrupted, and it completes.
-            done = wait_job(client, job["id"])
-            assert done["status"] == "succeeded", done
-            assert client.get("/extrinsics/versions").json()[0]["job_id"] == job["id"]
-    finally:
-        first.stop()
-    # Stopped, it released the data directory: a new service starts on it.
-    first.start().stop()
+def test_a_second_service_on_the_same_data_dir_exits(server):
+    """On the module's service. That a stopped service releases the directory to the next start is shown by every
+    restart: test_service_flow.py's and test_service_crash.py's."""
+    data = server.data_dir
+    guess = perturbed_truth(data / "datasets" / "ds")
+    with server.client() as client:
+        job = client.post("/calibrate", json={"dataset": "ds", "init": guess}).json()
+        second = subprocess.run([sys.executable, "-m", "rigd", "serve", "--port", str(free_port())],
+                                env=server.env, cwd=REPO, capture_output=True, text=True, timeout=30)
+        assert second.returncode == 2, second.stderr
+        assert f"rigd: error: data directory {data} is in use by another rigd serve (pid {server.proc.pid})" in (
+            second.stderr)
+        assert "Traceback" not in second.stderr
+        # The first one's job was left alone: it was not marked interrupted, and it completes.
+        done = wait_job(client, job["id"])
+        assert done["status"] == "succeeded", done
+        assert client.get(done["result_link"]).json()["job_id"] == job["id"]
 
 
 @pytest.mark.parametrize("replace", [False, True], ids=["deleted", "replaced"])
 def test_a_deleted_data_dir_answers_503_and_acknowledges_no_write(tmp_path, replace):
     data = tmp_path / "data"
-    server = Server(data).start()
+    server = App(data).start()  # the store's answers: in this process
     try:
         with server.client() as client:
             stored = client.post("/extrinsics/versions", json={"T_camera_lidar": IDENTITY})
@@ -317,14 +314,14 @@ def test_a_data_dir_deleted_under_a_calibration_stops_its_worker_and_keeps_the_s
 
 
 def test_a_capture_without_the_sdk_layout_says_how_to_get_it(tmp_path):
-    layout = tmp_path / "etc" / "ladybug_layout.yaml"
+    layout = tmp_path / "etc" / "ladybug_layout.yaml"  # the capture's error: in this process
     rig = tmp_path / "rig.yaml"
     rig.write_text(yaml.safe_dump({
         "camera": {"model": "equirectangular", "width": 256, "height": 128, "source": "sdk",
                    "sdk": {"layout": str(layout)}},
         "lidar": {"model": "VLP-16", "source": f"udp:127.0.0.1:{free_port()}"},  # silent: the camera fails first
     }))
-    server = Server(tmp_path / "data", env={"RIGD_CONFIG": str(rig)}).start()
+    server = App(tmp_path / "data", env={"RIGD_CONFIG": str(rig)}).start()
     try:
         with server.client() as client:
             job = client.post("/capture", json={"dataset": "live", "n": 1}).json()

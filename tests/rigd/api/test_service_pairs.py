@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from api_helpers import Server, simulated_dataset
+from api_helpers import App, simulated_dataset
 
 from rigd.calibration.visuals import UNSEEN_BGR
 from rigd.dataset import open_dataset
@@ -25,7 +25,7 @@ def served(tmp_path_factory):
     (guessed / "rig.yaml").write_text(yaml.safe_dump(rig))
     head = write_simulated_dataset(data / "datasets" / "head", "outdoor", 1, 5, width=160, height=200,
                                    progress=False, head=True)
-    server = Server(data).start()
+    server = App(data).start()  # the routes that serve a dataset's pairs: rigd's app in this process
     yield server, {"plain": plain, "head": head}
     server.stop()
 

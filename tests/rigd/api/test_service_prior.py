@@ -4,7 +4,7 @@ the verdict stored with the version."""
 from __future__ import annotations
 
 import numpy as np
-from api_helpers import Server, matrix, perturbed_truth, simulated_dataset, wait_job
+from api_helpers import App, matrix, perturbed_truth, simulated_dataset, wait_job
 
 from rigd.dataset import open_dataset
 
@@ -13,7 +13,7 @@ def test_prior_and_fixed_translation_reach_the_calibration(tmp_path):
     data = tmp_path / "data"
     dataset = simulated_dataset(data, "ds", pairs=2)
     lever = (open_dataset(dataset).ground_truth.translation_m + [0.01, 0.0, 0.0]).tolist()
-    server = Server(data).start()
+    server = App(data).start()  # route behaviour and the worker: rigd's app in this process
     try:
         with server.client() as client:
             start = perturbed_truth(dataset)

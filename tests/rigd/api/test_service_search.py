@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from api_helpers import Server, simulated_dataset, wait_job
+from api_helpers import App, simulated_dataset, wait_job
 
 
 def test_calibrate_with_init_search_finds_the_mount(tmp_path):
     data = tmp_path / "data"
     simulated_dataset(data, "ds", pairs=2)  # simulated rig.yaml files carry no initial_guess
-    server = Server(data).start()
+    server = App(data).start()  # route behaviour and the worker: rigd's app in this process
     try:
         with server.client() as client:
             # the service's rig file has a guess; "search" ignores it (the camera was remounted)

@@ -9,48 +9,75 @@ import sys
 import pytest
 from api_helpers import REPO, Server, free_port, simulated_dataset
 
+from rigd.cli import main
+
 TOKEN = "correct-horse-battery-staple"
 
 
-def serve(*args: str, env: dict[str, str] | None = None, timeout_s: float = 60) -> subprocess.CompletedProcess[str]:
-    """``rigd serve`` expected to refuse its settings: it must exit well within ``timeout_s`` (a serving
-    process raises TimeoutExpired)."""
+def serve(*args: str, env: dict[str, str] | None = None, timeout_s: float = 60) -> tuple[int, str]:
+    """``rigd serve`` as a process, expected to refuse its settings: its exit code and stderr. It must exit
+    well within ``timeout_s`` (a serving process raises TimeoutExpired)."""
     environment = {"PATH": "/usr/bin:/bin", **(env or {})}
     if "PYTHONPATH" in os.environ:  # the code under test, when it is not the installed tree
         environment["PYTHONPATH"] = os.environ["PYTHONPATH"]
-    return subprocess.run([sys.executable, "-m", "rigd", "serve", "--port", str(free_port()), *args],
+    proc = subprocess.run([sys.executable, "-m", "rigd", "serve", "--port", str(free_port()), *args],
                           capture_output=True, text=True, timeout=timeout_s, cwd=REPO, env=environment)
+    return proc.returncode, proc.stderr
 
 
+def _would_serve(*args: object) -> None:
+    raise AssertionError("rigd serve accepted the settings and went on to open its data directory")
+
+
+@pytest.fixture
+def serve_here(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]):
+    """``rigd serve`` expected to refuse its settings, run in this process through ``rigd.cli.main`` (what
+    ``python -m rigd`` calls, without the ~1.3 s CPU of a new interpreter's imports): its exit code and stderr.
+    Settings it accepted fail the test where it would build the service, instead of serving forever."""
+    def run(*args: str, env: dict[str, str] | None = None) -> tuple[int, str]:
+        for name in [name for name in os.environ if name.startswith("RIGD_")]:
+            monkeypatch.delenv(name)
+        for name, value in (env or {}).items():
+            monkeypatch.setenv(name, value)
+        monkeypatch.setattr("rigd.api.service.build_service", _would_serve)
+        capsys.readouterr()
+        code = main(["serve", "--port", str(free_port()), *args])
+        return code, capsys.readouterr().err
+    return run
+
+
+# A refusal as a process (the exit status python -m rigd gives): the public address and the empty token. The other
+# cases run the same code (rigd.cli.main -> rigd.cli.serve.run) in this process.
 def test_refuses_a_public_address_without_a_token(tmp_path):
-    proc = serve("--host", "0.0.0.0", "--data-dir", str(tmp_path))
-    assert proc.returncode == 2
-    assert "rigd: error: refusing to listen on 0.0.0.0 without an API token" in proc.stderr
-    assert "Traceback" not in proc.stderr
+    code, stderr = serve("--host", "0.0.0.0", "--data-dir", str(tmp_path))
+    assert code == 2
+    assert "rigd: error: refusing to listen on 0.0.0.0 without an API token" in stderr
+    assert "Traceback" not in stderr
 
 
-def test_refuses_a_short_token_and_bad_settings(tmp_path):
-    proc = serve("--data-dir", str(tmp_path), env={"RIGD_TOKEN": "short"})
-    assert proc.returncode == 2 and "at least 16 characters" in proc.stderr
-    proc = serve("--data-dir", str(tmp_path), env={"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "zero"})
-    assert proc.returncode == 2 and "auto_activate_min_pairs" in proc.stderr
+def test_refuses_a_short_token_and_bad_settings(tmp_path, serve_here):
+    code, stderr = serve_here("--data-dir", str(tmp_path), env={"RIGD_TOKEN": "short"})
+    assert code == 2 and "at least 16 characters" in stderr
+    code, stderr = serve_here("--data-dir", str(tmp_path), env={"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "zero"})
+    assert code == 2 and "auto_activate_min_pairs" in stderr
 
 
 @pytest.mark.parametrize("token", ["", " ", " " * 20, "\t\n"])
-def test_refuses_an_empty_token(tmp_path, token):
+def test_refuses_an_empty_token(tmp_path, token, serve_here):
     # An empty RIGD_TOKEN= (a placeholder left in rigd.env) must not mean "no token": refuse to start.
-    proc = serve("--data-dir", str(tmp_path), env={"RIGD_TOKEN": token}, timeout_s=20)
-    assert proc.returncode == 2, proc.stderr
-    assert "rigd: error: the API token (RIGD_TOKEN) is empty" in proc.stderr
-    assert "Traceback" not in proc.stderr
+    run = serve if token == "" else serve_here
+    code, stderr = run("--data-dir", str(tmp_path), env={"RIGD_TOKEN": token})
+    assert code == 2, stderr
+    assert "rigd: error: the API token (RIGD_TOKEN) is empty" in stderr
+    assert "Traceback" not in stderr
 
 
-def test_refuses_an_empty_token_in_the_rig_file(tmp_path):
+def test_refuses_an_empty_token_in_the_rig_file(tmp_path, serve_here):
     rig = tmp_path / "rig.yaml"
     rig.write_text("service:\n  token:\n")
-    proc = serve("--data-dir", str(tmp_path / "data"), "--config", str(rig), timeout_s=20)
-    assert proc.returncode == 2, proc.stderr
-    assert "the API token (RIGD_TOKEN) is empty" in proc.stderr
+    code, stderr = serve_here("--data-dir", str(tmp_path / "data"), "--config", str(rig))
+    assert code == 2, stderr
+    assert "the API token (RIGD_TOKEN) is empty" in stderr
 
 
 @pytest.mark.parametrize("token, problem", [
@@ -59,10 +86,10 @@ def test_refuses_an_empty_token_in_the_rig_file(tmp_path):
     ("correct horse\tbattery staple", "printable ASCII"),  # a control character
     (" correct-horse-battery-staple", "leading or trailing white space"),  # HTTP strips it from the header
 ])
-def test_refuses_a_token_a_client_cannot_send(tmp_path, token, problem):
-    proc = serve("--data-dir", str(tmp_path), env={"RIGD_TOKEN": token}, timeout_s=20)
-    assert proc.returncode == 2, proc.stderr
-    assert "the API token (RIGD_TOKEN)" in proc.stderr and problem in proc.stderr
+def test_refuses_a_token_a_client_cannot_send(tmp_path, token, problem, serve_here):
+    code, stderr = serve_here("--data-dir", str(tmp_path), env={"RIGD_TOKEN": token})
+    assert code == 2, stderr
+    assert "the API token (RIGD_TOKEN)" in stderr and problem in stderr
 
 
 @pytest.fixture(scope="module")

@@ -51,7 +51,8 @@ def wait_for(runner: JobRunner, job_id: int, log_text: str | None = None, timeou
 def test_an_unforeseen_exception_in_the_worker_is_the_jobs_error(runner):
     # A tolerance the API refuses now (422) but the worker could still be given: it killed the verdict's
     # arithmetic with numpy's LinAlgError.
-    job, _ = runner.submit_calibration(replace(PLAN, tolerance={"rotation_deg": 1e-300, "translation_cm": 2.0}))
+    job, _ = runner.submit_calibration(replace(PLAN, tolerance={"rotation_deg": 1e-300, "translation_cm": 2.0},
+                                               sigmas_deg=(4.0, 2.0)))  # a short ladder: to the verdict sooner
     done = wait_for(runner, job.id)
     assert done.status is JobStatus.FAILED, done
     assert done.error is not None and "LinAlgError" in done.error, done.error
@@ -71,3 +72,21 @@ def test_a_killed_worker_is_reported_with_its_signal_and_its_pool_goes_with_it(r
     assert process_group(pid) == []
     again, _ = runner.submit_calibration(replace(PLAN, sigmas_deg=(5.0, 2.5)))  # the queue goes on
     assert wait_for(runner, again.id).status is JobStatus.SUCCEEDED
+
+
+def test_one_worker_calibrates_in_the_worker_process_alone(tmp_path):
+    """RIGD_WORKERS=1 (the runner's ``workers``) reaches the job: no pool processes beside the worker."""
+    simulated_dataset(tmp_path, "ds", pairs=2)
+    db = Database(tmp_path / "rigd.db")
+    runner = JobRunner(JobStore(db, tmp_path / "jobs"), VersionStore(db), DatasetCatalog(tmp_path / "datasets"),
+                       ActivationBounds(), "test", workers=1)
+    runner.start()
+    try:
+        job, _ = runner.submit_calibration(replace(PLAN, sigmas_deg=(4.0, 2.0)))
+        pid = worker_pid(runner.jobs.log_tail(wait_for(runner, job.id, "worker process").id))
+        wait_for(runner, job.id, "edges of pair")  # one process extracts pair after pair
+        assert process_group(pid) in ([pid], [])  # the worker alone (or already done)
+        assert wait_for(runner, job.id).status is JobStatus.SUCCEEDED
+    finally:
+        runner.shutdown()
+        db.close()

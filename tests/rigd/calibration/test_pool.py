@@ -14,16 +14,26 @@ import pytest
 
 from calib.assess import TrustOptions
 from calib.geometry import Transform
-from calib.pipeline import CalibParams, calibrate
+from calib.pipeline import CalibParams, calibrate, with_sigmas
 from rigd.calibration.pool import FeaturePool
 from tests.calib.synthetic import TRUTH, make_pair
 
 
-def _probe(feats, wait_s=0.0):
-    """(worker pid, band bytes the features held when the task began); then builds a band."""
+def _wait_for(path: Path | None, timeout_s: float = 60.0) -> None:
+    """Return once ``path`` exists (None: at once): a task held busy until the test lets it go, whatever the
+    machine's load, instead of a sleep it might outlast."""
+    deadline = time.monotonic() + timeout_s
+    while path is not None and not path.exists():
+        assert time.monotonic() < deadline, f"{path} never appeared"
+        time.sleep(0.01)
+
+
+def _probe(feats, release: Path | None = None):
+    """(worker pid, band bytes the features held when the task began); then builds a band (and waits for
+    ``release``)."""
     held = sum(f.fields.nbytes for f in feats)
     feats[0].fields.sample(np.array([[100.0, 100.0]]), np.array([3.0]))
-    time.sleep(wait_s)
+    _wait_for(release)
     return os.getpid(), held
 
 
@@ -32,26 +42,36 @@ def pairs():
     return [make_pair(1), make_pair(2)]
 
 
-def test_a_task_with_the_same_features_reuses_the_worker_copy_and_its_bands(pairs):
+@pytest.fixture(scope="module")
+def pool():
+    """One pool of two workers for the tests that keep it running (each worker's start imports calib: ~1 s
+    CPU): what they check holds for a pool that has run other tasks, as a calibration's runs many."""
     with FeaturePool(2) as pool:
-        first_pid, first_held = pool.submit(_probe, pairs).result()
-        again_pid, again_held = pool.submit(_probe, pairs).result()
-        assert first_held == 0  # pickled without bands
-        assert again_pid == first_pid and again_held > 0  # the same copy, with the band the first task built
-        slow = pool.submit(_probe, pairs, 1.0)  # the holder is busy: the next goes to the other worker
-        other_pid, other_held = pool.submit(_probe, pairs).result()
-        assert other_pid != first_pid and other_held == 0
-        assert slow.result()[0] == first_pid
-        fresh_pid, fresh_held = pool.submit(_probe, [make_pair(1), make_pair(2)]).result()
-        assert fresh_held == 0  # another list is sent, never confused with a held one
+        yield pool
 
 
-def test_a_calibration_in_the_pool_ends_exactly_where_the_serial_one_does(pairs):
+def test_a_task_with_the_same_features_reuses_the_worker_copy_and_its_bands(pool, tmp_path):
+    pairs = [make_pair(1), make_pair(2)]  # a list of its own: the module's pool has not been sent it
+    release = tmp_path / "release"
+    first_pid, first_held = pool.submit(_probe, pairs).result()
+    again_pid, again_held = pool.submit(_probe, pairs).result()
+    assert first_held == 0  # pickled without bands
+    assert again_pid == first_pid and again_held > 0  # the same copy, with the band the first task built
+    slow = pool.submit(_probe, pairs, release)  # the holder is busy: the next goes to the other worker
+    other_pid, other_held = pool.submit(_probe, pairs).result()
+    release.touch()
+    assert other_pid != first_pid and other_held == 0
+    assert slow.result()[0] == first_pid
+    fresh_pid, fresh_held = pool.submit(_probe, [make_pair(1), make_pair(2)]).result()
+    assert fresh_held == 0  # another list is sent, never confused with a held one
+
+
+def test_a_calibration_in_the_pool_ends_exactly_where_the_serial_one_does(pairs, pool):
     guess = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.5, -1.0, 1.0], TRUTH.translation_m + [0.03, -0.02, 0.02])
     trust = TrustOptions(restarts=2)  # one here, one in the worker that ran the alternative schedule
-    serial = calibrate(pairs, guess, CalibParams(), trust=trust)
-    with FeaturePool(2) as pool:
-        pooled = calibrate(pairs, guess, CalibParams(), trust=trust, executor=pool)
+    params = with_sigmas(CalibParams(), (4.0, 2.0))  # two levels: an alternative schedule still, in half the time
+    serial = calibrate(pairs, guess, params, trust=trust)
+    pooled = calibrate(pairs, guess, params, trust=trust, executor=pool)
     assert serial.assessment is not None and pooled.assessment is not None
     assert np.array_equal(serial.T_camera_lidar.tau, pooled.T_camera_lidar.tau)
     assert serial.optim.final_cost == pooled.optim.final_cost
@@ -93,18 +113,20 @@ def test_workers_exit_when_their_parent_is_killed():
         time.sleep(0.1)
 
 
-def _pid_after(wait_s: float) -> int:
+def _pid_after(wait_s: float, release: Path | None = None) -> int:
     time.sleep(wait_s)
+    _wait_for(release)
     return os.getpid()
 
 
-def test_tasks_wait_for_a_free_worker_instead_of_queueing_behind_a_busy_one():
-    with FeaturePool(2) as pool:
-        long = pool.submit(_pid_after, 2.0)
-        short = [pool.submit(_pid_after, 0.05) for _ in range(4)]
-        pids = [f.result() for f in short]
-        assert long.result() not in pids  # the free worker took every short task; none waited for the long one
-        assert len(set(pids)) == 1
+def test_tasks_wait_for_a_free_worker_instead_of_queueing_behind_a_busy_one(pool, tmp_path):
+    release = tmp_path / "release"
+    long = pool.submit(_pid_after, 0.0, release)  # busy until every short task is done
+    short = [pool.submit(_pid_after, 0.05) for _ in range(4)]
+    pids = [f.result() for f in short]
+    release.touch()
+    assert long.result() not in pids  # the free worker took every short task; none waited for the long one
+    assert len(set(pids)) == 1
 
 
 def test_a_shutdown_runs_the_queued_tasks_first():

@@ -5,6 +5,7 @@ turning and one that stopped sending (real UDP on loopback)."""
 from __future__ import annotations
 
 import csv
+import itertools
 import multiprocessing
 import os
 import shutil
@@ -13,7 +14,8 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -21,8 +23,9 @@ import numpy as np
 import pytest
 from capture_helpers import free_udp_ports, record_session
 
+from drivers.ladybug5 import HeadCalibration
 from drivers.sim.motion import MotionRigSpec, Trajectory, save_spec
-from drivers.sim.stream import TURN_S, LidarEmitter
+from drivers.sim.stream import TURN_S, LidarEmitter, SimFrame
 from drivers.vlp16 import send_datagrams
 from drivers.vlp16.layout import BLOCKS_PER_PACKET
 from rigd.capture import CaptureRequest, CaptureStatus, SensorSilenceError, run_capture
@@ -176,22 +179,30 @@ def test_a_read_only_output_is_a_clear_error(tmp_path: Path, session: Session, n
 
 def test_a_frozen_simulated_camera_ends_the_capture_with_an_error(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(capture_sources, "SIM_FRAME_GAP_S", 0.0)  # its 64x32 frames come every second
-    save_spec(tmp_path / "rig.yaml", SPEC)
+    monkeypatch.setattr(capture_sources, "SIM_FRAME_GAP_S", 0.0)  # its 64x32 frames come every 0.25 s
+    save_spec(tmp_path / "rig.yaml", replace(SPEC, frame_period_s=0.25))
+    framed = threading.Event()  # a frame has reached the capture: its silence allowance is now silence_timeout_s
+    convert = capture_sources.sim_frame
+
+    def sim_frame(frame: SimFrame, head: HeadCalibration | None) -> capture_sources.CameraFrame:
+        framed.set()
+        return convert(frame, head)
+
+    monkeypatch.setattr(capture_sources, "sim_frame", sim_frame)
     statuses: list[CaptureStatus] = []
     outcome: list[BaseException] = []
 
     def capture() -> None:
         try:
             run_capture(CaptureRequest(tmp_path / "ds", 1, lidar=f"sim:{tmp_path / 'rig.yaml'}", camera="sim",
-                                       still_seconds=30.0, silence_timeout_s=2.0), statuses.append)
+                                       still_seconds=30.0, silence_timeout_s=1.0), statuses.append)
         except BaseException as exc:  # handed to the test's thread
             outcome.append(exc)
 
     thread = threading.Thread(target=capture, daemon=True)
     thread.start()
     wait_for(lambda: any(s.packet_rate_hz > 0 for s in statuses), 60, "the simulated LiDAR")
-    time.sleep(1.5)  # a frame or two from the camera
+    wait_for(framed.is_set, 60, "a camera frame")
     camera = next(p for p in multiprocessing.active_children() if p.name == "sim-camera")
     assert camera.pid is not None
     os.kill(camera.pid, signal.SIGSTOP)
@@ -203,8 +214,8 @@ def test_a_frozen_simulated_camera_ends_the_capture_with_an_error(
         if camera.is_alive():
             os.kill(camera.pid, signal.SIGKILL)
     assert isinstance(outcome[0], SensorSilenceError), outcome
-    assert "no camera frame from sim for 2." in str(outcome[0]) and "stopped or hung" in str(outcome[0])
-    assert time.monotonic() - stopped < 10.0  # ~2 s of silence, then the child ended within its grace period
+    assert "no camera frame from sim for 1." in str(outcome[0]) and "stopped or hung" in str(outcome[0])
+    assert time.monotonic() - stopped < 10.0  # ~1 s of silence, then the child ended within its 2 s grace period
     assert not camera.is_alive()
 
 
@@ -221,15 +232,16 @@ def frozen(datagrams: list[tuple[float, int, bytes]], data_port: int) -> list[tu
     return out
 
 
-def run_udp_capture(tmp_path: Path, datagrams: list[tuple[float, int, bytes]], ports: list[int],
+def run_udp_capture(tmp_path: Path, datagrams: Iterable[tuple[float, int, bytes]], ports: list[int],
                     silence_timeout_s: float) -> tuple[BaseException, list[tuple[float, CaptureStatus]], float]:
-    """Send ``datagrams`` at the sensor's pace to a capture; its error, its statuses (with the monotonic time
-    they came) and when the last datagram left."""
+    """Send ``datagrams`` at the sensor's pace to a capture, until it raises (the rest are not sent); its error,
+    its statuses (with the monotonic time they came) and when the last datagram left."""
     statuses: list[tuple[float, CaptureStatus]] = []
     sent: list[float] = []
+    raised = threading.Event()
 
     def send() -> None:
-        send_datagrams(datagrams, "127.0.0.1", speed=1.0)
+        send_datagrams(itertools.takewhile(lambda _: not raised.is_set(), datagrams), "127.0.0.1", speed=1.0)
         sent.append(time.monotonic())
 
     sender = threading.Thread(target=send, daemon=True)
@@ -241,7 +253,10 @@ def run_udp_capture(tmp_path: Path, datagrams: list[tuple[float, int, bytes]], p
             sender.start()
 
     with pytest.raises(SensorSilenceError) as caught:
-        run_capture(request, progress)
+        try:
+            run_capture(request, progress)
+        finally:
+            raised.set()
     sender.join(10.0)
     return caught.value, statuses, sent[0]
 
@@ -249,6 +264,7 @@ def run_udp_capture(tmp_path: Path, datagrams: list[tuple[float, int, bytes]], p
 def test_a_head_that_stopped_turning_is_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(capture_engine, "STARTUP_S", 1.0)
     ports = free_udp_ports(2)
+    # Sent until the error, due 1.5 s after the first packet: still arriving then (their rate is in it).
     datagrams = frozen(still_rig_datagrams(ports[0], ports[1], 4.0), ports[0])
     error, statuses, _ = run_udp_capture(tmp_path, datagrams, ports, silence_timeout_s=1.5)
     assert "sends packets (7" in str(error) and "but its head does not turn (0 rpm)" in str(error)
@@ -258,9 +274,11 @@ def test_a_head_that_stopped_turning_is_named(tmp_path: Path, monkeypatch: pytes
 
 def test_the_packet_rate_falls_to_zero_when_the_stream_stops(tmp_path: Path) -> None:
     ports = free_udp_ports(2)
-    error, statuses, ended = run_udp_capture(tmp_path, still_rig_datagrams(ports[0], ports[1], 2.0), ports,
-                                             silence_timeout_s=3.0)
+    error, statuses, ended = run_udp_capture(tmp_path, still_rig_datagrams(ports[0], ports[1], 1.0), ports,
+                                             silence_timeout_s=2.5)
     assert "no VLP-16 data from udp:127.0.0.1" in str(error)
     assert max(s.packet_rate_hz for t, s in statuses if t < ended) == pytest.approx(754, rel=0.05)
-    late = [s.packet_rate_hz for t, s in statuses if t > ended + 1.2]  # a second of data, and a poll
+    # 0 once no sweep has come for a second (engine.RATE_WINDOW_S), the last one taken up to half a second late
+    # on a busy machine; statuses come every 0.5 s, and the silence error ends them 2.5 s after the last sweep.
+    late = [s.packet_rate_hz for t, s in statuses if t > ended + 1.5]
     assert late and set(late) == {0.0}

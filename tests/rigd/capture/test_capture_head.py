@@ -29,7 +29,7 @@ SENSOR_WIDTH = 64  # the simulated head's sensors: 64 x 54 px
 
 def test_capture_writes_the_sensor_images_with_their_head(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("RIGD_CONFIG", raising=False)
-    spec = MotionRigSpec(scene="indoor", seed=3, stops=4, still_s=2.5, move_s=1.5, width=128, height=64,
+    spec = MotionRigSpec(scene="indoor", seed=3, stops=6, still_s=1.5, move_s=0.5, width=128, height=64,
                          frame_period_s=0.2, sensor_width=SENSOR_WIDTH)
     code, emitter = capture_following(tmp_path, spec, 2, _rig_file(tmp_path))
     start, scene, trajectory = emitter.spec.start_host_s, emitter.scene, emitter.trajectory

@@ -13,6 +13,7 @@ from capture_helpers import complete_pairs
 
 from drivers.sim.motion import MotionRigSpec, save_spec
 from rigd.capture import CaptureError, CaptureRequest, CaptureStatus, SimRigEndedError, SourceEndedError, run_capture
+from rigd.capture import engine as capture_engine
 from rigd.errors import RigdError
 
 WAIT_S = 30.0  # far beyond when the error is due: a capture still running then would wait for ever
@@ -60,15 +61,15 @@ def whole_pairs(out: Path) -> list[str]:
 
 def test_more_pairs_than_the_sim_rig_has_places_end_with_an_error(tmp_path: Path) -> None:
     rig = tmp_path / "sim-rig.yaml"
-    save_spec(rig, MotionRigSpec(scene="indoor", seed=4, stops=2, still_s=2.5, move_s=0.5, width=64, height=32))
+    save_spec(rig, MotionRigSpec(scene="indoor", seed=4, stops=2, still_s=1.5, move_s=0.5, width=64, height=32))
     out = tmp_path / "ds"
     error, elapsed = capture_until_it_ends(CaptureRequest(out, 5, lidar=f"sim:{rig}", camera="sim",
                                                           still_seconds=0.5))
     assert isinstance(error, SimRigEndedError), error
     assert isinstance(error, SourceEndedError) and isinstance(error, CaptureError)  # rigd: error: ..., exit code 2
-    # The rig reaches its last place 3 s after it starts; it has stood there its 2.5 s stop and 5 s of grace by
-    # 10.5 s (at once, if that place already has its pair); the sensors' processes take a second or two to start.
-    assert elapsed < 15.0
+    # The rig reaches its last place 2 s after it starts; it has stood there its 1.5 s stop and 5 s of grace by
+    # 8.5 s (at once, if that place already has its pair); the sensors' processes take a second or two to start.
+    assert elapsed < 13.0
     written = whole_pairs(out)
     assert 1 <= len(written) <= 2  # one pair a place at most; the last place, where the rig stays, gives one
     message = str(error)
@@ -78,10 +79,12 @@ def test_more_pairs_than_the_sim_rig_has_places_end_with_an_error(tmp_path: Path
     assert f"too few places for the 5 pairs missing: give it more places (stops in {rig})" in message
 
 
-def test_a_sim_camera_too_slow_for_the_stops_ends_the_capture_with_an_error(tmp_path: Path) -> None:
+def test_a_sim_camera_too_slow_for_the_stops_ends_the_capture_with_an_error(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # A frame a minute at most: the camera gives one frame while the rig stops at both its places (as on a
     # machine so busy that a render takes longer than a leg), so 2 pairs cannot be had from its 2 places.
     # Before the fix: no camera frame for 20 s, then a "stopped or hung" camera error.
+    monkeypatch.setattr(capture_engine, "SIM_END_GRACE_S", 1.0)  # no pair can come at the last place: not 5 s
     rig = tmp_path / "sim-rig.yaml"
     save_spec(rig, MotionRigSpec(scene="indoor", seed=4, stops=2, still_s=0.6, move_s=0.4, width=64, height=32,
                                  frame_period_s=60.0))
@@ -89,7 +92,7 @@ def test_a_sim_camera_too_slow_for_the_stops_ends_the_capture_with_an_error(tmp_
     error, elapsed = capture_until_it_ends(CaptureRequest(out, 2, lidar=f"sim:{rig}", camera="sim",
                                                           still_seconds=0.5))
     assert isinstance(error, SimRigEndedError) and isinstance(error, RigdError), error
-    # Last stop at 1 s, stood there 0.6 s + 5 s of grace: 6.6 s after the rig starts (at once, if that place has
+    # Last stop at 1 s, stood there 0.6 s + 1 s of grace: 2.6 s after the rig starts (at once, if that place has
     # its pair), well before the camera's 20 s silence allowance.
     assert elapsed < 15.0
     written = whole_pairs(out)

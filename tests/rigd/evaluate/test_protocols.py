@@ -21,8 +21,9 @@ SUMMARY_KEYS = {"runs", "finished", "converged", "converged_percent", "outlier_r
 
 
 def _convergence(dataset, out, workers, capsys):
+    # Two levels of the ladder: what is checked is the report, the starts and the workers' independence
     code = main(["evaluate", "convergence", str(dataset), "--trials", "2", "--seed", "4", "--workers", str(workers),
-                 "--out", str(out)])
+                 "--out", str(out), "--sigmas", "3.5,1.8"])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     return yaml.safe_load((out / "convergence.yaml").read_text()), captured.out
@@ -55,8 +56,10 @@ def test_convergence_report_plot_and_worker_independence(small_dataset, tmp_path
 
 def test_precision_report_uses_the_seeded_subsets(small_dataset, tmp_path, capsys):
     out = tmp_path / "prec"
+    # one worker: each extracts the features (a process and ~1 s more); the workers' independence is the
+    # convergence test's
     code = main(["evaluate", "precision", str(small_dataset), "--subsets", "3", "--size", "1", "--seed", "2",
-                 "--workers", "2", "--out", str(out), "--sigmas", "3.5,1.8"])
+                 "--workers", "1", "--out", str(out), "--sigmas", "3.5,1.8"])
     assert code == 0, capsys.readouterr().err
     report = yaml.safe_load((out / "precision.yaml").read_text())
     assert report["protocol"] == "precision" and report["settings"]["start"] == "ground_truth"
@@ -88,7 +91,7 @@ def test_featureless_dataset_reports_the_worker_error(small_dataset, tmp_path, c
     (root / "ground_truth.yaml").write_text((small_dataset / "ground_truth.yaml").read_text())
     pts = np.random.default_rng(0).normal(size=(500, 3)) + [5.0, 0.0, 0.0]
     write_pair(root, 0, np.full((256, 512), 128, np.uint8), Cloud(pts), {})
-    assert main(["evaluate", "convergence", str(root), "--trials", "2", "--workers", "2"]) == 2
+    assert main(["evaluate", "convergence", str(root), "--trials", "2", "--workers", "1"]) == 2
     assert "featureless" in capsys.readouterr().err
 
 
