@@ -17,7 +17,12 @@ import inspect
 import os
 import re
 import signal
+import subprocess
+import sys
 import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 
 import cv2
@@ -26,7 +31,7 @@ import pytest
 import yaml
 from api_helpers import Server, perturbed_truth, simulated_dataset, wait_job
 from selenium import webdriver
-from selenium.common.exceptions import StaleElementReferenceException
+from selenium.common.exceptions import ElementClickInterceptedException, StaleElementReferenceException
 from selenium.webdriver.chrome.service import Service as DriverService
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
@@ -34,7 +39,6 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
 from rigd.capture.engine import CaptureState
-from rigd.simulate import write_simulated_dataset
 
 # Debian's packages (.ci/run installs them): browser and driver come from one source package, so they match.
 CHROMIUM = Path("/usr/bin/chromium")
@@ -44,13 +48,25 @@ REQUIRE_BROWSER = "RIGD_REQUIRE_BROWSER"
 TOKEN = "correct-horse-battery-staple"
 DESKTOP = (1280, 900)
 PHONE = (360, 740)
+# Test clocks (fast_timers): the page's timers run this many times faster. How much depends on what a request
+# given up on too soon (a slow answer taken for an offline service) would do: PAGE_CLOCK where it would replace
+# the message the test reads (a request still has 4 s; a loaded machine's slowest answer seen took 0.3 s);
+# BANNER_CLOCK where the banner is what is tested (2 s: it must come from the stopped service, not a slow
+# answer); POLL_CLOCK where it changes nothing asserted (1 s; polls every 0.5 s).
+PAGE_CLOCK = 2
+BANNER_CLOCK = 4
+POLL_CLOCK = 8
+WIDE = "wide"  # a dataset whose one image is 2048 px wide (big_pair)
 TONE = {"trusted": "ok", "ok": "ok", "weak": "warn", "unknown": "warn", "failed": "bad", "drifted": "bad"}
+
+
+def missing_browser() -> list[str]:
+    return [str(p) for p in (CHROMIUM, CHROMEDRIVER) if not p.exists()]
 
 
 @pytest.fixture(scope="module")
 def browser():
-    missing = [str(p) for p in (CHROMIUM, CHROMEDRIVER) if not p.exists()]
-    if missing:
+    if missing := missing_browser():
         reason = (f"{', '.join(missing)} not found: the operator page's test needs Debian's Chromium and its driver: "
                   f"{INSTALL_BROWSER} (.ci/run does)")
         if os.environ.get(REQUIRE_BROWSER):  # .ci/run installed them: without them the page would go untested
@@ -90,8 +106,10 @@ def load(driver, url: str) -> float:
 
 
 def until(driver, timeout_s: float, condition):
-    """Wait for ``condition(driver)``; elements the page replaced meanwhile are looked up again."""
-    return WebDriverWait(driver, timeout_s, ignored_exceptions=(StaleElementReferenceException,)).until(condition)
+    """Wait for ``condition(driver)``; elements the page replaced meanwhile are looked up again. Polled every
+    0.05 s (WebDriverWait's 0.5 s default cost up to half a second per wait, and this module waits often)."""
+    return WebDriverWait(driver, timeout_s, poll_frequency=0.05,
+                         ignored_exceptions=(StaleElementReferenceException,)).until(condition)
 
 
 def texts(driver, css: str) -> list[str]:
@@ -116,15 +134,17 @@ def attr(driver, css: str, name: str) -> str | None:
 
 def click(driver, css: str) -> None:
     until(driver, 10, lambda d: d.find_element(By.CSS_SELECTOR, css).is_enabled())
-    for _ in range(5):  # the element may be replaced by a refresh between finding and clicking it
+    # Between finding and clicking it, the element may be replaced by a refresh, or moved by an image that came in
+    # (another element would get the click): then again.
+    for _ in range(5):
         try:
             element = driver.find_element(By.CSS_SELECTOR, css)
             driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", element)
             element.click()
             return
-        except StaleElementReferenceException:
-            continue
-    raise AssertionError(f"could not click {css}")
+        except (StaleElementReferenceException, ElementClickInterceptedException) as error:
+            missed = error
+    raise AssertionError(f"could not click {css}") from missed
 
 
 def watch(driver, css: str, done, timeout_s: float) -> list[str]:
@@ -136,6 +156,8 @@ def watch(driver, css: str, done, timeout_s: float) -> list[str]:
         if now and (not seen or seen[-1] != now):
             seen.append(now)
         if now and done(now):
+            if (last := text(driver, css)) and last != seen[-1]:  # done() may have read a part swapped later
+                seen.append(last)
             return seen
         time.sleep(0.2)
     raise AssertionError(f"{css} did not finish in {timeout_s} s; it showed {seen}")
@@ -145,21 +167,24 @@ def finished(driver, css: str) -> bool:
     return attr(driver, css, "data-status") in ("succeeded", "failed", "cancelled")
 
 
+def viewport(driver, width: int, height: int, mobile: bool = False) -> None:
+    """Emulate a ``width`` x ``height`` viewport (CSS px) and wait until the page has it and its images are
+    loaded (the lens takes its image's shape on load): what a fixed pause after the resize stood for."""
+    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                           {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": mobile})
+    until(driver, 10, lambda d: d.execute_script("return [window.innerWidth, window.innerHeight]") == [width, height]
+          and images_loaded(d))
+
+
 def screenshot(driver, path: Path, size: tuple[int, int], mobile: bool) -> None:
     """The whole page at viewport ``size`` (CSS px), emulated as a phone when ``mobile``."""
     width, height = size
-    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                           {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": mobile})
+    viewport(driver, width, height, mobile)
     driver.execute_script("window.scrollTo(0, 0)")
-    time.sleep(0.5)  # layout and images after the resize
-    full = driver.execute_script("return document.documentElement.scrollHeight")
-    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                           {"width": width, "height": full, "deviceScaleFactor": 1, "mobile": mobile})
-    time.sleep(0.5)
-    until(driver, 10, images_loaded)
+    full = driver.execute_script("return document.documentElement.scrollHeight")  # laid out for the new size
+    viewport(driver, width, full, mobile)
     driver.save_screenshot(str(path))
-    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                           {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": mobile})
+    viewport(driver, width, height, mobile)
 
 
 def images_loaded(driver, ids: tuple[str, ...] = ("lens-after", "ov-closeup", "ov-cloud")) -> bool:
@@ -183,25 +208,398 @@ def translate(transform: str) -> tuple[float, float]:
     return float(x), float(y)
 
 
+def drag(driver, element, dx: int, dy: int) -> None:
+    """Press on ``element``'s centre, move by (dx, dy) CSS px, release: one pointermove (Selenium's default
+    interpolates each move over 250 ms, which a drag the page follows in absolute terms does not need)."""
+    (ActionChains(driver, duration=0).move_to_element(element).click_and_hold().move_by_offset(dx, dy).release()
+     .perform())
+
+
 def message(driver) -> tuple[str, str]:
     """The top message's text and tone (its class: ok, warn, bad, or empty)."""
     return text(driver, "#message"), attr(driver, "#message", "class") or ""
 
 
-# -- a fresh install, the whole loop ----------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    """A fresh install (no version) with one simulated dataset, "field" (2 pairs, 256x128)."""
-    data = tmp_path_factory.mktemp("page") / "data"
-    simulated_dataset(data, "field")
+@contextmanager
+def fast_timers(driver, factor: float) -> Iterator[None]:
+    """Pages opened meanwhile run their setTimeout delays ``factor`` times faster: a test clock, as freezegun is
+    for Python. page.js times all it waits for with setTimeout (polls every 4 s, 1 s while a job runs, 3 s while
+    offline; REQUEST_TIMEOUT_MS before a request counts as unanswered), so the page, unchanged, does the same
+    things in the same order, sooner, and what is asserted about its polls, the banner and its recovery means
+    what it did at the real pace. Chosen over Chromium's virtual time (Emulation.setVirtualTimePolicy), whose
+    clock its policy pauses or runs ahead around the page's requests, where the banner is about a real request
+    left unanswered; and over a pace setting in page.js, product code only tests would use. Pages opened once
+    the script is removed run at the real pace."""
+    script = driver.execute_cdp_cmd("Page.addScriptToEvaluateOnNewDocument", {"source": (
+        "(() => { const setTimeout = window.setTimeout;"
+        f" window.setTimeout = (f, ms, ...args) => setTimeout(f, (Number(ms) || 0) / {factor}, ...args); }})();")})
+    try:
+        yield
+    finally:
+        driver.execute_cdp_cmd("Page.removeScriptToEvaluateOnNewDocument", {"identifier": script["identifier"]})
+
+
+# -- the services, made ahead ----------------------------------------------------------------------------------
+# A service takes ~2 s to start and the head's ~6 s more to simulate and calibrate, none of it in the browser,
+# while a test waiting for the page leaves a core idle; made by each test, that time came one test after
+# another. So the services are made in two threads from the module's start, and a test waits (Future.result)
+# only for what is not ready yet. The tests that need no more than a service come first; the loop last, when
+# nothing is made any more: its capture runs in real time (a busy machine drops its LiDAR's turns) and its
+# calibrations are the heaviest work here.
+def start_fresh(root: Path) -> Server:
+    return Server(root / "data").start()
+
+
+def start_wide(root: Path) -> Server:
+    big_pair(root / "data", WIDE)
+    return Server(root / "data").start()
+
+
+def start_token(root: Path) -> Server:
+    return Server(root / "data", env={"RIGD_TOKEN": TOKEN}).start()
+
+
+def start_head(root: Path) -> Server:
+    """A head's dataset, "head" (2 pairs, five 160x200 sensors), and its calibration, version 1. Simulated by
+    rigd simulate, a process of its own: in a thread here it would hold this process's GIL for seconds. Its
+    service starts after it, so as not to slow the start of the one the first test waits for."""
+    data = root / "data"
+    dataset = data / "datasets" / "head"
+    simulate = subprocess.run([sys.executable, "-m", "rigd", "simulate", str(dataset), "--scene", "outdoor",
+                               "--pairs", "2", "--seed", "5", "--width", "160", "--height", "200", "--camera", "head"],
+                              capture_output=True, text=True, timeout=120)
+    assert simulate.returncode == 0, simulate.stderr
     server = Server(data).start()
+    try:
+        with server.client() as client:
+            response = client.post("/calibrate", json={"dataset": "head", "init": perturbed_truth(dataset)})
+            assert response.status_code == 202, response.text
+            assert wait_job(client, response.json()["id"], 240)["status"] == "succeeded"
+    except BaseException:
+        server.stop()
+        raise
+    return server
+
+
+def start_field(root: Path) -> Server:
+    simulated_dataset(root / "data", "field")
+    return Server(root / "data").start()
+
+
+# The fixture, and what makes its service (in a directory of its own): in the order the tests need them, but the
+# longest second, to have the second thread from the start.
+SERVICES: dict[str, Callable[[Path], Server]] = {
+    "fresh_service": start_fresh,
+    "head_service": start_head,
+    "wide_service": start_wide,
+    "token_service": start_token,
+    "server": start_field,
+}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def ahead(request, tmp_path_factory) -> Iterator[dict[str, Future[Server]]]:
+    """The services of SERVICES that the selected tests name, being made."""
+    named = {name for item in request.session.items if getattr(item, "module", None) is request.module
+             for name in item.fixturenames}
+    futures: dict[str, Future[Server]] = {}
+    if missing_browser():  # the tests that would use them are skipped (or failed) without it
+        yield futures
+        return
+    with ThreadPoolExecutor(2) as pool:
+        for name, start in SERVICES.items():
+            if name in named:
+                futures[name] = pool.submit(start, tmp_path_factory.mktemp(name))
+        yield futures
+    for future in futures.values():  # the module's; the others' were stopped after their test if it ran
+        if future.exception() is None:
+            future.result().stop()
+
+
+def service(ahead: dict[str, Future[Server]], name: str) -> Iterator[Server]:
+    """The test's own service, stopped after it."""
+    server = ahead[name].result()
     yield server
     server.stop()
 
 
+@pytest.fixture(scope="module")
+def fresh_service(ahead) -> Server:
+    """A fresh install (no dataset, no version) for the versions' test, then the banner's."""
+    return ahead["fresh_service"].result()
+
+
+@pytest.fixture
+def wide_service(ahead) -> Iterator[Server]:
+    """A dataset, WIDE, whose one image is 2048 px wide."""
+    yield from service(ahead, "wide_service")
+
+
+@pytest.fixture
+def token_service(ahead) -> Iterator[Server]:
+    """A fresh install with an API token, TOKEN."""
+    yield from service(ahead, "token_service")
+
+
+@pytest.fixture
+def head_service(ahead) -> Iterator[Server]:
+    """A head's dataset and its calibration (start_head)."""
+    yield from service(ahead, "head_service")
+
+
+@pytest.fixture(scope="module")
+def server(ahead) -> Server:
+    """The loop's: a fresh install (no version) with one simulated dataset, "field" (2 pairs, 256x128)."""
+    return ahead["server"].result()
+
+
+# -- many versions, live updates, an unreachable service --------------------------------------------------------
+def live_sizes(driver, since_ms: float = 0.0) -> list[int]:
+    """Body sizes (bytes) of the /ui/live answers to requests made after ``since_ms`` (the page's
+    performance.now()), in the order they came. Answers only: a request given up on has an entry too (size 0)."""
+    return driver.execute_script("return performance.getEntriesByType('resource').filter(e => e.name.includes("
+                                 "'/ui/live') && e.startTime > arguments[0] && e.responseStatus === 200)"
+                                 ".map(e => e.decodedBodySize);", since_ms)
+
+
+def test_versions_paged_and_live_diffs(browser, fresh_service):
+    """25 versions: the newest 10 on the page, 10 more per click; /ui/live sends only parts that changed; HEAD /
+    answers."""
+    server = fresh_service
+    try:
+        with server.client() as client:
+            for k in range(25):
+                body = {"T_camera_lidar": {"rpy_deg": [0.0, 15.0, -55.0 + 0.01 * k], "xyz_m": [0.1, 0.05, -0.15]}}
+                assert client.post("/extrinsics/versions", json=body).status_code == 201
+            head = client.head("/")
+            assert head.status_code == 200 and head.headers["content-type"].startswith("text/html")
+        browser.get("about:blank")
+        console_errors(browser)  # drained: an earlier test's page may have polled its stopped service
+        with fast_timers(browser, POLL_CLOCK):  # polls every 0.5 s: the two waited for take ~1 s, not 9 s
+            load(browser, server.url + "/")
+        numbers = lambda d: [int(v) for v in d.execute_script(  # noqa: E731
+            "return [...document.querySelectorAll('.version')].map(v => v.dataset.version)")]
+        assert numbers(browser) == list(range(25, 15, -1))  # the newest 10, newest first
+        assert "the newest 10 of 25" in text(browser, "#versions-more")
+        click(browser, 'button[data-action="more-versions"]')
+        until(browser, 10, lambda d: len(numbers(d)) == 20)
+        click(browser, 'button[data-action="more-versions"]')
+        until(browser, 10, lambda d: numbers(d) == list(range(25, 0, -1)))
+        assert not browser.find_elements(By.CSS_SELECTOR, 'button[data-action="more-versions"]')
+
+        # Nothing changed: a live answer carries no part (a few hundred bytes, not the page).
+        with server.client() as client:
+            hashes = client.get("/ui/live", params={"shown": 25}).json()["hashes"]
+            have = ",".join(f"{name}:{value}" for name, value in hashes.items())
+            again = client.get("/ui/live", params={"shown": 25, "have": have}).json()
+        assert again["parts"] == {} and again["hashes"] == hashes
+        since = browser.execute_script("return performance.now()")
+        until(browser, 10, lambda d: len(live_sizes(d, since)) >= 2)  # two of the page's own polls
+        assert min(live_sizes(browser, since)[-2:]) < 600, live_sizes(browser)
+        with server.client() as client:
+            client.post("/extrinsics/versions", json={"T_camera_lidar": {"rpy_deg": [0, 15, -54], "xyz_m": [0, 0, 0]}})
+        until(browser, 10, lambda d: numbers(d)[:2] == [26, 25])
+        assert len(numbers(browser)) == 26  # all still shown: the page asks for as many as it shows
+        assert console_errors(browser) == []
+    finally:
+        browser.get("about:blank")
+
+
+def test_banner_while_the_service_does_not_answer(browser, fresh_service):
+    """The banner while the service does not answer (SIGSTOP: connections hang), gone when it answers again.
+    The versions' service: what the test before left on it changes nothing here."""
+    server = fresh_service
+    try:
+        browser.get("about:blank")
+        console_errors(browser)
+        with fast_timers(browser, BANNER_CLOCK):  # the stopped service given up on after 2 s, not 8 s
+            load(browser, server.url + "/")
+        until(browser, 10, lambda d: live_sizes(d))  # the page's polls were answered
+        server.proc.send_signal(signal.SIGSTOP)
+        try:
+            until(browser, 30, lambda d: d.find_element(By.ID, "offline").is_displayed())
+            assert "does not answer" in text(browser, "#offline")
+            assert "offline" in browser.find_element(By.TAG_NAME, "body").get_attribute("class")
+        finally:
+            server.proc.send_signal(signal.SIGCONT)
+        until(browser, 30, lambda d: not d.find_element(By.ID, "offline").is_displayed())
+        assert message(browser) == ("The service answers again.", "ok")
+        assert console_errors(browser, allowed=("/ui/live",)) == []
+    finally:
+        browser.get("about:blank")
+
+
+def big_pair(data: Path, name: str, width: int = 2048) -> str:
+    """A one-pair dataset whose image is ``width`` px wide (a small simulated pair's image, enlarged)."""
+    root = simulated_dataset(data, name, pairs=1)
+    image_path = root / "pairs" / "0000" / "image.png"
+    image = cv2.imread(str(image_path))
+    cv2.imwrite(str(image_path), cv2.resize(image, (width, width // 2), interpolation=cv2.INTER_NEAREST))
+    rig = yaml.safe_load((root / "rig.yaml").read_text())
+    rig["camera"].update(width=width, height=width // 2)
+    (root / "rig.yaml").write_text(yaml.safe_dump(rig))
+    return root.name
+
+
+def test_zoom_loads_full_resolution_and_pans(browser, wide_service):
+    """A 2048-px image: the lens loads a copy as wide as it first, the file itself once zoomed past that copy;
+    1:1 shows one image pixel per screen pixel; a drag pans, within the image."""
+    server, name = wide_service, WIDE
+    try:
+        browser.get("about:blank")
+        console_errors(browser)
+        load(browser, server.url + "/")
+        click(browser, f'button[data-action="pairs"][data-dataset="{name}"]')
+        # Loaded means decoded: an image element is "complete" before its new source has arrived.
+        until(browser, 10, lambda d: images_loaded(d, ("lens-after",)) and lens_state(d)["after"]["src"]
+              and lens_state(d)["after"]["natural"] > 0)
+        first = lens_state(browser)
+        lens_width = browser.execute_script("return document.getElementById('lens').clientWidth")
+        assert "width=" in first["after"]["src"] and first["full"] == "false"
+        assert lens_width <= first["after"]["natural"] < 2048  # a copy for the screen, not the file
+        click(browser, "#viewer button[data-zoom=in]")
+        until(browser, 10, lambda d: lens_state(d)["full"] == "true")
+        until(browser, 10, lambda d: lens_state(d)["after"]["natural"] == 2048)
+        assert "width=" not in lens_state(browser)["after"]["src"]
+        click(browser, "#viewer button[data-zoom=full]")
+        until(browser, 10, lambda d: lens_state(d)["zoom"] == pytest.approx(2048 / lens_width, abs=1e-3))
+        assert "100 % of full resolution (2048×1024 px)" in lens_state(browser)["label"]
+        lens = browser.find_element(By.ID, "lens")
+        x0, y0 = translate(lens_state(browser)["after"]["transform"])
+        drag(browser, lens, 100, 40)
+        x1, y1 = translate(lens_state(browser)["after"]["transform"])
+        assert (x1 - x0, y1 - y0) == pytest.approx((min(100, -x0), min(40, -y0)), abs=1.5)  # clamped at the edge
+        for _ in range(12):  # far past the top left corner: the image's corner stays at the lens's
+            drag(browser, lens, 150, 60)
+        assert translate(lens_state(browser)["after"]["transform"]) == (0, 0)
+        assert console_errors(browser) == []
+    finally:
+        browser.get("about:blank")
+
+
+# -- the token, a head ------------------------------------------------------------------------------------------
+def test_page_asks_for_the_token_and_sends_it(browser, token_service):
+    server = token_service
+    try:
+        load(browser, server.url + "/")
+        browser.execute_script("sessionStorage.clear()")
+        load(browser, server.url + "/")
+        assert TOKEN not in browser.page_source
+        assert browser.find_element(By.ID, "token-form").is_displayed()
+
+        # Without a token nothing is sent: the page asks for it.
+        click(browser, "#capture-form button[type=submit]")
+        assert "needs its API token" in text(browser, "#message")
+        with server.client() as client:
+            assert client.get("/jobs").json() == []
+
+        # A wrong token is refused by the service (401) and forgotten; the right one starts the capture.
+        browser.find_element(By.ID, "token-input").send_keys("wrong-token-of-some-length")
+        click(browser, "#token-form button[type=submit]")
+        click(browser, "#capture-form button[type=submit]")
+        until(browser, 10, lambda d: "token was refused" in text(d, "#message"))
+        assert browser.execute_script("return sessionStorage.getItem('rigd-token')") is None
+        assert browser.find_element(By.ID, "token-form").is_displayed()
+        browser.find_element(By.ID, "token-input").send_keys(TOKEN)
+        click(browser, "#token-form button[type=submit]")
+        click(browser, "#capture-form button[type=submit]")
+        until(browser, 10, lambda d: d.find_elements(By.CSS_SELECTOR, '.job[data-kind="capture"]'))
+        assert browser.find_element(By.ID, "token-set").is_displayed()
+
+        # The page (and its live parts) never carry the token; the capture is cancelled from its button.
+        assert TOKEN not in browser.page_source
+        with server.client() as client:
+            assert TOKEN not in client.get("/").text and TOKEN not in client.get("/ui/live").text
+            job = client.get("/jobs").json()[0]
+        click(browser, f'button[data-action="cancel"][data-job="{job["id"]}"]')
+        with server.client() as client:
+            assert wait_job(client, job["id"], 60)["status"] in ("cancelled", "succeeded")
+        assert console_errors(browser, allowed=("401 (Unauthorized)",)) == []
+    finally:
+        browser.execute_script("sessionStorage.clear()")
+        browser.get("about:blank")
+
+
+def lens_and_figure_srcs(driver) -> dict[str, str]:
+    return driver.execute_script(
+        "const out = {}; for (const id of ['lens-before', 'lens-after', 'ov-closeup', 'ov-cloud'])"
+        " out[id] = document.getElementById(id).getAttribute('src') || ''; return out;")
+
+
+def test_page_picks_the_sensor_of_a_head(browser, head_service, figures):
+    """A multi-camera head's version: a sensor picker beside the pair's overlays (the report's sensors, the
+    first chosen), switching before, after and the close-up to that sensor's files; the cloud stays per pair.
+    Its captured pairs show each sensor's image too."""
+    server = head_service  # its dataset calibrated (start_head)
+    try:
+        with server.client() as client:
+            page = client.get("/").text
+        sensors = [f"cam{k}" for k in range(5)]
+        assert f'data-sensors="{",".join(sensors)}"' in page  # from the version's report, rendered by the server
+
+        browser.get("about:blank")
+        console_errors(browser)  # drained: an earlier test's page may have polled its stopped service
+        with fast_timers(browser, POLL_CLOCK):  # a refresh of the parts comes every 0.5 s
+            load(browser, server.url + "/")
+        until(browser, 10, images_loaded)  # the newest calibration, shown without a click
+        picker = "#viewer-sensors button[data-action=sensor]"
+        assert browser.find_element(By.ID, "viewer-sensors").is_displayed()
+        assert texts(browser, picker) == sensors
+        assert texts(browser, picker + ".current") == ["cam0"]  # the first sensor by default
+        first = lens_and_figure_srcs(browser)
+        assert all("&sensor=cam0" in first[s] for s in ("lens-before", "lens-after", "ov-closeup")), first
+        assert "sensor=" not in first["ov-cloud"]
+
+        click(browser, picker + '[data-sensor="cam1"]')
+        chosen = browser.execute_script("return performance.now()")
+        until(browser, 10, lambda d: "&sensor=cam1" in lens_and_figure_srcs(d)["lens-after"])
+        until(browser, 10, images_loaded)  # the files exist: 0000_cam1_*.png
+        now = lens_and_figure_srcs(browser)
+        assert all("&sensor=cam1" in now[s] for s in ("lens-before", "lens-after", "ov-closeup")), now
+        assert now["ov-cloud"] == first["ov-cloud"]
+        assert texts(browser, picker + ".current") == ["cam1"]
+        assert "version 1, pair 0, cam1" in text(browser, "#viewer-title")
+
+        # The choice survives a change of pair and the page's refresh of its parts: a second poll since the
+        # choice is asked for only once the first has been shown.
+        click(browser, '#viewer-pairs button[data-pair="1"]')
+        until(browser, 10, lambda d: "/overlays/1.png" in lens_and_figure_srcs(d)["lens-after"])
+        assert "&sensor=cam1" in lens_and_figure_srcs(browser)["lens-after"]
+        until(browser, 10, lambda d: len(live_sizes(d, chosen)) >= 2)
+        assert "&sensor=cam1" in lens_and_figure_srcs(browser)["lens-after"]
+        assert texts(browser, picker + ".current") == ["cam1"]
+        until(browser, 10, images_loaded)
+        assert console_errors(browser) == []
+        viewer = browser.find_element(By.ID, "viewer")
+        full = browser.execute_script("return document.documentElement.scrollHeight")
+        viewport(browser, DESKTOP[0], full)  # the whole card in the viewport
+        viewer.screenshot(str(figures / "page-head-sensors.png"))
+        browser.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
+
+        heads_captured_images(browser, sensors)
+        assert console_errors(browser) == []
+    finally:
+        browser.get("about:blank")  # no page left polling the service stopped next
+
+
+def heads_captured_images(browser, sensors: list[str]) -> None:
+    """A head's captured pairs: each sensor's image as captured."""
+    picker = "#viewer-sensors button[data-action=sensor]"
+    click(browser, 'button[data-action="pairs"][data-dataset="head"]')
+    until(browser, 10, lambda d: "dataset head as captured" in text(d, "#viewer-title"))
+    assert texts(browser, picker) == sensors
+    click(browser, picker + '[data-sensor="cam3"]')
+    until(browser, 10, lambda d: "/datasets/head/pairs/0/image?sensor=cam3" in lens_state(d)["after"]["src"])
+    until(browser, 10, images_loaded)
+    assert lens_state(browser)["after"]["natural"] == 160
+
+
+# -- a fresh install, the whole loop ----------------------------------------------------------------------------
 def test_page_capture_in_the_clis_words(browser, server, figures):
     """A capture of 2 pairs from the simulated rig, started from the page: its progress in rigd capture's words
     (no state names), live, and the message following it to its end."""
+    browser.get("about:blank")
+    console_errors(browser)  # drained: an earlier test's page may have polled its stopped service
     load(browser, server.url + "/")
     assert browser.title == "rigd"
     assert console_errors(browser) == []
@@ -227,19 +625,60 @@ def test_page_capture_in_the_clis_words(browser, server, figures):
     assert console_errors(browser) == []
 
 
-def test_page_calibrate_check_activate(browser, server, figures):
-    first_load_s = load(browser, server.url + "/")
+# The loop goes on, on the capture's service, in steps, each a test of its own (as one test they took three
+# times what a test should): each takes up the service where the one before left it, so they run in this file's
+# order, as pytest runs them.
+def open_page(browser, server) -> None:
+    """The page, at twice its pace (PAGE_CLOCK): these steps wait for its polls to show what the service did.
+    Its images in (the viewer's of the newest calibration), as the page was when one test went on."""
+    with fast_timers(browser, PAGE_CLOCK):
+        load(browser, server.url + "/")
+    until(browser, 10, images_loaded)
+    assert console_errors(browser) == []
+
+
+def version_1(server) -> dict:
+    with server.client() as client:
+        response = client.get("/extrinsics/versions/1")
+    assert response.status_code == 200, "version 1 is test_page_calibrates_a_fresh_install's, which runs before"
+    return response.json()
+
+
+def test_page_fresh_install_shows_captured_pairs(browser, server):
+    """Before any calibration: where the next one starts from, and the captured pairs looked at."""
+    with fast_timers(browser, PAGE_CLOCK):
+        first_load_s = load(browser, server.url + "/")
+    print(f"\npage load (navigation start to load event) without versions: {first_load_s * 1000:.0f} ms")
     assert console_errors(browser) == []
     # A fresh install has no active version: calibrating starts from the rig file (or the global search).
     assert "none" in text(browser, '[data-part="summary"]')
     assert browser.find_element(By.ID, "init-select").get_attribute("value") == "rig"
     assert not browser.find_element(By.CSS_SELECTOR, '#init-select option[value="active"]').is_enabled()
-
     captured_pairs_before_calibrating(browser, server)
-    v1 = first_calibration(browser, server)
+    assert console_errors(browser) == []
+
+
+def test_page_calibrates_a_fresh_install(browser, server):
+    """The first calibration, started from the page: it runs, its verdict in its colour, the message."""
+    open_page(browser, server)
+    first_calibration(browser, server)
+    assert console_errors(browser) == []
+
+
+def test_page_overlays_activation_and_advice(browser, server):
+    """Version 1: its overlays, its activation confirmed, its advice's actions and the calibration options."""
+    v1 = version_1(server)
+    open_page(browser, server)
     before_after_zoom_and_pan(browser, server, v1)
     activate_with_confirmation(browser, server, v1)
     advice_and_options(browser, server, v1)
+    assert console_errors(browser) == []
+
+
+def test_page_change_check_and_layout(browser, server, figures):
+    """A manual version's change, a check with every reason; the page's layout on a desktop and a phone."""
+    assert version_1(server)["status"] == "active", "test_page_overlays_activation_and_advice activates it"
+    open_page(browser, server)
     manual_version_and_change(browser, server)
     check_with_every_reason(browser, server)
 
@@ -247,9 +686,9 @@ def test_page_calibrate_check_activate(browser, server, figures):
     loaded_s = load(browser, server.url + "/")  # with datasets, jobs and versions to render
     until(browser, 10, images_loaded)
     assert console_errors(browser) == []
-    print(f"\npage load (navigation start to load event): without versions {first_load_s * 1000:.0f} ms, "
+    print(f"\npage load (navigation start to load event) "
           f"with {len(browser.find_elements(By.CSS_SELECTOR, '[data-part=datasets] .row'))} datasets, "
-          f"{len(browser.find_elements(By.CSS_SELECTOR, '.job'))} jobs, 2 versions {loaded_s * 1000:.0f} ms")
+          f"{len(browser.find_elements(By.CSS_SELECTOR, '.job'))} jobs, 2 versions: {loaded_s * 1000:.0f} ms")
     screenshot(browser, figures / "page-desktop.png", DESKTOP, mobile=False)
 
     # At a phone's width: nothing wider than the screen, the buttons still there.
@@ -316,7 +755,7 @@ def before_after_zoom_and_pan(browser, server, v1: dict) -> None:
     click(browser, "#viewer button[data-zoom=in]")
     assert lens_state(browser)["zoom"] == pytest.approx(2.25, abs=1e-3)
     lens = browser.find_element(By.ID, "lens")
-    ActionChains(browser).move_to_element(lens).click_and_hold().move_by_offset(-60, -25).release().perform()
+    drag(browser, lens, -60, -25)
     panned = lens_state(browser)
     assert translate(panned["after"]["transform"]) != translate(state["after"]["transform"])
     click(browser, '#stage-toggle button[data-stage="before"]')
@@ -380,14 +819,20 @@ def advice_and_options(browser, server, v1: dict) -> None:
     assert options in text(browser, f'[data-job="{job["id"]}"]')
     click(browser, f'button[data-action="cancel"][data-job="{job["id"]}"]')
     until(browser, 30, lambda d: f"job {job['id']} cancelled" in message(d)[0])
-    # An out-of-range value is refused by the browser before any request.
+    # An out-of-range value is refused by the browser before any request. The page calls fetch() within the
+    # click's handler, before its first await: a fetch spy that saw no request once the click returned is
+    # certain, where a pause before asking the service only made a late request unlikely.
     field = browser.find_element(By.NAME, "tolerance-deg")
     field.clear()
     field.send_keys("50")
+    browser.execute_script("window.sent = []; window.realFetch = window.fetch; window.fetch = (url, init) => {"
+                           " window.sent.push(url); return window.realFetch(url, init); };")
     click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
-    time.sleep(1)
+    assert browser.execute_script("return window.sent.filter(u => !u.startsWith('/ui/live'))") == []
+    assert browser.execute_script("return document.getElementsByName('tolerance-deg')[0].validity.rangeOverflow")
     with server.client() as client:
         assert len(client.get("/jobs", params={"kind": "calibrate"}).json()) == 2
+    browser.execute_script("window.fetch = window.realFetch")
     for name in ("prior-x", "prior-y", "prior-z", "prior-sigma-cm", "tolerance-deg", "tolerance-cm"):
         browser.find_element(By.NAME, name).clear()
     browser.find_element(By.NAME, "fix-translation").click()
@@ -438,239 +883,6 @@ def check_with_every_reason(browser, server) -> None:
     assert text(browser, row + " .badge") == status
     until(browser, 10, lambda d: f"job {check['id']} done: {status}" in message(d)[0])
     assert message(browser)[1] == TONE[status]
-
-
-# -- many versions, live updates, an unreachable service --------------------------------------------------------
-def live_sizes(driver) -> list[int]:
-    """Body sizes (bytes) of the /ui/live answers since the page was opened."""
-    return driver.execute_script("return performance.getEntriesByType('resource')"
-                                 ".filter(e => e.name.includes('/ui/live')).map(e => e.decodedBodySize);")
-
-
-def test_versions_paged_live_diffs_and_unreachable_banner(browser, tmp_path):
-    """25 versions: the newest 10 on the page, 10 more per click; /ui/live sends only parts that changed; the
-    banner while the service does not answer, gone when it does again; HEAD / answers."""
-    server = Server(tmp_path / "data").start()
-    try:
-        with server.client() as client:
-            for k in range(25):
-                body = {"T_camera_lidar": {"rpy_deg": [0.0, 15.0, -55.0 + 0.01 * k], "xyz_m": [0.1, 0.05, -0.15]}}
-                assert client.post("/extrinsics/versions", json=body).status_code == 201
-            head = client.head("/")
-            assert head.status_code == 200 and head.headers["content-type"].startswith("text/html")
-        browser.get("about:blank")
-        console_errors(browser)  # drained: an earlier test's page may have polled its stopped service
-        load(browser, server.url + "/")
-        numbers = lambda d: [int(v) for v in d.execute_script(  # noqa: E731
-            "return [...document.querySelectorAll('.version')].map(v => v.dataset.version)")]
-        assert numbers(browser) == list(range(25, 15, -1))  # the newest 10, newest first
-        assert "the newest 10 of 25" in text(browser, "#versions-more")
-        click(browser, 'button[data-action="more-versions"]')
-        until(browser, 10, lambda d: len(numbers(d)) == 20)
-        click(browser, 'button[data-action="more-versions"]')
-        until(browser, 10, lambda d: numbers(d) == list(range(25, 0, -1)))
-        assert not browser.find_elements(By.CSS_SELECTOR, 'button[data-action="more-versions"]')
-
-        # Nothing changed: a live answer carries no part (a few hundred bytes, not the page).
-        with server.client() as client:
-            hashes = client.get("/ui/live", params={"shown": 25}).json()["hashes"]
-            have = ",".join(f"{name}:{value}" for name, value in hashes.items())
-            again = client.get("/ui/live", params={"shown": 25, "have": have}).json()
-        assert again["parts"] == {} and again["hashes"] == hashes
-        time.sleep(9)  # two of the page's own polls
-        assert min(live_sizes(browser)[-2:]) < 600, live_sizes(browser)
-        with server.client() as client:
-            client.post("/extrinsics/versions", json={"T_camera_lidar": {"rpy_deg": [0, 15, -54], "xyz_m": [0, 0, 0]}})
-        until(browser, 10, lambda d: numbers(d)[:2] == [26, 25])
-        assert len(numbers(browser)) == 26  # all still shown: the page asks for as many as it shows
-        assert console_errors(browser) == []
-
-        # The service stops answering (SIGSTOP: connections hang), then answers again.
-        server.proc.send_signal(signal.SIGSTOP)
-        try:
-            until(browser, 30, lambda d: d.find_element(By.ID, "offline").is_displayed())
-            assert "does not answer" in text(browser, "#offline")
-            assert "offline" in browser.find_element(By.TAG_NAME, "body").get_attribute("class")
-        finally:
-            server.proc.send_signal(signal.SIGCONT)
-        until(browser, 30, lambda d: not d.find_element(By.ID, "offline").is_displayed())
-        assert message(browser) == ("The service answers again.", "ok")
-        assert console_errors(browser, allowed=("/ui/live",)) == []
-    finally:
-        browser.get("about:blank")
-        server.stop()
-
-
-def big_pair(data: Path, width: int = 2048) -> str:
-    """A one-pair dataset whose image is ``width`` px wide (a small simulated pair's image, enlarged)."""
-    root = simulated_dataset(data, "wide", pairs=1)
-    image_path = root / "pairs" / "0000" / "image.png"
-    image = cv2.imread(str(image_path))
-    cv2.imwrite(str(image_path), cv2.resize(image, (width, width // 2), interpolation=cv2.INTER_NEAREST))
-    rig = yaml.safe_load((root / "rig.yaml").read_text())
-    rig["camera"].update(width=width, height=width // 2)
-    (root / "rig.yaml").write_text(yaml.safe_dump(rig))
-    return root.name
-
-
-def test_zoom_loads_full_resolution_and_pans(browser, tmp_path):
-    """A 2048-px image: the lens loads a copy as wide as it first, the file itself once zoomed past that copy;
-    1:1 shows one image pixel per screen pixel; a drag pans, within the image."""
-    name = big_pair(tmp_path / "data")
-    server = Server(tmp_path / "data").start()
-    try:
-        browser.get("about:blank")
-        console_errors(browser)
-        load(browser, server.url + "/")
-        click(browser, f'button[data-action="pairs"][data-dataset="{name}"]')
-        # Loaded means decoded: an image element is "complete" before its new source has arrived.
-        until(browser, 10, lambda d: images_loaded(d, ("lens-after",)) and lens_state(d)["after"]["src"]
-              and lens_state(d)["after"]["natural"] > 0)
-        first = lens_state(browser)
-        lens_width = browser.execute_script("return document.getElementById('lens').clientWidth")
-        assert "width=" in first["after"]["src"] and first["full"] == "false"
-        assert lens_width <= first["after"]["natural"] < 2048  # a copy for the screen, not the file
-        click(browser, "#viewer button[data-zoom=in]")
-        until(browser, 10, lambda d: lens_state(d)["full"] == "true")
-        until(browser, 10, lambda d: lens_state(d)["after"]["natural"] == 2048)
-        assert "width=" not in lens_state(browser)["after"]["src"]
-        click(browser, "#viewer button[data-zoom=full]")
-        until(browser, 10, lambda d: lens_state(d)["zoom"] == pytest.approx(2048 / lens_width, abs=1e-3))
-        assert "100 % of full resolution (2048×1024 px)" in lens_state(browser)["label"]
-        lens = browser.find_element(By.ID, "lens")
-        x0, y0 = translate(lens_state(browser)["after"]["transform"])
-        ActionChains(browser).move_to_element(lens).click_and_hold().move_by_offset(100, 40).release().perform()
-        x1, y1 = translate(lens_state(browser)["after"]["transform"])
-        assert (x1 - x0, y1 - y0) == pytest.approx((min(100, -x0), min(40, -y0)), abs=1.5)  # clamped at the edge
-        for _ in range(12):  # far past the top left corner: the image's corner stays at the lens's
-            ActionChains(browser).move_to_element(lens).click_and_hold().move_by_offset(150, 60).release().perform()
-        assert translate(lens_state(browser)["after"]["transform"]) == (0, 0)
-        assert console_errors(browser) == []
-    finally:
-        browser.get("about:blank")
-        server.stop()
-
-
-# -- the token, a head ------------------------------------------------------------------------------------------
-def test_page_asks_for_the_token_and_sends_it(browser, tmp_path):
-    server = Server(tmp_path / "data", env={"RIGD_TOKEN": TOKEN}).start()
-    try:
-        load(browser, server.url + "/")
-        browser.execute_script("sessionStorage.clear()")
-        load(browser, server.url + "/")
-        assert TOKEN not in browser.page_source
-        assert browser.find_element(By.ID, "token-form").is_displayed()
-
-        # Without a token nothing is sent: the page asks for it.
-        click(browser, "#capture-form button[type=submit]")
-        assert "needs its API token" in text(browser, "#message")
-        with server.client() as client:
-            assert client.get("/jobs").json() == []
-
-        # A wrong token is refused by the service (401) and forgotten; the right one starts the capture.
-        browser.find_element(By.ID, "token-input").send_keys("wrong-token-of-some-length")
-        click(browser, "#token-form button[type=submit]")
-        click(browser, "#capture-form button[type=submit]")
-        until(browser, 10, lambda d: "token was refused" in text(d, "#message"))
-        assert browser.execute_script("return sessionStorage.getItem('rigd-token')") is None
-        assert browser.find_element(By.ID, "token-form").is_displayed()
-        browser.find_element(By.ID, "token-input").send_keys(TOKEN)
-        click(browser, "#token-form button[type=submit]")
-        click(browser, "#capture-form button[type=submit]")
-        until(browser, 10, lambda d: d.find_elements(By.CSS_SELECTOR, '.job[data-kind="capture"]'))
-        assert browser.find_element(By.ID, "token-set").is_displayed()
-
-        # The page (and its live parts) never carry the token; the capture is cancelled from its button.
-        assert TOKEN not in browser.page_source
-        with server.client() as client:
-            assert TOKEN not in client.get("/").text and TOKEN not in client.get("/ui/live").text
-            job = client.get("/jobs").json()[0]
-        click(browser, f'button[data-action="cancel"][data-job="{job["id"]}"]')
-        with server.client() as client:
-            assert wait_job(client, job["id"], 60)["status"] in ("cancelled", "succeeded")
-        assert console_errors(browser, allowed=("401 (Unauthorized)",)) == []
-    finally:
-        browser.execute_script("sessionStorage.clear()")
-        browser.get("about:blank")
-        server.stop()
-
-
-def lens_and_figure_srcs(driver) -> dict[str, str]:
-    return driver.execute_script(
-        "const out = {}; for (const id of ['lens-before', 'lens-after', 'ov-closeup', 'ov-cloud'])"
-        " out[id] = document.getElementById(id).getAttribute('src') || ''; return out;")
-
-
-def test_page_picks_the_sensor_of_a_head(browser, tmp_path, figures):
-    """A multi-camera head's version: a sensor picker beside the pair's overlays (the report's sensors, the
-    first chosen), switching before, after and the close-up to that sensor's files; the cloud stays per pair.
-    Its captured pairs show each sensor's image too."""
-    data = tmp_path / "data"
-    dataset = write_simulated_dataset(data / "datasets" / "head", "outdoor", 2, 5, width=160, height=200,
-                                      progress=False, head=True)
-    server = Server(data).start()
-    try:
-        with server.client() as client:
-            response = client.post("/calibrate", json={"dataset": "head", "init": perturbed_truth(dataset)})
-            assert response.status_code == 202, response.text
-            assert wait_job(client, response.json()["id"], 240)["status"] == "succeeded"
-            page = client.get("/").text
-        sensors = [f"cam{k}" for k in range(5)]
-        assert f'data-sensors="{",".join(sensors)}"' in page  # from the version's report, rendered by the server
-
-        browser.get("about:blank")
-        console_errors(browser)  # drained: an earlier test's page may have polled its stopped service
-        load(browser, server.url + "/")
-        until(browser, 10, images_loaded)  # the newest calibration, shown without a click
-        picker = "#viewer-sensors button[data-action=sensor]"
-        assert browser.find_element(By.ID, "viewer-sensors").is_displayed()
-        assert texts(browser, picker) == sensors
-        assert texts(browser, picker + ".current") == ["cam0"]  # the first sensor by default
-        first = lens_and_figure_srcs(browser)
-        assert all("&sensor=cam0" in first[s] for s in ("lens-before", "lens-after", "ov-closeup")), first
-        assert "sensor=" not in first["ov-cloud"]
-
-        click(browser, picker + '[data-sensor="cam1"]')
-        until(browser, 10, lambda d: "&sensor=cam1" in lens_and_figure_srcs(d)["lens-after"])
-        until(browser, 10, images_loaded)  # the files exist: 0000_cam1_*.png
-        now = lens_and_figure_srcs(browser)
-        assert all("&sensor=cam1" in now[s] for s in ("lens-before", "lens-after", "ov-closeup")), now
-        assert now["ov-cloud"] == first["ov-cloud"]
-        assert texts(browser, picker + ".current") == ["cam1"]
-        assert "version 1, pair 0, cam1" in text(browser, "#viewer-title")
-
-        # The choice survives a change of pair and the page's refresh of its parts.
-        click(browser, '#viewer-pairs button[data-pair="1"]')
-        until(browser, 10, lambda d: "/overlays/1.png" in lens_and_figure_srcs(d)["lens-after"])
-        assert "&sensor=cam1" in lens_and_figure_srcs(browser)["lens-after"]
-        until(browser, 10, images_loaded)
-        assert console_errors(browser) == []
-        viewer = browser.find_element(By.ID, "viewer")
-        full = browser.execute_script("return document.documentElement.scrollHeight")
-        browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",  # the whole card in the viewport
-                                {"width": DESKTOP[0], "height": full, "deviceScaleFactor": 1, "mobile": False})
-        time.sleep(0.5)
-        until(browser, 10, images_loaded)
-        viewer.screenshot(str(figures / "page-head-sensors.png"))
-        browser.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
-
-        heads_captured_images(browser, sensors)
-        assert console_errors(browser) == []
-    finally:
-        browser.get("about:blank")  # no page left polling the service stopped next
-        server.stop()
-
-
-def heads_captured_images(browser, sensors: list[str]) -> None:
-    """A head's captured pairs: each sensor's image as captured."""
-    picker = "#viewer-sensors button[data-action=sensor]"
-    click(browser, 'button[data-action="pairs"][data-dataset="head"]')
-    until(browser, 10, lambda d: "dataset head as captured" in text(d, "#viewer-title"))
-    assert texts(browser, picker) == sensors
-    click(browser, picker + '[data-sensor="cam3"]')
-    until(browser, 10, lambda d: "/datasets/head/pairs/0/image?sensor=cam3" in lens_state(d)["after"]["src"])
-    until(browser, 10, images_loaded)
-    assert lens_state(browser)["after"]["natural"] == 160
 
 
 # -- without a browser ------------------------------------------------------------------------------------------
