@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 import schemathesis
 from api_helpers import App, perturbed_truth, simulated_dataset, wait_job
 from hypothesis import HealthCheck, given, settings
@@ -17,21 +18,24 @@ TOKEN = "schemathesis-token-0123456789"
 EXAMPLES_PER_OPERATION = 8  # per operation and mode (valid, invalid): ~230 requests, about 3.5 s in this process
 
 
-def test_no_server_error_for_generated_requests(tmp_path):
-    data = tmp_path / "data"
+@pytest.fixture(scope="module")
+def operations(tmp_path_factory):
+    """Every operation of the served schema, on one seeded app for both modes."""
+    data = tmp_path_factory.mktemp("schema") / "data"
     dataset = simulated_dataset(data, "ds", pairs=1)
     server = App(data, env={"RIGD_TOKEN": TOKEN}).start()
     try:
         seed(server, dataset)
         schema = schemathesis.openapi.from_asgi("/openapi.json", without_lifespan(server.app))
-        failures: list[str] = []
-        operations = [result.ok() for result in schema.get_all_operations()]
-        assert len(operations) >= 11  # every route is in the schema
-        for operation in operations:
-            for mode in (GenerationMode.POSITIVE, GenerationMode.NEGATIVE):
-                failures += exercise(operation, mode)
+        yield [result.ok() for result in schema.get_all_operations()]
     finally:
         server.stop()
+
+
+@pytest.mark.parametrize("mode", [GenerationMode.POSITIVE, GenerationMode.NEGATIVE], ids=["valid", "invalid"])
+def test_no_server_error_for_generated_requests(operations, mode):
+    assert len(operations) >= 11  # every route is in the schema
+    failures = [failure for operation in operations for failure in exercise(operation, mode)]
     assert not failures, "\n".join(failures)
 
 
