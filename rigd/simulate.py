@@ -47,9 +47,10 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
     unchanged). ``trees``: rows of street trees in outdoor scenes (the rest of each scene unchanged).
     ``pinhole``: a forward pinhole camera (:data:`PINHOLE`) below a level LiDAR instead of the panorama rig
     (``width`` and ``height`` are then unused; sensor effects are JPEG and the beam footprint). ``rings64``:
-    a 64-ring street LiDAR (drivers.sim.RINGS64_ELEVATIONS_DEG) in place of the VLP-16. ``head``: five
-    pinhole sensors of a Ladybug-like head (drivers.sim.ladybug_like_head, images/camK.png) instead of the
-    panorama, the ground truth T_head_lidar (sensor effects are then JPEG and the beam footprint).
+    a 64-ring street LiDAR (drivers.sim.RINGS64_ELEVATIONS_DEG) in place of the VLP-16. ``head``: the five
+    side sensors of a Ladybug5 head as pinholes, ``width`` x ``height`` px each, lying on their side as a real
+    head's (drivers.sim.ladybug_like_head, images/camK.png) instead of the panorama, the ground truth
+    T_head_lidar (sensor effects are then JPEG and the beam footprint).
     """
     out = Path(out_dir)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):

@@ -16,7 +16,7 @@ camera 0, z towards camera 5, docs/ladybug5.md). This module is pure NumPy: read
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import numpy as np
@@ -24,7 +24,13 @@ from numpy.typing import NDArray
 
 from drivers.geometry import matrix_to_rpy_deg, rpy_deg_to_matrix
 from drivers.ladybug5.errors import HeadCalibrationError
-from drivers.ladybug5.rig import RigCamera, RigCameras, default_ladybug5_rig
+from drivers.ladybug5.rig import (
+    LADYBUG5_RECTIFIED_FOCAL_PX,
+    LADYBUG5_SIZE_PX,
+    RigCamera,
+    RigCameras,
+    default_ladybug5_rig,
+)
 
 F64 = NDArray[np.float64]
 FIT_WARN_PX = 0.5  # a distortion fit worse than this (rms, px) is reported as poor
@@ -35,7 +41,7 @@ class HeadSource(Enum):
     """Where a head calibration came from."""
 
     FACTORY = "factory"  # the camera's own calibration, read through the SDK (head, .cal file or .pgr stream)
-    NOMINAL = "nominal"  # rigd's nominal Ladybug5-like head: not a calibration of any camera
+    NOMINAL = "nominal"  # rigd's nominal Ladybug5 head: not a calibration of any camera
     FILE = "file"  # a rig camera file that does not say it is a factory calibration
 
 
@@ -152,9 +158,13 @@ class HeadCalibration:
 
     @classmethod
     def nominal(cls, size_px: tuple[int, int]) -> HeadCalibration:
-        """rigd's nominal Ladybug5-like head at a sensor size (width, height) px: NOT a factory calibration."""
-        return cls.from_rig(default_ladybug5_rig(size_px), HeadSource.NOMINAL,
-                            "rigd's nominal Ladybug5-like head (not a factory calibration)")
+        """rigd's nominal Ladybug5 head at a sensor size (width, height) px: NOT a factory calibration. Its
+        rectified pinhole is the SDK's of a real unit (``LADYBUG5_RECTIFIED_FOCAL_PX`` at 2448 px, scaled with the
+        width; centred), its raw lens the nominal one."""
+        head = cls.from_rig(default_ladybug5_rig(size_px), HeadSource.NOMINAL,
+                            "rigd's nominal Ladybug5 head (not a factory calibration)")
+        focal_px = LADYBUG5_RECTIFIED_FOCAL_PX * size_px[0] / LADYBUG5_SIZE_PX[0]
+        return replace(head, sensors=tuple(replace(s, focal_px=focal_px) for s in head.sensors))
 
 
 def euler_zyx_matrix(rx: float, ry: float, rz: float) -> F64:
@@ -210,7 +220,9 @@ def _model(params: F64, xy: F64) -> tuple[F64, F64]:
 
 def fit_lens(raw_xy: F64, normalised_xy: F64, focal_px: float, centre_px: tuple[float, float]) -> LensFit:
     """Least-squares OpenCV model ``raw = K distort(normalised)`` over (N,2) point pairs (Gauss-Newton from
-    ``fx = fy = focal_px``, the centre, no distortion)."""
+    ``fx = fy = focal_px``, the centre, no distortion). ``focal_px`` is the SDK's rectified focal length, about a
+    third of a Ladybug5's raw one (~450 against ~1275 px); the model is linear in ``fx, fy, cx, cy`` for a given
+    distortion, so the fit converges from there in a few steps (tests/drivers/ladybug5: the fake SDK so set)."""
     params = np.array([focal_px, focal_px, centre_px[0], centre_px[1], 0, 0, 0, 0, 0], dtype=np.float64)
     for _ in range(_FIT_ITERATIONS):
         predicted, jacobian = _model(params, normalised_xy)

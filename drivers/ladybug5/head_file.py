@@ -9,8 +9,8 @@
       maps: head.maps.npz                  # the sampled rectification, beside this file (null: none)
       sensors:
         - name: cam0
-          focal_px: 1238.2                 # rectified, at the raw size
-          centre_px: [1223.9, 1021.4]
+          focal_px: 452.3                  # rectified, at the raw size (a Ladybug5: 443-464 px)
+          centre_px: [1251.2, 1038.4]
           extrinsics: [rx, ry, rz, tx, ty, tz]   # ladybugGetCameraUnitExtrinsics: Euler ZYX rad, m
           fit: {rms_px: 0.08, max_px: 0.31, points: 20000, folds: false}
     camera:                                # the head dataset format's sensor form (docs/dataset.md)

@@ -197,30 +197,41 @@ def save_rig(rig: RigCameras, path: Path) -> None:
     Path(path).write_text(yaml.safe_dump(rig_to_yaml(rig), sort_keys=False, width=120, default_flow_style=None))
 
 
-# Default head (docs/ladybug5.md, "Default rig camera file"): Sony ICX655 sensors, 2448x2048 px of
-# 3.45 um, 4.4 mm lenses -> f = 4.4 mm / 3.45 um = 1275 px. The barrel distortion is our choice, not a
-# factory calibration: it widens each camera so the head covers ~90 % of the sphere as FLIR's datasheet
-# says (a distortion-free 1275 px pinhole would leave a gap between the side and top cameras), and it is
-# monotonic at every radius so the model never folds. Sensors are mounted rotated: the image x axis
-# (2448 px) points up for the side cameras.
+# Nominal head (docs/ladybug5.md, "Default head"). Geometry as two public factory calibrations of real Ladybug5
+# heads give it (an SDK calibration of an LD5-U3-51S5C-44, serial 15402620, and an Optech camera file of another
+# unit): camera i looks out level at azimuth -72 deg * i (clockwise from above: camera 1 is on the right), its
+# centre 6.08-6.16 cm out along its axis; the top camera's 7.47-7.60 cm up. The sensors lie on their side:
+# a side camera's image columns (x, the long 2448 px side) run down (-z), its rows (y) along the horizontal; the
+# top camera's columns run backwards (-x), its rows right (-y). The lens is not in those files (the SDK gives it
+# only as a mapping): 4.4 mm on the Sony ICX655's 3.45 um pixels is f = 1275 px in the raw image, while the SDK's
+# rectified pinhole at 2448x2048 has f = 443-464 px. The barrel distortion is our choice, not a factory
+# calibration: it widens each camera so the head covers ~90 % of the sphere as FLIR's datasheet says (a
+# distortion-free 1275 px pinhole would leave a gap between the side and top cameras), and it is monotonic at
+# every radius so the model never folds.
 LADYBUG5_SIZE_PX = (2448, 2048)
 LADYBUG5P_SIZE_PX = (2464, 2048)  # the Ladybug5+ (LADYBUG_RESOLUTION_2464x2048 in the SDK's header)
-LADYBUG5_FOCAL_PX = 4.4e-3 / 3.45e-6
+LADYBUG5_FOCAL_PX = 4.4e-3 / 3.45e-6  # the raw image's, px at 2448x2048
+LADYBUG5_RECTIFIED_FOCAL_PX = 452.0  # the SDK's rectified pinhole's, px at 2448x2048 (one unit's mean, 443-457)
 LADYBUG5_DISTORTION = (-0.2, 0.03, 0.0, 0.0, 0.0)
-LADYBUG5_CAMERA_RADIUS_M = 0.045
-LADYBUG5_SIDE_YAW_STEP_DEG = 72.0
+LADYBUG5_CAMERA_RADIUS_M = 0.0613  # side camera centres from the head's axis (one unit's mean, 6.12-6.16 cm)
+LADYBUG5_TOP_HEIGHT_M = 0.076  # the top camera's centre above the side cameras' plane
+LADYBUG5_SIDE_YAW_STEP_DEG = -72.0  # camera i's optical axis at azimuth i times this
+# The top camera's optical frame in the head: columns along -x, rows along -y, optical axis up.
+_TOP_ROTATION = np.array([[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]])
 
 
 def _side_rotation(yaw_rad: float) -> F64:
+    """(3,3) a side camera's optical frame in the head: optical axis level at azimuth ``yaw_rad``, image columns
+    down (-z), rows along the horizontal (z x columns: the camera's left)."""
     forward = np.array([np.cos(yaw_rad), np.sin(yaw_rad), 0.0])
-    image_x = np.array([0.0, 0.0, 1.0])  # long image axis up
-    image_y = np.cross(forward, image_x)  # points to the camera's right
-    return np.stack([image_x, image_y, forward], axis=1)
+    columns = np.array([0.0, 0.0, -1.0])  # the long image axis points down
+    rows = np.cross(forward, columns)  # y = z x x keeps the optical frame right-handed
+    return np.stack([columns, rows, forward], axis=1) + 0.0  # + 0.0: no -0.0 in the rig file
 
 
 def default_ladybug5_rig(size_px: tuple[int, int] = LADYBUG5_SIZE_PX) -> RigCameras:
-    """A Ladybug5-like head of sensors ``size_px`` (width, height) px (Ladybug5+: ``LADYBUG5P_SIZE_PX``):
-    cameras 0-4 at 72 deg yaw steps (camera 0 looks along +x), camera 5 up."""
+    """A Ladybug5 head of sensors ``size_px`` (width, height) px (Ladybug5+: ``LADYBUG5P_SIZE_PX``) with the
+    nominal geometry above: cameras 0-4 at azimuths 0, -72, ... -288 deg (camera 0 looks along +x), camera 5 up."""
     width, height = size_px
     k = np.array([[LADYBUG5_FOCAL_PX, 0.0, (width - 1) / 2.0], [0.0, LADYBUG5_FOCAL_PX, (height - 1) / 2.0], [0, 0, 1]])
     d = np.array(LADYBUG5_DISTORTION)
@@ -228,10 +239,10 @@ def default_ladybug5_rig(size_px: tuple[int, int] = LADYBUG5_SIZE_PX) -> RigCame
     for i in range(5):
         rotation = _side_rotation(np.radians(i * LADYBUG5_SIDE_YAW_STEP_DEG))
         cameras.append(RigCamera(f"cam{i}", width, height, k, d, rotation, LADYBUG5_CAMERA_RADIUS_M * rotation[:, 2]))
-    # Top camera: optical axis up, image x axis to the head's +y, image y axis to the head's -x.
-    top = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    cameras.append(RigCamera("cam5", width, height, k, d, top, np.array([0.0, 0.0, LADYBUG5_CAMERA_RADIUS_M])))
-    return RigCameras("Ladybug5-like default (rigd; nominal values, not a factory calibration)", tuple(cameras))
+    cameras.append(RigCamera("cam5", width, height, k, d, _TOP_ROTATION.copy(),
+                             np.array([0.0, 0.0, LADYBUG5_TOP_HEIGHT_M])))
+    return RigCameras("Ladybug5 nominal head (rigd; the geometry of real units, not a factory calibration)",
+                      tuple(cameras))
 
 
 def scaled_ladybug5_rig(width_px: int) -> RigCameras:
@@ -248,5 +259,5 @@ def scaled_ladybug5_rig(width_px: int) -> RigCameras:
         k[0, 0] = k[1, 1] = LADYBUG5_FOCAL_PX * scale
         cameras.append(RigCamera(camera.name, width_px, height, k, camera.D, camera.R_head_camera,
                                  camera.t_head_camera_m))
-    return RigCameras(f"Ladybug5-like head scaled to {width_px}x{height} px sensors (rigd; nominal values)",
+    return RigCameras(f"Ladybug5 nominal head scaled to {width_px}x{height} px sensors (rigd; nominal values)",
                       tuple(cameras))

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.ladybug5.rig import LADYBUG5_SIZE_PX, default_ladybug5_rig
 from drivers.sim.camera import ROTATION_PANORAMA_OPTICAL, jpeg_round_trip, render_panorama, render_pinhole
 from drivers.sim.errors import SimError
 from drivers.sim.indoor import indoor_scene
@@ -22,7 +23,7 @@ from drivers.sim.lidar import LidarConfig, Sweep, scan
 from drivers.sim.outdoor import outdoor_scene
 from drivers.sim.pose import Pose
 from drivers.sim.scene import Scene, SceneKind
-from drivers.sim.stitched import StitchConfig, sensor_axes
+from drivers.sim.stitched import StitchConfig
 
 # Kang & Doh 2020, Table 2, indoor dataset, GMM: roll, pitch, yaw (deg) and t (m).
 PAPER_T_CAMERA_LIDAR = Pose.from_rpy_xyz((-0.18, 15.47, -55.14), (0.0934, 0.0597, -0.1659))
@@ -57,19 +58,23 @@ class HeadSensorSpec:
     T_head_sensor: Pose
 
 
-def ladybug_like_head(width: int = 512, height: int = 640, hfov_deg: float = 80.0,
-                      radius_m: float = 0.045) -> tuple[HeadSensorSpec, ...]:
-    """Five side sensors like a Ladybug's: optical axes level at azimuths 0, 72, ... 288 deg, each
-    ``radius_m`` out from the head's centre along its axis, ``hfov_deg`` of horizontal field (neighbours
-    overlap by 8 deg), portrait images of ``width`` x ``height`` px."""
-    f = (width / 2) / np.tan(np.radians(hfov_deg / 2))
-    K = np.array([[f, 0.0, (width - 1) / 2], [0.0, f, (height - 1) / 2], [0.0, 0.0, 1.0]])
-    out = []
-    for k, axis in enumerate(sensor_axes()):
-        yaw = float(np.arctan2(axis[1], axis[0]))
-        turn = np.array([[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
-        out.append(HeadSensorSpec(f"cam{k}", K, width, height, Pose(turn @ ROTATION_PANORAMA_OPTICAL, radius_m * axis)))
-    return tuple(out)
+def head_sensor_height(width: int) -> int:
+    """The height px of a simulated head sensor ``width`` px wide: the Ladybug5's 2448:2048 aspect."""
+    return max(1, round(width * LADYBUG5_SIZE_PX[1] / LADYBUG5_SIZE_PX[0]))
+
+
+def ladybug_like_head(width: int = 512, height: int | None = None,
+                      hfov_deg: float = 80.0) -> tuple[HeadSensorSpec, ...]:
+    """The five side sensors of a Ladybug5 as pinholes, at the poses of rigd's nominal head
+    (drivers.ladybug5.rig.default_ladybug5_rig: optical axes level at azimuths 0, -72, ... -288 deg, 6.1 cm out
+    along them, lying on their side as the real sensors do: image columns down, rows along the horizontal). Images
+    ``width`` x ``height`` px (default height: the Ladybug5's 2448:2048 aspect), ``hfov_deg`` of field across the
+    rows, i.e. the head's horizontal (neighbours overlap by 8 deg), no distortion."""
+    rows = head_sensor_height(width) if height is None else height
+    f = (rows / 2) / np.tan(np.radians(hfov_deg / 2))
+    K = np.array([[f, 0.0, (width - 1) / 2], [0.0, f, (rows - 1) / 2], [0.0, 0.0, 1.0]])
+    side = default_ladybug5_rig((width, rows)).cameras[:5]
+    return tuple(HeadSensorSpec(c.name, K, width, rows, Pose(c.R_head_camera, c.t_head_camera_m)) for c in side)
 
 
 @dataclass(frozen=True)

@@ -1,12 +1,12 @@
 """A Ladybug5-like panorama stitched from separate sensors: parallax, blended seams, vignetting, gains.
 
-A real Ladybug5 is not one projection centre. Its five side sensors look out at azimuths 0, 72, ... 288 deg
-from centres ``sensor_radius_m`` out along their axes, and the SDK stitches their images onto a sphere of
-radius ``sphere_radius_m`` around the head: panorama direction ``d`` shows what the sensor sees towards the
-sphere point ``S = sphere_radius_m * d``, i.e. along ``S - c_k`` from the sensor centre ``c_k``. An object
-at that radius lands where a single centre would put it; a nearer one is displaced by up to about
-``sensor_radius_m * sin(angle off the sensor axis) * (1/r - 1/sphere_radius)`` rad, in opposite directions on
-the two sides of a seam. Within ``blend_deg`` of a seam the two sensors' views are cross-faded (near objects
+A real Ladybug5 is not one projection centre. Its five side sensors look out at azimuths 0, +-72, +-144 deg
+from centres ``sensor_radius_m`` out along their axes (6.1 cm on real heads: drivers.ladybug5.rig), and the SDK
+stitches their images onto a sphere of radius ``sphere_radius_m`` around the head: panorama direction ``d`` shows
+what the sensor sees towards the sphere point ``S = sphere_radius_m * d``, i.e. along ``S - c_k`` from the sensor
+centre ``c_k``. An object at that radius lands where a single centre would put it; a nearer one is displaced by
+up to about ``sensor_radius_m * sin(angle off the sensor axis) * (1/r - 1/sphere_radius)`` rad, in opposite directions
+on the two sides of a seam. Within ``blend_deg`` of a seam the two sensors' views are cross-faded (near objects
 there show twice, "ghosts"). Each sensor has its own exposure gain and a residual radial falloff.
 
 Not modelled: the top sensor (it sees above ~50 deg elevation, beyond the VLP-16's beams on this rig: the
@@ -23,6 +23,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.ladybug5.rig import LADYBUG5_CAMERA_RADIUS_M
 from drivers.sim.errors import SimError
 
 F64 = NDArray[np.float64]
@@ -34,13 +35,13 @@ SECTOR_RAD = 2.0 * np.pi / N_SIDE
 
 @dataclass(frozen=True)
 class StitchConfig:
-    """The stitched head: ``sensor_radius_m`` (sensor centre from the head's centre; an assumption of a few
-    cm for the Ladybug5), ``sphere_radius_m`` (the SDK's stitching distance, 20 m by default there),
-    ``blend_deg`` (half-width of the cross-fade at each seam), ``vignetting`` (relative loss of linear
+    """The stitched head: ``sensor_radius_m`` (sensor centre from the head's centre: the nominal Ladybug5
+    head's, from real units' factory calibrations), ``sphere_radius_m`` (the SDK's stitching distance, 20 m by
+    default there), ``blend_deg`` (half-width of the cross-fade at each seam), ``vignetting`` (relative loss of linear
     radiance at ``falloff_deg`` off a sensor's axis and beyond, quadratic in the angle), ``gain_sigma`` (per-sensor
     exposure spread, relative, drawn per capture)."""
 
-    sensor_radius_m: float = 0.045
+    sensor_radius_m: float = LADYBUG5_CAMERA_RADIUS_M
     sphere_radius_m: float = 20.0
     blend_deg: float = 3.0
     vignetting: float = 0.15

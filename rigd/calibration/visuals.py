@@ -12,12 +12,14 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.camera import CameraModel
+from calib.camera import CameraModel, Mounted
 from calib.geometry import Transform
 from calib.gmm import in_image
 
 DIM = 0.6  # the photo is darkened so that the dots stand out on bright walls
 CLOSEUP_MIN_WIDTH_PX = 480  # each half of a close-up is enlarged to at least this width
+DOT_ALPHA = 0.7  # dots are partly transparent: the image edge under a dot still shows through it
+F64 = NDArray[np.float64]
 OVERLAY_STAGES = ("before", "after", "closeup")  # the EdgeViews fields, and the overlay files' suffixes
 CLOUD_STAGE = "cloud"  # overlays/NNNN_cloud.png: the cloud from above, coloured from the image
 UNSEEN_BGR = (90, 90, 90)  # points the camera does not see
@@ -34,8 +36,28 @@ def project_visible(
 
 
 def dot_radius_px(width: int, height: int) -> int:
-    """Dots about 1/700 of the larger image side: 1 px on a 256-wide image, 3 px on a 2048-wide panorama."""
-    return max(1, round(max(width, height) / 700))
+    """Dots about 1/1000 of the larger image side: 1 px up to 1500 px, 2 px on a 2048-wide panorama."""
+    return max(1, round(max(width, height) / 1000))
+
+
+def dot_gap_px(radius_px: int) -> int:
+    """The spacing kept between dots of ``radius_px`` (:func:`thin`): a dot and its rim take 2 r + 3 px, and about
+    as much of the image stays visible between two dots, so the edge they sit on can be judged."""
+    return 2 * radius_px + 5
+
+
+def thin(uv: F64, priority: NDArray[np.intp], gap_px: float) -> NDArray[np.intp]:
+    """Indices of the points ``uv`` (N,2) px kept so that dots do not cover the image: taken in ``priority`` order
+    (indices into ``uv``), a point is dropped when one taken before it lies in the same ``gap_px`` square, on two
+    grids half a square apart (so two kept points are rarely closer than ``gap_px / 2``)."""
+    kept = np.asarray(priority, dtype=np.intp)
+    for offset in (0.0, gap_px / 2):
+        cells = np.floor((uv[kept] + offset) / gap_px).astype(np.int64)
+        if len(cells) == 0:
+            break
+        _, first = np.unique(cells, axis=0, return_index=True)
+        kept = kept[np.sort(first)]  # np.unique's first occurrences, back in priority order
+    return kept
 
 
 def range_scale_m(ranges_m: NDArray[np.float64]) -> float:
@@ -57,17 +79,83 @@ def _dimmed_bgr(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     return (canvas * DIM).astype(np.uint8)
 
 
-def draw_dots(canvas: NDArray[np.uint8], uv: NDArray[np.float64], colours_bgr: NDArray[np.uint8],
+def draw_dots(canvas: NDArray[np.uint8], uv: F64, colours_bgr: NDArray[np.uint8],
               radius_px: int) -> NDArray[np.uint8]:
-    """Filled dots of ``radius_px`` at ``uv`` (N,2) px with a dark rim (visible on light and dark pixels).
-    All rims go first, so close dots keep their colour; give far points first so that near ones, which
-    occlude them in the scene, stay on top."""
+    """Dots of ``radius_px`` at ``uv`` (N,2) px with a dark rim (visible on light and dark pixels), blended with
+    the image at DOT_ALPHA. All rims go first, so close dots keep their colour; give far points first so that
+    near ones, which occlude them in the scene, stay on top. Returns ``canvas``, drawn on."""
+    layer = canvas.copy()
     centres = [(int(u), int(v)) for u, v in np.rint(uv).astype(int)]
     for centre in centres:
-        cv2.circle(canvas, centre, radius_px + 1, (0, 0, 0), -1, cv2.LINE_AA)
+        cv2.circle(layer, centre, radius_px + 1, (0, 0, 0), -1, cv2.LINE_AA)
     for centre, colour in zip(centres, colours_bgr, strict=True):
-        cv2.circle(canvas, centre, radius_px, tuple(int(c) for c in colour), -1, cv2.LINE_AA)
+        cv2.circle(layer, centre, radius_px, tuple(int(c) for c in colour), -1, cv2.LINE_AA)
+    # Pixels without a dot are the same in both, so the blend changes only the dots.
+    cv2.addWeighted(layer, DOT_ALPHA, canvas, 1.0 - DOT_ALPHA, 0.0, dst=canvas)
     return canvas
+
+
+@dataclass(frozen=True)
+class Upright:
+    """How a camera's image is shown to people: its rows or columns stretched to square pixels (``scale`` (2,):
+    shown px per image px along u and v), then turned by ``turns`` quarter turns clockwise so that up is up. Maps
+    the image (H, W) and pixel coordinates uv (N,2) px alike."""
+
+    width: int
+    height: int
+    scale: tuple[float, float]
+    turns: int
+
+    @classmethod
+    def of(cls, camera: CameraModel) -> Upright:
+        """A head's sensor turned so that the head's up (+z) is the image's top (a Ladybug's sensors lie on their
+        side), by the multiple of 90 deg nearest to it, and stretched where its pixels are not square (the Ford
+        head's fy = fx / 2); any other camera as it is."""
+        if not isinstance(camera, Mounted):
+            return cls(camera.width, camera.height, (1.0, 1.0), 0)
+        k = camera.sensor.K
+        fx, fy = float(k[0, 0]), float(k[1, 1])
+        width, height = camera.width, camera.height
+        shown = (max(1, round(width * max(1.0, fy / fx))), max(1, round(height * max(1.0, fx / fy))))
+        # The head's +z in the sensor's optical frame (x right, y down): its direction in the image as shown, where
+        # the pixels are square.
+        up_x, up_y, _ = camera.rotation[:, 2]
+        if np.hypot(up_x, up_y) < 0.5:  # looking (nearly) straight up or down: no up in the image
+            turns = 0
+        elif abs(up_x) > abs(up_y):
+            turns = 1 if up_x < 0 else 3  # up towards column 0: a quarter turn clockwise brings it to the top
+        else:
+            turns = 0 if up_y < 0 else 2
+        return cls(width, height, (shown[0] / width, shown[1] / height), turns)
+
+    @property
+    def stretched(self) -> tuple[int, int]:
+        return round(self.width * self.scale[0]), round(self.height * self.scale[1])
+
+    def image(self, image: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """``image`` (H, W[, 3]) as shown."""
+        out = image
+        if self.stretched != (self.width, self.height):
+            out = cast(NDArray[np.uint8], cv2.resize(out, self.stretched, interpolation=cv2.INTER_LINEAR))
+        if self.turns:
+            codes = {1: cv2.ROTATE_90_CLOCKWISE, 2: cv2.ROTATE_180, 3: cv2.ROTATE_90_COUNTERCLOCKWISE}
+            out = cast(NDArray[np.uint8], cv2.rotate(out, codes[self.turns]))
+        return out
+
+    def points(self, uv: F64) -> F64:
+        """Pixel coordinates uv (N,2) px (centres at integers) as shown."""
+        edge = (np.asarray(uv, dtype=np.float64) + 0.5) * self.scale  # pixel-edge coordinates, stretched
+        w, h = self.stretched
+        x, y = edge[:, 0], edge[:, 1]
+        turned = {0: (x, y), 1: (h - y, x), 2: (w - x, h - y), 3: (y, w - x)}[self.turns]
+        return np.stack(turned, axis=1) - 0.5
+
+    def box(self, box: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+        """A box (u0, v0, width, height) px of the image as shown."""
+        u0, v0, bw, bh = box
+        corners = self.points(np.array([[u0 - 0.5, v0 - 0.5], [u0 + bw - 0.5, v0 + bh - 0.5]])) + 0.5
+        lo, hi = np.rint(corners.min(axis=0)).astype(int), np.rint(corners.max(axis=0)).astype(int)
+        return int(lo[0]), int(lo[1]), int(hi[0] - lo[0]), int(hi[1] - lo[1])
 
 
 @dataclass(frozen=True)
@@ -82,21 +170,51 @@ class EdgeViews:
 
 def edge_views(image: NDArray[np.uint8], camera: CameraModel, before: Transform, after: Transform,
                edge_points_lidar: NDArray[np.float64]) -> EdgeViews:
-    """The edge points (N,3) m, LiDAR frame, drawn as range-coloured dots with each transform."""
-    radius = dot_radius_px(camera.width, camera.height)
+    """The edge points (N,3) m, LiDAR frame, drawn as range-coloured dots with each transform, on the image shown
+    upright (:class:`Upright`). The dots are thinned so that the image's edges stay visible between them, the same
+    points in both (a point seen with the solution is kept or dropped in both), so one sees each dot move."""
     idx_b, uv_b, rng_b = project_visible(camera, before, edge_points_lidar)
     idx_a, uv_a, rng_a = project_visible(camera, after, edge_points_lidar)
+    box = largest_change_box(camera, idx_b, uv_b, idx_a, uv_a)  # found in the image's own pixels
+    upright = Upright.of(camera)
+    base = _dimmed_bgr(upright.image(image))
+    shown_b, shown_a = upright.points(uv_b), upright.points(uv_a)
     scale = range_scale_m(rng_a)
-    base = _dimmed_bgr(image)
+    radius = dot_radius_px(base.shape[1], base.shape[0])
+    keep = _kept(idx_b, shown_b, rng_b, idx_a, shown_a, rng_a, dot_gap_px(radius))
     views = {}
-    for name, uv, rng in (("before", uv_b, rng_b), ("after", uv_a, rng_a)):
-        order = np.argsort(-rng)
-        views[name] = draw_dots(base.copy(), uv[order], turbo_bgr(rng[order], scale), radius)
-    box = largest_change_box(camera, idx_b, uv_b, idx_a, uv_a)
-    halves = [_closeup(base, box, uv, rng, scale, radius, label)
-              for label, uv, rng in (("before", uv_b, rng_b), ("after", uv_a, rng_a))]
+    for name, idx, uv, rng in (("before", idx_b, shown_b, rng_b), ("after", idx_a, shown_a, rng_a)):
+        drawn = np.isin(idx, keep)
+        order = np.argsort(-rng[drawn])
+        views[name] = draw_dots(base.copy(), uv[drawn][order], turbo_bgr(rng[drawn][order], scale), radius)
+    u0, v0, bw, bh = upright.box(box)
+    factor = max(2, -(-CLOSEUP_MIN_WIDTH_PX // bw))
+    closeup_radius = max(2, radius * factor // 2)
+    # Thinned again at the close-up's scale: points that merged into one dot in the whole view are apart here.
+    inside = [_inside(uv, (u0, v0, bw, bh)) for uv in (shown_b, shown_a)]
+    keep_close = _kept(idx_b[inside[0]], shown_b[inside[0]] * factor, rng_b[inside[0]], idx_a[inside[1]],
+                       shown_a[inside[1]] * factor, rng_a[inside[1]], dot_gap_px(closeup_radius))
+    halves = [_closeup(base, (u0, v0, bw, bh), factor, uv[np.isin(idx, keep_close)], rng[np.isin(idx, keep_close)],
+                       scale, closeup_radius, label)
+              for label, idx, uv, rng in (("before", idx_b, shown_b, rng_b), ("after", idx_a, shown_a, rng_a))]
     gap = np.full((halves[0].shape[0], max(4, halves[0].shape[1] // 100), 3), 255, np.uint8)
     return EdgeViews(views["before"], views["after"], np.hstack([halves[0], gap, halves[1]]))
+
+
+def _kept(idx_before: NDArray[np.intp], uv_before: F64, rng_before: F64, idx_after: NDArray[np.intp],
+          uv_after: F64, rng_after: F64, gap_px: float) -> NDArray[np.intp]:
+    """Point indices to draw: those seen with the solution thinned where they land with it (nearest first: they
+    occlude), and those seen only with the initial guess thinned where they land with it."""
+    kept_after = idx_after[thin(uv_after, np.argsort(rng_after, kind="stable"), gap_px)]
+    only_before = np.flatnonzero(~np.isin(idx_before, idx_after))
+    order = only_before[np.argsort(rng_before[only_before], kind="stable")]
+    kept_before = idx_before[thin(uv_before, order, gap_px)]
+    return np.union1d(kept_after, kept_before)
+
+
+def _inside(uv: F64, box: tuple[int, int, int, int]) -> NDArray[np.bool_]:
+    u0, v0, bw, bh = box
+    return (uv[:, 0] >= u0 - 0.5) & (uv[:, 0] < u0 + bw - 0.5) & (uv[:, 1] >= v0 - 0.5) & (uv[:, 1] < v0 + bh - 0.5)
 
 
 def largest_change_box(camera: CameraModel, idx_before: NDArray[np.intp], uv_before: NDArray[np.float64],
@@ -125,18 +243,17 @@ def largest_change_box(camera: CameraModel, idx_before: NDArray[np.intp], uv_bef
     return u0, v0, bw, bh
 
 
-def _closeup(base: NDArray[np.uint8], box: tuple[int, int, int, int], uv: NDArray[np.float64],
-             rng: NDArray[np.float64], scale_m: float, radius_px: int, label: str) -> NDArray[np.uint8]:
-    """The box of ``base`` enlarged (whole factor, at least CLOSEUP_MIN_WIDTH_PX wide) with the dots drawn
-    at the enlarged scale (sharp, not blown-up pixels) and ``label`` in a corner."""
+def _closeup(base: NDArray[np.uint8], box: tuple[int, int, int, int], factor: int, uv: F64, rng: F64,
+             scale_m: float, radius_px: int, label: str) -> NDArray[np.uint8]:
+    """The box of ``base`` enlarged ``factor`` times with the dots at ``uv`` (N,2) px of ``base`` drawn at the
+    enlarged scale (sharp, not blown-up pixels) and ``label`` in a corner."""
     u0, v0, bw, bh = box
-    factor = max(2, -(-CLOSEUP_MIN_WIDTH_PX // bw))
     crop = cast(NDArray[np.uint8], cv2.resize(base[v0:v0 + bh, u0:u0 + bw], (bw * factor, bh * factor),
                                               interpolation=cv2.INTER_CUBIC))
-    inside = (uv[:, 0] >= u0 - 0.5) & (uv[:, 0] < u0 + bw - 0.5) & (uv[:, 1] >= v0 - 0.5) & (uv[:, 1] < v0 + bh - 0.5)
+    inside = _inside(uv, box)
     local = (uv[inside] - [u0, v0] + 0.5) * factor
     order = np.argsort(-rng[inside])
-    draw_dots(crop, local[order], turbo_bgr(rng[inside][order], scale_m), max(radius_px * 2, 3))
+    draw_dots(crop, local[order], turbo_bgr(rng[inside][order], scale_m), radius_px)
     height = crop.shape[0]
     font_scale = max(0.5, height / 400)
     cv2.putText(crop, label, (8, 8 + int(22 * font_scale)), cv2.FONT_HERSHEY_SIMPLEX, font_scale, (0, 0, 0),

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from drivers.sim import SceneKind
+from drivers.sim import SceneKind, head_sensor_height
 from rigd.cli.args import non_negative_float, positive_int
 from rigd.simulate import write_simulated_dataset
 
@@ -25,7 +25,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--width", type=positive_int, default=None,
                         help="panorama width px (default 1024); with --camera head each sensor's (default 512)")
     parser.add_argument("--height", type=positive_int, default=None,
-                        help="panorama height px (default width/2); with --camera head each sensor's (width x 1.25)")
+                        help="panorama height px (default width/2); with --camera head each sensor's (default: the "
+                        "Ladybug5's aspect, width x 2048/2448)")
     parser.add_argument("--noise-m", type=non_negative_float, default=0.02,
                         help="LiDAR range noise sigma in metres (default 0.02)")
     parser.add_argument("--sensor-effects", action="store_true",
@@ -40,8 +41,8 @@ def register(subparsers: Any) -> None:
                         "crowd the LiDAR's rings with range jumps and the image with texture (docs/simulator.md)")
     parser.add_argument("--camera", choices=["panorama", "pinhole", "head"], default="panorama",
                         help="pinhole: a forward 1920x1200 camera (48 x 31 deg) below a level LiDAR, as on a car, "
-                        "instead of the Ladybug5 panorama; head: the five side sensors of a Ladybug-like head as "
-                        "separate 512x640 images (docs/simulator.md)")
+                        "instead of the Ladybug5 panorama; head: the five side sensors of a Ladybug5 head as "
+                        "separate 512x428 images, lying on their side as a Ladybug5's (docs/simulator.md)")
     parser.add_argument("--lidar", choices=["vlp16", "64"], default="vlp16",
                         help="64: a 64-ring street LiDAR (a dense band of 0.17 deg rings from +2 to -6 deg, like the "
                         "pinhole sample's) in place of the VLP-16 (docs/simulator.md)")
@@ -51,7 +52,7 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     head = args.camera == "head"
     width = args.width if args.width is not None else (512 if head else 1024)
-    height = args.height if args.height is not None else (width * 5 // 4 if head else max(1, width // 2))
+    height = args.height if args.height is not None else (head_sensor_height(width) if head else max(1, width // 2))
     out = write_simulated_dataset(args.out, args.scene, args.pairs, args.seed, width, height, args.noise_m,
                                   sensor_effects=args.sensor_effects, dropouts=args.dropouts, trees=args.trees,
                                   pinhole=args.camera == "pinhole", rings64=args.lidar == "64",

@@ -12,6 +12,7 @@ import yaml
 
 from calib.camera import Mounted
 from calib.geometry import rotation_angle_deg
+from drivers.sim import ladybug_like_head
 from rigd.calibration.service import of_pairs
 from rigd.cli import main
 from rigd.dataset import open_dataset
@@ -22,21 +23,24 @@ from rigd.dataset.records import HeadConfig
 def head_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("head") / "outdoor"
     assert main(["simulate", str(root), "--scene", "outdoor", "--pairs", "3", "--seed", "5", "--camera", "head",
-                 "--width", "192"]) == 0
+                 "--width", "230"]) == 0  # 230 x 192 px: 192 px across the horizontal, as before
     return root
 
 
-def test_a_simulated_head_is_five_sensors_around_the_head(head_dataset: Path) -> None:
+def test_a_simulated_head_is_five_sensors_of_a_ladybug5(head_dataset: Path) -> None:
     ds = open_dataset(head_dataset)
     assert isinstance(ds.rig.camera, HeadConfig) and ds.views == ("cam0", "cam1", "cam2", "cam3", "cam4")
-    assert [im.shape[:2] for im in ds.load_pair(0).images] == [(240, 192)] * 5
+    sizes = [(s.height, s.width) for s in ladybug_like_head(230)]
+    assert [im.shape[:2] for im in ds.load_pair(0).images] == sizes == [(192, 230)] * 5  # a Ladybug5's aspect
     cams = ds.rig.camera.models()
     assert all(isinstance(c, Mounted) for c in cams)
-    # each sensor sees the head's forward direction turned by its 72 deg step, 4.5 cm out
-    for k, cam in enumerate(cams):
-        yaw = np.radians(72.0 * k)
-        uv, valid = cam.project(np.array([[20.0 * np.cos(yaw), 20.0 * np.sin(yaw), 0.0]]))
-        assert valid[0] and np.allclose(uv[0], [95.5, 119.5], atol=1e-6)
+    # Each sensor sees the direction at its azimuth, -72 deg * k, at its principal point, and lies on its side as a
+    # Ladybug5's does: what is above that direction is towards its first columns, on the same row.
+    for k, (cam, (height, width)) in enumerate(zip(cams, sizes, strict=True)):
+        ahead = 20.0 * np.array([np.cos(np.radians(-72.0 * k)), np.sin(np.radians(-72.0 * k)), 0.0])
+        uv, valid = cam.project(np.array([ahead, ahead + [0.0, 0.0, 2.0]]))
+        assert valid.all() and np.allclose(uv[0], [(width - 1) / 2, (height - 1) / 2], atol=1e-6)
+        assert uv[1, 0] < uv[0, 0] - 10 and uv[1, 1] == pytest.approx(uv[0, 1], abs=1e-6)
 
 
 def test_calibrate_a_head_writes_each_sensors_overlays_and_finds_the_truth(head_dataset: Path, tmp_path: Path,

@@ -49,16 +49,21 @@ class Fake:
         for name, value in values.items():
             self.g(f"fake_{name}").value = value
 
+    def set_double(self, **values: float) -> None:
+        for name, value in values.items():
+            ctypes.c_double.in_dll(self.handle, f"fake_{name}").value = value
+
     def call_log(self) -> str:
         """The configuration, geometry and renderer calls so far, a letter each, in order (fake_ladybug.c)."""
         return (ctypes.c_char * 256).in_dll(self.handle, "fake_render_log").value.decode()
 
-    def lens(self, camera: int) -> tuple[np.ndarray, np.ndarray]:
-        """The fake's true raw-image K (3,3) and D (5,) of ``camera`` (fake_ladybug.c)."""
+    def lens(self, camera: int, cols: int = COLS, rows: int = ROWS) -> tuple[np.ndarray, np.ndarray]:
+        """The fake's true raw-image K (3,3) and D (5,) of ``camera`` (fake_ladybug.c) with ``cols`` x ``rows``
+        px sensors (fake_cols, fake_rows)."""
         focal = ctypes.c_double.in_dll(self.handle, "fake_focal").value
         k1 = ctypes.c_double.in_dll(self.handle, "fake_k1").value
         k2 = ctypes.c_double.in_dll(self.handle, "fake_k2").value
-        cx, cy = (COLS - 1) / 2 + 0.3 * camera, (ROWS - 1) / 2 - 0.2 * camera
+        cx, cy = (cols - 1) / 2 + 0.3 * camera, (rows - 1) / 2 - 0.2 * camera
         return np.array([[focal, 0, cx], [0, focal, cy], [0, 0, 1]]), np.array([k1, k2, 0, 0, 0])
 
 

@@ -14,7 +14,9 @@ from calib.camera import Equirectangular
 from calib.geometry import matrix_to_quaternion_xyzw, matrix_to_rpy_deg, rpy_deg_to_matrix
 from drivers import geometry as rotation
 from drivers.ladybug5.errors import Ladybug5Error, RigFileError
+from drivers.ladybug5.head import HeadCalibration, euler_zyx_matrix
 from drivers.ladybug5.rig import (
+    LADYBUG5P_SIZE_PX,
     default_ladybug5_rig,
     load_rig,
     rig_from_yaml,
@@ -35,17 +37,58 @@ def test_local_rotation_helpers_match_calib():
         np.testing.assert_allclose(rotation.matrix_to_quaternion_xyzw(m), matrix_to_quaternion_xyzw(m), atol=1e-9)
 
 
-def test_default_rig_geometry_is_a_ladybug5_like_head():
+# A public factory calibration of a real Ladybug5 (LD5-U3-51S5C-44, serial 15402620, as the SDK's configuration
+# lists it): per camera rotX, rotY, rotZ (rad; R = Rz Ry Rx maps the camera's frame into the head's) and transX,
+# transY, transZ (m). docs/ladybug5.md, "Default head".
+REAL_UNIT_EXTRINSICS = np.array([
+    [-2.151942, 1.566552, -2.151938, 0.061564, -0.000836, -0.000023],
+    [-2.806324, 1.564830, 2.220612, 0.017904, -0.058481, -0.000240],
+    [-1.815490, 1.566224, 1.958800, -0.050197, -0.035245, -0.000097],
+    [2.320270, 1.569067, -1.446774, -0.048999, 0.036651, 0.000180],
+    [-1.787905, 1.563776, -0.526615, 0.019728, 0.057911, 0.000180],
+    [0.000197, 0.001386, -3.137179, 0.000320, -0.000344, 0.076026],
+])
+
+
+def test_a_real_ladybug5s_cameras_lie_on_their_side():
+    """What the nominal head copies, read from the real unit's numbers: camera 0 looks along +x with its image
+    columns down (-z) and rows along +y; camera i looks out at -72 deg * i; the top camera's columns run along -x,
+    its rows along -y."""
+    rotations = [euler_zyx_matrix(*e[:3]) for e in REAL_UNIT_EXTRINSICS]
+    np.testing.assert_allclose(rotations[0], [[0, 0, 1], [0, 1, 0], [-1, 0, 0]], atol=0.005)
+    for i, r in enumerate(rotations[:5]):
+        azimuth = np.degrees(np.arctan2(r[1, 2], r[0, 2]))
+        assert abs((azimuth + 72.0 * i + 180.0) % 360.0 - 180.0) < 1.0
+        assert r[:, 0] @ [0, 0, -1] > 0.9999
+    np.testing.assert_allclose(rotations[5][:, :2], [[-1, 0], [0, -1], [0, 0]], atol=0.005)
+
+
+def test_the_nominal_head_is_a_ladybug5():
     rig = default_ladybug5_rig()
     assert len(rig.cameras) == 6
-    axes = np.array([c.R_head_camera[:, 2] for c in rig.cameras])
-    yaw = np.degrees(np.arctan2(axes[:5, 1], axes[:5, 0]))
-    np.testing.assert_allclose(np.diff(np.unwrap(np.radians(yaw))), np.radians(72.0), atol=1e-12)
-    np.testing.assert_allclose(axes[5], [0, 0, 1], atol=1e-12)
-    for c in rig.cameras:
+    side, top = rig.cameras[:5], rig.cameras[5]
+    for i, c in enumerate(side):
+        axis, columns, rows = c.R_head_camera[:, 2], c.R_head_camera[:, 0], c.R_head_camera[:, 1]
+        np.testing.assert_allclose(axis, [np.cos(np.radians(-72.0 * i)), np.sin(np.radians(-72.0 * i)), 0.0],
+                                   atol=1e-12)
+        np.testing.assert_allclose(columns, [0, 0, -1], atol=1e-12)  # lying on its side: columns run down
+        assert abs(rows[2]) < 1e-12  # and rows along the horizontal
+        np.testing.assert_allclose(c.t_head_camera_m / np.linalg.norm(c.t_head_camera_m), axis, atol=1e-12)
+        assert 0.060 <= np.linalg.norm(c.t_head_camera_m) <= 0.062  # two real units: 6.08-6.16 cm
+    np.testing.assert_allclose(top.R_head_camera, [[-1, 0, 0], [0, -1, 0], [0, 0, 1]], atol=1e-12)
+    assert top.t_head_camera_m[:2] == pytest.approx([0, 0]) and 0.074 <= top.t_head_camera_m[2] <= 0.077
+    for c, real in zip(rig.cameras, REAL_UNIT_EXTRINSICS, strict=True):  # within the spread between units
+        assert np.degrees(np.arccos((np.trace(c.R_head_camera.T @ euler_zyx_matrix(*real[:3])) - 1) / 2)) < 2.0
+        assert np.linalg.norm(c.t_head_camera_m - real[3:]) < 0.002
         assert np.linalg.det(c.R_head_camera) == pytest.approx(1.0)
-        assert np.linalg.norm(c.t_head_camera_m) == pytest.approx(0.045)
-        assert c.K[0, 0] == pytest.approx(4.4e-3 / 3.45e-6)  # 4.4 mm lens on 3.45 um pixels
+        assert c.K[0, 0] == pytest.approx(4.4e-3 / 3.45e-6)  # the raw image's: a 4.4 mm lens on 3.45 um pixels
+
+
+def test_the_nominal_heads_rectified_pinhole_is_a_real_units():
+    for size in ((2448, 2048), LADYBUG5P_SIZE_PX):
+        head = HeadCalibration.nominal(size)
+        for s in head.sensors:  # the SDK's rectified focal length at 2448x2048: 443-464 px in two units
+            assert 443.0 <= s.focal_px * 2448 / size[0] <= 464.0
 
 
 def test_rig_file_round_trip_and_shipped_default(tmp_path):

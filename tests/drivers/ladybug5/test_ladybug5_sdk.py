@@ -269,6 +269,22 @@ def test_the_factory_head_is_read_through_the_sdk(fake):
     assert side.R_head_camera[:, 2] @ [np.cos(yaw), np.sin(yaw), 0.0] > 0.999  # its optical axis looks out
 
 
+def test_the_lens_fit_lands_on_the_raw_lens_from_a_real_units_rectified_focal_length(fake):
+    """A real Ladybug5's SDK reports a rectified focal length of about 450 px at 2448x2048 while the raw lens is about
+    1275 px (docs/ladybug5.md): the fit starts at the rectified one and must still find the raw one."""
+    raw_focal, k1, k2 = 4.4e-3 / 3.45e-6, -0.2, 0.03
+    fake.set(cols=2448, rows=2048)
+    fake.set_double(focal=raw_focal, k1=k1, k2=k2, rect_focal_scale=452.0 / raw_focal)
+    with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera:
+        head = camera.read_head((2448, 2048), step_px=128)  # 20 x 17 points a sensor: enough for 9 parameters
+    for cam, sensor in enumerate(head.sensors):
+        assert sensor.focal_px == pytest.approx(452.0)
+        k, d = fake.lens(cam, 2448, 2048)
+        np.testing.assert_allclose(sensor.lens.K, k, atol=1e-4)
+        np.testing.assert_allclose(sensor.lens.D, d, atol=1e-7)
+        assert sensor.lens.rms_px < 1e-4 and not sensor.lens.poor
+
+
 def test_the_rectified_images_are_configured_before_their_size_and_geometry(fake):
     fake.set(size_needs_configure=1)  # the fake takes the rectified size only for configured rectified images
     with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera:

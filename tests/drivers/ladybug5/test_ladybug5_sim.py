@@ -55,16 +55,19 @@ def test_stitched_panorama_matches_the_simulators_panorama(rendered):
     covered = stitcher.coverage
     mae = np.abs(pano.astype(float) - reference)[covered].mean()
     assert mae < 2.0  # grey levels (0..255)
-    # Edges away from the overlaps (where parallax and blending act) are within 1 px of the reference's.
+    # Edges away from the overlaps (where blending acts) are within 1-2 px of the reference's. Not all within 1 px:
+    # the cameras sit 6.1 cm (the top one 7.6 cm) off the head centre, and a ceiling 1-2 m above the head, off the
+    # 3 m sphere, moves by up to ~1.5 px at this size (94.7 % within 1 px; 98 % when they sat 4.5 cm off).
     away = covered & ~ndimage.binary_dilation(stitcher.overlap | ~covered, iterations=3)
     edges_ref = (cv2.Canny(reference, 100, 200) > 0) & away
     distance_to_stitched_edge = ndimage.distance_transform_edt(cv2.Canny(pano, 50, 100) == 0)
     assert edges_ref.sum() > 500
-    assert np.mean(distance_to_stitched_edge[edges_ref] <= 1.0) > 0.95
+    assert np.mean(distance_to_stitched_edge[edges_ref] <= 1.0) > 0.93
+    assert np.mean(distance_to_stitched_edge[edges_ref] <= 2.0) > 0.99
 
 
 def test_stitching_radius_models_parallax(rendered):
-    """Cameras sit 4.5 cm off the head centre: a sphere at the walls' distance fits better than infinity."""
+    """Cameras sit 6.1-7.6 cm off the head centre: a sphere at the walls' distance fits better than infinity."""
     images, reference = rendered
 
     def mae(radius_m: float) -> float:

@@ -4,13 +4,16 @@ close-up of where they moved most."""
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 
-from calib.camera import Equirectangular
+from calib.camera import Equirectangular, Mounted, Pinhole
 from calib.geometry import Transform
 from rigd.calibration.visuals import (
     CLOSEUP_MIN_WIDTH_PX,
     UNSEEN_BGR,
+    Upright,
     cloud_top_view,
+    dot_gap_px,
     dot_radius_px,
     edge_views,
     largest_change_box,
@@ -50,15 +53,25 @@ def test_edge_views_draw_dots_where_the_points_project_and_move_them():
     before = Transform.from_rpy_xyz(np.array([0.0, 0.0, 4.0]), np.zeros(3))  # 4 deg of yaw: ~6 px
     views = edge_views(image, CAMERA, before, after, points)
     assert views.before.shape == views.after.shape == (256, 512, 3)  # full resolution, colour
-    # The photo is dimmed and grey; the dots are coloured, and lie where the points project.
+    # The photo is dimmed and grey; the dots are coloured, and lie where the points project: thinned so that
+    # every point is near a dot, and every dot on a point.
     coloured = lambda img: np.ptp(img.astype(int), axis=2) > 40  # noqa: E731
     uv, _ = CAMERA.project(after.apply(points))
     px = np.rint(uv).astype(int)
-    assert coloured(views.after)[px[:, 1], px[:, 0]].mean() > 0.9
+    to_dot = ndimage.distance_transform_edt(~coloured(views.after))
+    assert to_dot[px[:, 1], px[:, 0]].max() <= dot_gap_px(dot_radius_px(512, 256))
+    to_point = np.ones((256, 512), bool)
+    to_point[px[:, 1], px[:, 0]] = False
+    assert ndimage.distance_transform_edt(to_point)[coloured(views.after)].max() <= dot_radius_px(512, 256) + 1
+    assert coloured(views.after).sum() < 0.6 * len(px) * 9  # fewer dots than points: the wall shows between them
     assert not coloured(views.after)[0:20, 0:20].any()
     assert np.any(coloured(views.before) != coloured(views.after))
     # Near points blue-ish, far ones red-ish (turbo over range).
-    near, far = views.after[px[0, 1], px[0, 0]], views.after[px[-1, 1], px[-1, 0]]
+    dots = coloured(views.after)
+    columns = np.arange(512)[None, :]
+    near_wall = dots & (np.abs(columns - px[0, 0]) <= 3)  # the first points: the near wall's, 3 m away
+    far_wall = dots & (np.abs(columns - px[-1, 0]) <= 3)  # the last ones: the far wall's
+    near, far = views.after[near_wall].astype(int).mean(axis=0), views.after[far_wall].astype(int).mean(axis=0)
     assert near[0] > near[2] and far[2] > far[0]  # BGR
     # The close-up: two enlarged halves with a gap, at least CLOSEUP_MIN_WIDTH_PX wide each.
     h, w = views.closeup.shape[:2]
@@ -67,7 +80,7 @@ def test_edge_views_draw_dots_where_the_points_project_and_move_them():
 
 
 def test_dots_grow_with_the_image():
-    assert dot_radius_px(256, 128) == 1 and dot_radius_px(2048, 1024) == 3 and dot_radius_px(8000, 4000) == 11
+    assert dot_radius_px(256, 128) == 1 and dot_radius_px(2048, 1024) == 2 and dot_radius_px(8000, 4000) == 8
 
 
 def test_the_top_view_colours_each_point_from_the_pixel_it_lands_on():
@@ -96,8 +109,6 @@ def test_the_top_view_colours_each_point_from_the_pixel_it_lands_on():
 
 
 def test_the_top_view_greys_what_the_camera_does_not_see():
-    from calib.camera import Pinhole
-
     camera = Pinhole(np.array([[100.0, 0, 100.0], [0, 100.0, 50.0], [0, 0, 1]]), np.zeros(4), 200, 100)
     to_optical = Transform(np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), np.zeros(3))
     image = np.full((100, 200, 3), (0, 200, 0), np.uint8)
@@ -116,3 +127,35 @@ def test_a_close_up_without_points_in_it_is_drawn():
     for pose in (IDENTITY, Transform.from_rpy_xyz(np.array([0.0, 0.0, 170.0]), np.zeros(3))):
         views = edge_views(image, CAMERA, pose, pose, points)
         assert views.closeup.shape[0] > 0 and views.closeup.shape[1] > 2 * CLOSEUP_MIN_WIDTH_PX
+
+
+def ladybug_side_sensor(width: int, height: int, fy_over_fx: float = 1.0) -> Mounted:
+    """A head's sensor lying on its side as a Ladybug5's: looking along the head's +x, image columns along -z (up
+    is towards column 0), rows along +y."""
+    fx = width / 2.0
+    K = np.array([[fx, 0.0, (width - 1) / 2], [0.0, fx * fy_over_fx, (height - 1) / 2], [0.0, 0.0, 1.0]])
+    R_head_sensor = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # columns: x, y, z of the sensor
+    return Mounted("cam0", Pinhole(K, np.zeros(4), width, height), R_head_sensor.T, np.zeros(3))
+
+
+def test_a_sensor_lying_on_its_side_is_drawn_upright():
+    camera = ladybug_side_sensor(48, 40)
+    above = np.array([[5.0, 0.0, 2.0]])  # ahead and above the horizon (head frame = LiDAR frame here)
+    uv, valid = camera.project(above)
+    assert valid[0] and uv[0, 0] < 20  # stored: towards the first columns, i.e. on the left
+    image = np.full((40, 48), 60, np.uint8)
+    u, v = np.rint(uv[0]).astype(int)
+    image[v - 1:v + 2, u - 1:u + 2] = 255  # a bright marker where that point is
+    views = edge_views(image, camera, IDENTITY, IDENTITY, wall(5.0, np.array([-1.0, 1.0])))
+    assert views.after.shape == (48, 40, 3)  # turned a quarter: the long side upright
+    rows, cols = np.nonzero(views.after.min(axis=2) > 140)  # the marker (dimmed, but brighter than the rest)
+    assert len(rows) and rows.max() < 24  # in the upper half
+    upright = Upright.of(camera)
+    assert upright.turns == 1
+    np.testing.assert_allclose(upright.points(uv), [[cols.mean(), rows.mean()]], atol=1.0)  # points turn with it
+    # Pixels twice as tall as wide (fy = fx / 2, the Ford head's) are shown square: rows doubled, then turned.
+    squashed = Upright.of(ladybug_side_sensor(48, 20, 0.5))
+    assert squashed.image(np.zeros((20, 48), np.uint8)).shape == (48, 40) and squashed.turns == 1
+    # A sensor looking up has no up in its image: as it is.
+    up = Mounted("cam5", camera.sensor, np.eye(3), np.zeros(3))
+    assert Upright.of(up).turns == 0 and Upright.of(CAMERA).turns == 0

@@ -6,7 +6,9 @@
  * pattern fake_stippled (for the full image's top-left pixel); RAW16 is the same << 8. COLOR_SEP_JPEG8 serves a
  * loaded frame block. The camera clock starts at 127.5 s of the 128 s cycle and ticks 0.1 s a frame.
  * Geometry: per camera an OpenCV-like lens (focal fake_focal, centre, k1, k2) and Euler ZYX extrinsics; a
- * configuration file "FAKECAL <k1> <k2> <focal>" replaces the lens. The rectified resolution is the rectified
+ * configuration file "FAKECAL <k1> <k2> <focal>" replaces the lens. The rectified pinhole's focal length is the raw
+ * lens's times fake_rect_focal_scale (a real Ladybug5's SDK reports 443-457 px at 2448x2048, where the raw lens is
+ * about 1275 px), scaled to the rectified resolution, which is the rectified
  * off-screen size; with fake_size_needs_configure that size is ignored unless the rectified images were configured
  * first (then the geometry asks for a resolution). Globals steer faults and record calls.
  * Renderer: ladybugConvertImage fills each camera's texture with its flat colour (from the image's sequence id),
@@ -41,6 +43,7 @@ int fake_rect_cols = 0, fake_rect_rows = 0;
 int fake_size_needs_configure = 0; /* the rectified size is taken only for configured rectified images */
 char fake_config_path[256] = "";
 double fake_focal = 10.0, fake_k1 = -0.05, fake_k2 = 0.01;
+double fake_rect_focal_scale = 1.0; /* rectified / raw focal length */
 int fake_pano_cols = 2048, fake_pano_rows = 1024; /* the SDK's default panoramic size */
 int fake_color_method = -1, fake_configured = 0, fake_texture_format = -1;
 int fake_configure_error = 0;        /* returned by ladybugConfigureOutputImages when non-zero */
@@ -305,7 +308,7 @@ LadybugError ladybugSetOffScreenImageSize(LadybugContext context, LadybugOutputI
 static double centre_x(unsigned int cam) { return (fake_cols - 1) / 2.0 + 0.3 * cam; }
 static double centre_y(unsigned int cam) { return (fake_rows - 1) / 2.0 - 0.2 * cam; }
 static double scale(void) { return (double)fake_rect_cols / fake_cols; }
-static double rect_focal(void) { return fake_focal * scale(); }
+static double rect_focal(void) { return fake_focal * fake_rect_focal_scale * scale(); }
 static double rect_cx(unsigned int cam) { return (centre_x(cam) + 0.5) * scale() - 0.5; }
 static double rect_cy(unsigned int cam) { return (centre_y(cam) + 0.5) * scale() - 0.5; }
 
