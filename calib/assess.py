@@ -91,6 +91,9 @@ class TrustOptions:
     failed_tolerances: float = 5.0  # ambiguity or sigma beyond this many tolerances on most axes: failed
     min_returned_share: float = 0.5  # fewer restarts back at the solution: the cost has several minima nearby
     max_move_deg: float = 20.0  # a solve that ends farther from its start ran to another alignment (docs/trust.md)
+    # A translation that ends this far from its start was pulled there by a lever arm that is not this rig's (a
+    # prior typed in cm where metres are meant): a rig's lever arm is known to decimetres before any calibration.
+    max_move_m: float = 1.0
     seed: int = 0
 
     @property
@@ -163,6 +166,7 @@ class Assessment:
     restarts: tuple[Restart, ...]
     verdict: Verdict
     moved_deg: float | None = None  # rotation from the nearest start of a solve to the solution; None: unknown
+    moved_m: float | None = None  # translation from the nearest start to the solution; None: unknown
 
 
 def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptions, gmm: GmmOptions,
@@ -421,12 +425,24 @@ def restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOp
             "minima within the restart offsets")
 
 
-def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None = None) -> Verdict:
+def _moved_far(moved_m: float | None, trust: TrustOptions) -> Verdict | None:
+    """Failed when the translation ended metres from every start; None otherwise."""
+    if moved_m is None or moved_m <= trust.max_move_m:
+        return None
+    return Verdict(Status.FAILED, AXES, (
+        f"the translation ended {moved_m:.2f} m from its start, more than {trust.max_move_m:g} m: no rig's lever "
+        "arm is that far from its guess; check the lever arm given (the prior's xyz_m is in metres, not cm)",))
+
+
+def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None = None,
+             moved_m: float | None = None) -> Verdict:
     tol = trust.tolerance_display
     reasons: list[str] = []
     weak = set()
     if not unc.is_minimum:
         return Verdict(Status.FAILED, AXES, ("the solution is not a minimum of the finest-level cost",))
+    if (far_verdict := _moved_far(moved_m, trust)) is not None:
+        return far_verdict
     if moved_deg is not None and moved_deg > trust.max_move_deg:
         # Local evidence (sigmas, restarts) describes whatever minimum the solve reached; one this far from
         # every start is another alignment of the edges, or the start was that far off: neither is checked.
@@ -482,7 +498,8 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
     application's process pool, whose worker takes restarts beside this process (same result as without it;
     this process works out the uncertainty while the worker ends its last one). ``starts``: the
     poses (6,) tau the solves started from (the initial guess, the search's runners-up); the solution's
-    rotation from the nearest one is reported, and beyond ``trust.max_move_deg`` fails the result."""
+    rotation from the nearest one is reported, and beyond ``trust.max_move_deg`` fails the result; so does a
+    translation beyond ``trust.max_move_m`` from the nearest start."""
     solving = prior if solving is None else solving
     # The restarts probe the basin of the lowest full solve: a search runner-up that ends lower than the
     # search's best start is the solution, and restarts around the start's would only find that start's basin.
@@ -502,4 +519,6 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
         for r, origin in solves if r is not best
     )
     moved = min((rotation_angle_deg(so3_exp(s[:3]), so3_exp(best.tau[:3])) for s in starts), default=None)
-    return Assessment(best.tau, best, unc, restarts, _verdict(unc, list(restarts), trust, moved), moved)
+    moved_m = min((float(np.linalg.norm(s[3:] - best.tau[3:])) for s in starts), default=None)
+    return Assessment(best.tau, best, unc, restarts, _verdict(unc, list(restarts), trust, moved, moved_m), moved,
+                      moved_m)

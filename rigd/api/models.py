@@ -10,7 +10,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, PrivateAttr, 
 
 from calib.errors import CalibError
 from calib.geometry import Transform
-from rigd.dataset.records import transform_to_yaml
+from rigd.dataset.records import lever_arm_problem, transform_to_yaml
 from rigd.report import NoQuality, StoredQuality, Uncertainty, Verdict
 from rigd.results import CalibrateJobResult, CaptureJobResult, CheckReport
 from rigd.store.datasets import DATASET_ID_PATTERN
@@ -135,6 +135,8 @@ class PriorIn(Request):
     def _pairs(self) -> PriorIn:
         if (self.xyz_m is None) != (self.sigma_cm is None):
             raise ValueError("a lever-arm prior needs both xyz_m and sigma_cm")
+        if self.xyz_m is not None and (problem := lever_arm_problem(self.xyz_m)) is not None:
+            raise ValueError(problem)
         if (self.rpy_deg is None) != (self.sigma_deg is None):
             raise ValueError("a rotation prior needs both rpy_deg and sigma_deg")
         return self

@@ -298,7 +298,7 @@ class JobRunner:
                 "initial_matrix": params["initial"]["matrix"] if params["initial"] else None,
                 "sigmas_deg": params["sigmas_deg"],
                 "prior": params.get("prior"), "fix_translation": params.get("fix_translation", False),
-                "tolerance": params.get("tolerance"), "workers": self.workers}
+                "tolerance": params.get("tolerance"), "workers": self.workers, "init": params.get("init")}
 
     def _run_in_worker(self, job: Job) -> None:
         payload = self._payload(job)

@@ -57,10 +57,12 @@ def probe_camera(source: str) -> CameraStatus:
 
 
 class SensorMonitor:
-    """Keeps the last sensor snapshot; ``capture_figures`` gives a running capture's LiDAR status or None."""
+    """Keeps the last sensor snapshot; ``capture_figures`` gives a running capture's LiDAR and camera status, or
+    None."""
 
     def __init__(self, camera_source: str, lidar_source: str, poll_s: float,
-                 capture_figures: Callable[[], LidarStatus | None], listen_s: float = 1.0) -> None:
+                 capture_figures: Callable[[], tuple[LidarStatus, CameraStatus] | None], listen_s: float = 1.0
+                 ) -> None:
         self.camera_source = camera_source
         self.lidar_source = lidar_source
         spec = parse_lidar(lidar_source)
@@ -90,7 +92,7 @@ class SensorMonitor:
 
     def snapshot(self) -> tuple[LidarStatus, CameraStatus]:
         capture = self.capture_figures()
-        return (capture if capture is not None else self._lidar), self._camera
+        return capture if capture is not None else (self._lidar, self._camera)
 
     def _loop(self) -> None:
         while not self._stop.is_set():

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
-from rigd.api.models import LidarStatus
+from rigd.api.models import CameraStatus, LidarStatus
 from rigd.api.runner import ActivationBounds, JobRunner
 from rigd.api.sensors import SensorMonitor
 from rigd.api.settings import Settings
@@ -27,16 +27,17 @@ def software_version() -> str:
 
 @dataclass
 class CaptureFigures:
-    """The LiDAR figures a running capture reports, shown by GET /status while it holds the sensors."""
+    """The LiDAR figures a running capture reports, and its camera's state, shown by GET /status while it holds
+    the sensors (the probe stands aside: it would call a simulated capture's camera absent)."""
 
     lock: threading.Lock = field(default_factory=threading.Lock)
-    current: LidarStatus | None = None
+    current: tuple[LidarStatus, CameraStatus] | None = None
 
-    def set(self, status: LidarStatus | None) -> None:
+    def set(self, status: tuple[LidarStatus, CameraStatus] | None) -> None:
         with self.lock:
             self.current = status
 
-    def get(self) -> LidarStatus | None:
+    def get(self) -> tuple[LidarStatus, CameraStatus] | None:
         with self.lock:
             return self.current
 

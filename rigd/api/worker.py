@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 import threading
 import traceback
@@ -47,12 +48,44 @@ from rigd.store.jsonsafe import json_safe
 EXIT_PARENT_GONE = 3
 
 
-class Reporter:
-    """Writes protocol lines to the parent; levels' iterations go to the log, throttled by the parent."""
+# The calibration's stages in order, by the words its progress reports begin with, and the share of the job's bar
+# each takes (with a global search, and without). run_calibration reports each stage on its own scale (the
+# edges 0..1 of the pairs, the search 0.5..0.7, the optimisation 0.5 at its start): placed in its band, and never
+# below what was shown, the bar only moves forward (it went from 70 % in the search back to 50 % at "optimising
+# level 1/4").
+STAGES = (("hashing", "hashing"), ("edges of", "edges"), ("reflectivity", "reflectivity"),
+          ("optimising", "optimising"), ("writing overlays", "overlays"), ("searching around", "around"))
+BANDS = {"hashing": (0.0, 0.02), "edges": (0.02, 0.5), "reflectivity": (0.5, 0.5), "search": (0.5, 0.5),
+         "optimising": (0.5, 0.95), "overlays": (0.95, 1.0)}
+BANDS_SEARCHING = {**BANDS, "edges": (0.02, 0.25), "reflectivity": (0.25, 0.3), "search": (0.3, 0.5)}
+CHECK_BANDS = {"edges": (0.0, 0.6), "around": (0.6, 1.0)}  # a check: the edges, then the search around the pose
+PER_PAIR = ("hashing", "edges", "reflectivity")  # stages whose own fraction is 0..1 of the stage
+PAIR_OF = re.compile(r"pair (\d+)/(\d+)")
+# The search's reports say "no initial guess" (rigd calibrate without --init); a service job says why it searches.
+NO_GUESS = "no initial guess: "
+SEARCH_WORDS = {"search": "", "rig": "no initial guess in the rig file: "}
 
-    def __init__(self, out: TextIO) -> None:
+
+def stage_kind(stage: str) -> str | None:
+    """Which of the calibration's stages a progress report belongs to; None: not one of them (a check's)."""
+    if "global search" in stage:
+        return "search"
+    return next((kind for words, kind in STAGES if stage.startswith(words)), None)
+
+
+class Reporter:
+    """Writes protocol lines to the parent; levels' iterations go to the log, throttled by the parent.
+    ``bands``: the job's stages' shares of its bar (BANDS, BANDS_SEARCHING when the calibration starts with the
+    global search, CHECK_BANDS); ``init``: the request's start (active, rig, search, explicit), which words the
+    search's stage."""
+
+    def __init__(self, out: TextIO, bands: dict[str, tuple[float, float]] | None = None,
+                 init: str | None = None) -> None:
         self.out = out
         self.levels = 1
+        self.bands = BANDS if bands is None else bands
+        self.init = init
+        self.shown = 0.0
 
     def send(self, message: dict[str, Any]) -> None:
         try:
@@ -61,15 +94,43 @@ class Reporter:
         except BrokenPipeError:  # the parent is gone
             leave(EXIT_PARENT_GONE)
 
+    def _forward(self, kind: str | None, within: float, given: float) -> float:
+        """The job's fraction for ``within`` (0..1) of stage ``kind`` (``given`` as it is for another job's
+        stages), never below the last one sent."""
+        if kind in self.bands:
+            low, high = self.bands[kind]
+            given = low + (high - low) * min(max(within, 0.0), 1.0)
+        self.shown = max(self.shown, given)
+        return self.shown
+
+    def _words(self, stage: str) -> str:
+        if stage.startswith(NO_GUESS) and self.init in SEARCH_WORDS:
+            return SEARCH_WORDS[self.init] + stage.removeprefix(NO_GUESS)
+        return stage
+
     def progress(self, stage: str, fraction: float) -> None:
-        self.send({"type": "progress", "stage": stage, "fraction": fraction})
+        kind = stage_kind(stage)
+        pair = PAIR_OF.search(stage)
+        # The per-pair stages report how far they are; the others report their start on the caller's scale
+        # (the search's "pair d/t" says how far it is).
+        within = fraction if kind in PER_PAIR else int(pair[1]) / max(int(pair[2]), 1) if pair else 0.0
+        stage = self._words(stage)
+        self.send({"type": "progress", "stage": stage, "fraction": self._forward(kind, within, fraction)})
         self.send({"type": "log", "line": stage})
 
     def iteration(self, level: int, iteration: int, cost: float) -> None:
-        # Optimisation is the 0.5 .. 0.95 part of the job; within a level, iterations count towards max 100.
-        fraction = 0.5 + 0.45 * (level + min(iteration / 100.0, 1.0)) / self.levels
-        self.send({"type": "progress", "stage": f"optimising level {level + 1}/{self.levels}", "fraction": fraction})
+        # Within a level, iterations count towards max 100.
+        within = (level + min(iteration / 100.0, 1.0)) / self.levels
+        self.send({"type": "progress", "stage": f"optimising level {level + 1}/{self.levels}",
+                   "fraction": self._forward("optimising", within, within)})
         self.send({"type": "log", "line": f"level {level + 1} iteration {iteration} cost {cost:.6f}"})
+
+
+def job_bands(job: dict[str, Any]) -> dict[str, tuple[float, float]]:
+    """The stages' shares of a job's bar: a check's, a calibration's with or without the global search."""
+    if job.get("kind") == "check":
+        return CHECK_BANDS
+    return BANDS_SEARCHING if job["initial_matrix"] is None else BANDS
 
 
 def _watch_parent(stdin: TextIO) -> None:
@@ -133,8 +194,9 @@ def _protocol_out() -> TextIO:
 
 
 def main() -> int:
-    reporter = Reporter(_protocol_out())
+    out = _protocol_out()
     job = json.loads(sys.stdin.readline())
+    reporter = Reporter(out, job_bands(job), job.get("init"))
     threading.Thread(target=_watch_parent, args=(sys.stdin,), daemon=True).start()
     try:
         reporter.send(JOBS[job.get("kind", "calibrate")](job, reporter))

@@ -76,7 +76,10 @@ def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustO
         return (f"{names}: more pairs of scenes like these would not do it (about {needed} needed at the rate sigma "
                 "falls); capture in places with more distinct edges (buildings, poles, doorways) in several "
                 "directions")
-    return (f"{names}: capture more pairs at new places and headings, about {needed} in all (sigma falls roughly "
+    # Never fewer than rigd is measured with: the estimate moves with each calibration's sigma (4 pairs asked for
+    # 8, then those 8 for 11), and one target, the one the "only N pairs" step names too, is what a capture needs.
+    target = max(needed, MEASURED_PAIRS)
+    return (f"{names}: capture more pairs at new places and headings, about {target} in all (sigma falls roughly "
             f"as 1/sqrt(pairs); now {facts.pairs}), and keep the rig still during each capture")
 
 
@@ -129,6 +132,9 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[s
         steps.append(f"the solve ran {a.moved_deg:.0f} deg from its start: look at the 'before' overlays; if the edge "
                      "dots already sat near the image's edges, the scenes hold another alignment as strong (add "
                      "pairs with buildings, poles or doorways); if not, give a closer --init or use --search")
+    if a.moved_m is not None and a.moved_m > trust.max_move_m:
+        steps.append(f"the translation ran {a.moved_m:.1f} m from its start: check the lever arm given, in metres "
+                     "in the rig.yaml prior ({xyz_m: [x, y, z], sigma_cm: 1.0}) and --prior, in cm on the page")
     weak_t = [ax for ax in TRANSLATION if ax in v.weak_axes]
     weak_r = [ax for ax in ROTATION if ax in v.weak_axes]
     steps.append(_translation(weak_t, facts))

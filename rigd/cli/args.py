@@ -17,6 +17,7 @@ from calib.errors import CalibError
 from calib.evaluate import OutlierRule
 from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.prior import Prior
+from rigd.dataset.records import lever_arm_problem
 from rigd.errors import RigdError
 from rigd.evaluate.trials import EvaluationSettings
 
@@ -100,6 +101,8 @@ def parse_prior(xyz_text: str | None, rotation_text: str | None) -> Prior | None
     xyz = sigma_t = rotation = sigma_r = None
     if xyz_text is not None:
         v = numbers(xyz_text, "--prior", 4)
+        if (problem := lever_arm_problem(v[:3])) is not None:
+            raise RigdError(f"--prior X,Y,Z,SIGMA_CM: {problem}")
         xyz, sigma_t = np.array(v[:3]), np.full(3, v[3] / 100.0)
     if rotation_text is not None:
         v = numbers(rotation_text, "--prior-rotation", 4)

@@ -15,6 +15,7 @@ from calib.camera import CameraModel, Equirectangular, Fisheye, Mounted, Pinhole
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.initial import SearchOptions
+from calib.pipeline import CalibParams
 from calib.prior import Prior
 from rigd.errors import DatasetError
 from rigd.report import PriorYaml, TransformYaml
@@ -209,6 +210,23 @@ def _three(value: Any, name: str, where: str) -> NDArray[np.float64]:
     return arr
 
 
+# Camera and LiDAR share one rig: the calibration takes a start farther apart than this for a wrong guess
+# (calib.pipeline), and a lever arm given beyond it is one in the wrong unit (cm typed as metres) or another rig's.
+MAX_LEVER_ARM_M = CalibParams.max_translation_m
+
+
+def lever_arm_problem(xyz_m: Any) -> str | None:
+    """Why a prior's lever arm (m) cannot be a rig's, naming the unit; None when it can."""
+    xyz = np.asarray(xyz_m, dtype=np.float64)
+    length = float(np.linalg.norm(xyz))
+    if length <= MAX_LEVER_ARM_M:
+        return None
+    as_cm = ", ".join(f"{v / 100.0:g}" for v in xyz.tolist())
+    return (f"the lever arm xyz_m {[round(v, 4) for v in xyz.tolist()]} puts the LiDAR {length:.2f} m from the "
+            f"camera, more than the {MAX_LEVER_ARM_M:g} m any rig has: it is in metres (if these are cm, it is "
+            f"[{as_cm}] m)")
+
+
 def prior_from_yaml(data: Any, where: str) -> Prior:
     """``prior: {xyz_m: [x, y, z], sigma_cm: 1.0, rpy_deg: [r, p, y], sigma_deg: 2.0, fix_translation: false}``
     (every key optional; a sigma is one number or one per axis)."""
@@ -219,6 +237,8 @@ def prior_from_yaml(data: Any, where: str) -> Prior:
         raise DatasetError(f"{where}: unknown prior keys {sorted(unknown)}")
     fix = bool(data.get("fix_translation", False))
     xyz = _three(data["xyz_m"], "xyz_m", where) if "xyz_m" in data else None
+    if xyz is not None and (problem := lever_arm_problem(xyz)) is not None:
+        raise DatasetError(f"{where}: prior: {problem}")
     sigma_t = _three(data["sigma_cm"], "sigma_cm", where) / 100.0 if "sigma_cm" in data else None
     if xyz is not None and sigma_t is None and not fix:
         raise DatasetError(f"{where}: prior xyz_m needs sigma_cm (or fix_translation: true)")

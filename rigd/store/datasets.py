@@ -17,6 +17,9 @@ from rigd.store.jsonsafe import json_safe
 
 # Starts with a letter or digit (so never "." or ".."), no separators: always one folder below the root.
 DATASET_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$"
+# The pattern in words, for a person typing an id (the page's dataset field).
+DATASET_ID_RULE = ("1 to 64 letters, digits, '_', '.' or '-', beginning with a letter or digit (no spaces, no '/'), "
+                   "e.g. site-a_2026.11")
 _ID = re.compile(DATASET_ID_PATTERN)
 _HASH_CHUNK = 1 << 20
 

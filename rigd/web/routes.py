@@ -20,7 +20,9 @@ from jinja2 import Environment, FileSystemLoader, StrictUndefined
 from calib.uncertainty import AXES
 from rigd.api.deps import ServiceDep
 from rigd.api.service import Service
-from rigd.web.views import VERSIONS_PAGE, PageState, page_state
+from rigd.dataset.records import MAX_LEVER_ARM_M
+from rigd.store.datasets import DATASET_ID_RULE
+from rigd.web.views import VERSIONS_PAGE, PageState, capture_words, page_state
 
 HERE = Path(__file__).resolve().parent
 TEMPLATES = Environment(loader=FileSystemLoader(HERE / "templates"), autoescape=True, undefined=StrictUndefined,
@@ -48,7 +50,8 @@ def _context(service: Service, state: PageState) -> dict[str, Any]:
     rig = service.rig
     return {"state": state, "axes": AXES, "token_required": service.settings.token is not None,
             "sim_rig": rig.lidar_source.startswith("sim") and rig.camera_source.startswith("sim"),
-            "capture_defaults": rig.capture, "rig_guess": rig.initial_guess, "versions_page": VERSIONS_PAGE}
+            "capture_defaults": rig.capture, "rig_guess": rig.initial_guess, "versions_page": VERSIONS_PAGE,
+            "lever_arm_cm": MAX_LEVER_ARM_M * 100.0, "dataset_id_rule": DATASET_ID_RULE, "capture_words": capture_words}
 
 
 def render_parts(context: dict[str, Any]) -> dict[str, str]:

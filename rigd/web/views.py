@@ -3,11 +3,16 @@ latest jobs with the verdicts they produced, a page of the newest versions, the 
 
 from __future__ import annotations
 
+import json
+import re
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from starlette.concurrency import run_in_threadpool
 
+from calib.assess import TrustOptions
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.api.models import DatasetOut, JobOut, StatusOut, VersionOut
 from rigd.api.routes.datasets import list_datasets
@@ -18,7 +23,7 @@ from rigd.api.runner import Start
 from rigd.api.service import Service
 from rigd.calibration.check import group_lines
 from rigd.report import VersionQuality, calibrated, verdict_of
-from rigd.results import is_calibration, is_capture, is_check
+from rigd.results import CaptureJobResult, is_calibration, is_capture, is_check
 from rigd.store import ExtrinsicsVersion
 
 JOBS_SHOWN = 15
@@ -32,6 +37,16 @@ ADVICE_ACTIONS = (
     ("capture more pairs", "capture", "Capture more pairs"),
     ("rigd capture --n", "capture", "Capture more pairs"),
 )
+
+
+# The pairs a step asks for in all (advice.py: "about 12 in all", "rigd capture --n 12").
+CAPTURE_TARGET = re.compile(r"about (\d+) in all|rigd capture --n (\d+)")
+
+
+def capture_target(steps: list[str]) -> int | None:
+    """The one count the advice's capture button fills in: the largest its steps ask for (None: none asks)."""
+    counts = [int(a or b) for step in steps for a, b in CAPTURE_TARGET.findall(step)]
+    return max(counts) if counts else None
 
 
 def advice_actions(step: str) -> list[tuple[str, str]]:
@@ -48,6 +63,16 @@ def report_sensors(quality: VersionQuality) -> list[str]:
     written per sensor under these names); empty for one camera or a version without pairs (manual)."""
     pairs = quality["pairs"] if calibrated(quality) else []
     return list(pairs[0].get("edge_pixels_per_sensor", {})) if pairs else []
+
+
+SIGMA_FACTOR = TrustOptions().sigma_factor  # the verdict's: an axis is known to within 2.5 sigma
+
+
+def stands_out(change: list[float], sigma: list[float | None] | None) -> list[bool]:
+    """Which axes of a change against the active version stand out (shown bold): beyond the verdict's 2.5 sigma
+    of this version, or, without a sigma (a manual version), any change the table shows (0.005 or more)."""
+    limits = [SIGMA_FACTOR * s if s is not None else 0.005 for s in (sigma or [None] * len(change))]
+    return [abs(d) >= 0.005 and abs(d) > limit for d, limit in zip(change, limits, strict=True)]
 
 
 @dataclass(frozen=True)
@@ -76,6 +101,16 @@ class VersionView:
             return [f"stored by hand ({self.record.method}): it has no verdict, nothing measured its uncertainty"
                     + (f"; note: {note}" if note else "")]
         return [] if self.verdict == "trusted" else list(self.record.verdict["reasons"])
+
+    @property
+    def change_marks(self) -> list[bool]:
+        """Per axis, whether the change against the active version stands out against sigma (bold)."""
+        return stands_out(self.change, self.sigma) if self.change is not None else []
+
+    @property
+    def capture_target(self) -> int | None:
+        """The pairs in all the advice asks for (its "Capture more pairs" button fills them in)."""
+        return capture_target(list(self.record.verdict.get("next_steps", [])) if self.record.verdict else [])
 
     @property
     def steps(self) -> list[tuple[str, list[tuple[str, str]]]]:
@@ -108,12 +143,13 @@ TONES = {"trusted": "ok", "ok": "ok", "weak": "warn", "unknown": "warn", "none":
 @dataclass(frozen=True)
 class JobView:
     """A job with what it produced: the verdict of the version a calibration stored (and that version's status
-    now), or a check's status."""
+    now), or a check's status and what it checked; ``active_now``: the version active now."""
 
     record: JobOut
     version: int | None = None
     version_status: str | None = None
     verdict: str | None = None
+    active_now: int | None = None
 
     @property
     def outcome(self) -> str | None:
@@ -133,6 +169,9 @@ class JobView:
             return ""
         if status != "succeeded":
             return "bad" if status == "failed" else "warn"
+        result = self.record.result
+        if result is not None and is_capture(result) and result["pairs_written"] == 0:
+            return "warn"  # asked for no more than the dataset held: nothing was captured
         return TONES.get(self.outcome or "", "ok")
 
     @property
@@ -144,11 +183,51 @@ class JobView:
             return f"{head} queued" + (f": {j.stage}" if j.stage else "")
         if j.status == "running":
             return f"{head} running: {j.stage} ({j.fraction * 100:.0f} %)"
+        if self.interrupted:
+            return f"{head} was interrupted: the service stopped while it ran; run it again"
         if j.status == "failed":
             return f"{head} failed: {j.error}"
         if j.status == "cancelled":
             return f"{head} cancelled"
         return f"{head} done: {self._result()}"
+
+    @property
+    def checked(self) -> str | None:
+        """What a check checked, as the row and the message name it ("version 1 on s2"); None for another job."""
+        p = self.record.params
+        if self.record.kind != "check":
+            return None
+        number = p.get("against_version")
+        return f"{'a given transform' if number is None else f'version {number}'} on {p.get('dataset', '?')}"
+
+    @property
+    def checked_since(self) -> str | None:
+        """For a check of a version no longer active, which one is active now (the row would read as current)."""
+        number = self.record.params.get("against_version")
+        if self.record.kind != "check" or number is None or self.active_now in (None, number):
+            return None
+        return f"version {self.active_now} is active now"
+
+    @property
+    def first_activated(self) -> bool:
+        """The calibration's version was activated as the first one (nothing was active; its verdict trusted),
+        not by "activate if trusted" (the store does so: docs/service.md)."""
+        result = self.record.result
+        return (result is not None and is_calibration(result) and result["status"] == "active"
+                and result["change"] is None and not result["auto_activate"]["requested"])
+
+    @property
+    def interrupted(self) -> bool:
+        """Failed because the service stopped while it was queued or running (not for a reason of its own)."""
+        return self.record.status == "failed" and (self.record.error or "").startswith("interrupted")
+
+    @property
+    def rerun(self) -> tuple[str, str] | None:
+        """An interrupted job's request again (the endpoint and its JSON body), for its "Run again" button."""
+        if not self.interrupted:
+            return None
+        endpoint, body = RERUNS[self.record.kind](self.record.params)
+        return endpoint, json.dumps({k: v for k, v in body.items() if v is not None})
 
     @property
     def options(self) -> list[str]:
@@ -161,7 +240,8 @@ class JobView:
         words = [start.get(str(p.get("init")), str(p.get("init")))]
         prior = p.get("prior") or {}
         if "sigma_cm" in prior:
-            words.append(f"lever arm ± {prior['sigma_cm']:g} cm")
+            lever = ", ".join(f"{x * 100.0:.1f}" for x in prior["xyz_m"])  # cm, as the page's forms and tables
+            words.append(f"lever arm ({lever}) ± {prior['sigma_cm']:g} cm")
         if "sigma_deg" in prior:
             words.append(f"angles ± {prior['sigma_deg']:g}°")
         if p.get("fix_translation"):
@@ -183,24 +263,65 @@ class JobView:
         result = self.record.result
         if result is not None and is_check(result):
             reasons = result["reasons"]
-            return result["status"] + (f" ({reasons[0]})" if reasons else "")
+            return f"{self.checked}: {result['status']}" + (f" ({reasons[0]})" if reasons else "")
         if result is not None and is_capture(result):
-            return f"{result['pairs_written']} pairs written, {result['pairs_in_dataset']} in the dataset"
+            return capture_words(result, self.record.params)
         if self.version is None:
             return "no version stored"
-        state = "active" if self.version_status == "active" else "not active: activate it below if you accept it"
-        return f"version {self.version}, verdict {self.verdict} ({state})"
+        return f"version {self.version}, verdict {self.verdict} ({self._version_state()})"
+
+    def _version_state(self) -> str:
+        now = {"active": "active", "superseded": "no longer active"}.get(
+            self.version_status or "", "not active: activate it below if you accept it")
+        if self.first_activated:  # not asked for: the page says why it is active
+            return "activated: the first version, as nothing was active" + ("" if now == "active" else f"; {now}")
+        return now
 
 
-def job_views(jobs: list[JobOut], stored: dict[int, ExtrinsicsVersion]) -> list[JobView]:
+def _calibrate_again(p: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """The start as the operator chose it (the active version or the rig file's guess as they are now), a given
+    transform as it was given."""
+    explicit = p.get("init") == Start.EXPLICIT.value and p.get("initial")
+    init = {"matrix": p["initial"]["matrix"]} if explicit else p.get("init")
+    return "/calibrate", {"dataset": p.get("dataset"), "init": init, "sigmas_deg": p.get("sigmas_deg"),
+                          "auto_activate": p.get("auto_activate"), "prior": p.get("prior"),
+                          "fix_translation": p.get("fix_translation"), "tolerance": p.get("tolerance")}
+
+
+def _check_again(p: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """The same extrinsics again: the version it checked (not whichever is active now), or the transform."""
+    number = p.get("against_version")
+    against = number if number is not None else {"matrix": p["checked"]["matrix"]}
+    return "/check", {"dataset": p.get("dataset"), "against": against, "threshold": p.get("threshold")}
+
+
+def _capture_again(p: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """Into the same dataset (continued at its next pair) up to the same count."""
+    return "/capture", {"dataset": p.get("dataset"), "n": p.get("n"), "still_seconds": p.get("still_seconds"),
+                        "sweeps": p.get("sweeps"), "min_move": p.get("min_move"), "source": p.get("source")}
+
+
+RERUNS: dict[str, Callable[[dict[str, Any]], tuple[str, dict[str, Any]]]] = {
+    "calibrate": _calibrate_again, "check": _check_again, "capture": _capture_again}
+
+
+def capture_words(result: CaptureJobResult, params: dict[str, Any]) -> str:
+    """A capture's outcome; one that wrote nothing says why (the count is of pairs in all, not more pairs)."""
+    if result["pairs_written"] == 0:
+        return (f"no pair written: the dataset already held {result['pairs_in_dataset']} pairs, and "
+                f"{params.get('n', '?')} in all were asked for")
+    return f"{result['pairs_written']} pairs written, {result['pairs_in_dataset']} in the dataset"
+
+
+def job_views(jobs: list[JobOut], stored: dict[int, ExtrinsicsVersion], active: int | None) -> list[JobView]:
     views = []
     for job in jobs:
         version = stored.get(n) if (n := stored_version(job)) is not None else None
         if version is None:
-            views.append(JobView(job, n))
+            views.append(JobView(job, n, active_now=active))
             continue
         verdict = verdict_of(version.quality)
-        views.append(JobView(job, n, version.status.value, verdict["status"] if verdict else "none"))
+        views.append(JobView(job, n, version.status.value, verdict["status"] if verdict else "none", active))
     return views
 
 
@@ -237,7 +358,8 @@ def _read(service: Service, shown: int) -> tuple[list[JobView], list[VersionView
     versions = [version_view(v, active) for v in service.versions.newest(shown)]
     newest_calibration = service.versions.newest_calibration()
     default_view = version_view(newest_calibration, active) if newest_calibration else None
-    return job_views(jobs, stored), versions, service.versions.count(), default_view, list_datasets(service)
+    views = job_views(jobs, stored, active.number if active else None)
+    return views, versions, service.versions.count(), default_view, list_datasets(service)
 
 
 async def page_state(service: Service, shown: int) -> PageState:

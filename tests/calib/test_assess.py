@@ -180,6 +180,17 @@ def test_a_solution_far_from_every_start_fails_however_well_determined_it_looks(
     assert _verdict(sharp, [], TrustOptions(max_move_deg=60.0), moved_deg=45.5).status is Status.TRUSTED
 
 
+def test_a_translation_metres_from_its_start_fails_and_names_the_unit():
+    """A lever arm typed in cm where metres are meant (9.34, 6.24, -15.68 as a prior) pulls the translation 19 m
+    from its start, where sigmas and restarts can look fine: failed, saying how far and in which unit."""
+    trust = TrustOptions()
+    sharp = _unc([0.05] * 3 + [0.5] * 3)
+    assert _verdict(sharp, [], trust, moved_m=0.4).status is Status.TRUSTED
+    far = _verdict(sharp, [], trust, moved_deg=0.5, moved_m=19.07)
+    assert far.status is Status.FAILED and far.weak_axes == ("roll", "pitch", "yaw", "x", "y", "z")
+    assert "19.07 m from its start" in far.reasons[0] and "in metres" in far.reasons[0]
+
+
 def test_assessment_measures_the_rotation_from_the_nearest_start(pairs):
     start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.5, -1.0, 1.0], TRUTH.translation_m + [0.04, -0.03, 0.03])
     opts = OptimOptions()
@@ -189,6 +200,7 @@ def test_assessment_measures_the_rotation_from_the_nearest_start(pairs):
     moved = np.degrees(np.linalg.norm(xi_of(start.tau, near.tau)[:3]))
     assert near.moved_deg == pytest.approx(moved, rel=1e-6) and 1.0 < near.moved_deg < 3.0
     assert near.verdict.status is Status.TRUSTED
+    assert near.moved_m == pytest.approx(float(np.linalg.norm(start.tau[3:] - near.tau[3:])), rel=1e-9)
     elsewhere = Transform.from_rpy_xyz(TRUTH.rpy_deg + [0.0, 0.0, 40.0], TRUTH.translation_m)
     both = assess(pairs, result, opts, FIELD, None, trust, starts=(elsewhere.tau, start.tau))
     assert both.moved_deg == pytest.approx(near.moved_deg)  # the nearest start counts

@@ -108,6 +108,16 @@ def test_bad_prior_tolerance_workers_or_width_is_refused(small_dataset, args, wo
     assert words in capsys.readouterr().err
 
 
+def test_a_lever_arm_no_rig_has_is_refused_naming_its_unit(small_dataset, tmp_path, capsys):
+    """The versions table's centimetres given as metres (19 m): exit 2 before anything runs, the unit named."""
+    out = tmp_path / "out"
+    code = main(["calibrate", str(small_dataset), "--prior", "9.34,6.24,-15.68,1", "--out", str(out), "--no-visuals"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--prior X,Y,Z,SIGMA_CM" in err
+    assert "19.29 m from the camera, more than the 5 m any rig has: it is in metres" in err
+    assert "[0.0934, 0.0624, -0.1568] m" in err and not out.exists()
+
+
 def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path, capsys):
     # Simulated datasets carry no initial_guess: the global search finds the start. In this process, serial
     # (--workers 1): the search's pool gives the serial numbers (tests/calib/test_assess.py), and the command as a

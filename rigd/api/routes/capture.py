@@ -10,13 +10,14 @@ from datetime import UTC, datetime
 from fastapi import APIRouter, Response, status
 
 from rigd.api.deps import Authorized, ServiceDep
-from rigd.api.models import CaptureIn, ErrorOut, JobOut, LidarStatus
+from rigd.api.models import CameraStatus, CaptureIn, ErrorOut, JobOut, LidarStatus
 from rigd.api.routes.jobs import job_link, job_out
 from rigd.api.service import Service
 from rigd.capture import CaptureRequest, CaptureStatus, run_capture
 from rigd.capture.engine import existing_pairs
 from rigd.results import CaptureJobResult
 from rigd.store import Job
+from rigd.store.db import utc_now
 
 router = APIRouter(tags=["capture"])
 
@@ -38,6 +39,20 @@ def capture_request(service: Service, body: CaptureIn, dataset_id: str) -> Captu
     )
 
 
+def capture_sensors(request: CaptureRequest, job: Job, s: CaptureStatus) -> tuple[LidarStatus, CameraStatus]:
+    """The sensors as a running capture sees them: its LiDAR figures, and its camera delivering frames (a
+    simulated one has no USB device the probe could find: it would read "absent")."""
+    now = utc_now()
+    lidar = LidarStatus(source=request.lidar, state="busy", packet_rate_hz=s.packet_rate_hz,
+                        packets_lost=s.packets_lost, checked_at=now,
+                        message=f"in use by capture job {job.id}; still for {s.still_for_s:.1f} s")
+    simulated = request.camera.startswith("sim")
+    camera = CameraStatus(source=request.camera, present=None if simulated else True, checked_at=now,
+                          message=f"in use by capture job {job.id}: {s.pairs_done} of {s.pairs_wanted} pairs taken"
+                          + (" from the simulated rig" if simulated else ""))
+    return lidar, camera
+
+
 def capture_work(service: Service, request: CaptureRequest) -> Callable[[Job, threading.Event], CaptureJobResult]:
     """The job body run by the runner's capture thread: progress into the job and into GET /status."""
 
@@ -53,9 +68,7 @@ def capture_work(service: Service, request: CaptureRequest) -> Callable[[Job, th
             if s.state != last_state:
                 service.jobs.log(job.id, f"{s.state}: {s.message}" if s.message else s.state)
                 last_state = s.state
-            service.capture_figures.set(LidarStatus(
-                source=request.lidar, state="busy", packet_rate_hz=s.packet_rate_hz, packets_lost=s.packets_lost,
-                message=f"in use by capture job {job.id}; still for {s.still_for_s:.1f} s"))
+            service.capture_figures.set(capture_sensors(request, job, s))
 
         with service.sensors.lidar_lock:  # waits for a running sensor probe to release the LiDAR port
             try:
@@ -77,7 +90,7 @@ def capture(service: ServiceDep, body: CaptureIn, response: Response) -> JobOut:
     dataset_id = body.dataset or datetime.now(UTC).strftime("capture-%Y%m%d-%H%M%S")
     request = capture_request(service, body, dataset_id)
     params = {"n": request.n, "still_seconds": request.still_seconds, "sweeps": request.sweeps,
-              "min_move": request.min_move, "lidar": request.lidar, "camera": request.camera}
+              "min_move": request.min_move, "lidar": request.lidar, "camera": request.camera, "source": body.source}
     job = service.runner.submit_capture(dataset_id, params, capture_work(service, request))
     response.headers["Location"] = job_link(job)
     return job_out(service, job)

@@ -5,6 +5,7 @@
 "use strict";
 
 const TOKEN_KEY = "rigd-token";
+const FOLLOW_KEY = "rigd-followed";  // the followed job, kept in the tab: a reload mid-job still announces its end
 const REQUEST_TIMEOUT_MS = 8000;  // longer without an answer: the service counts as unreachable
 const tokenRequired = document.body.dataset.tokenRequired === "true";
 const versionsPage = Number(document.body.dataset.versionsPage) || 10;
@@ -13,6 +14,7 @@ let shownVersions = versionsPage;
 let timer = null;
 let followed = null;           // {job, label}: the job the message at the top follows
 let offlineSince = null;
+let busyAtOutage = [];         // the jobs queued or running when the service stopped answering
 let initTouched = false;
 
 const $ = (id) => document.getElementById(id);
@@ -30,20 +32,42 @@ function showToken() {
 }
 
 // -- the message at the top -----------------------------------------------------------------------------------
-function show(text, tone) {
+function show(text, tone, button) {  // button: an element after the text (a job's "Run again")
   const box = $("message");
   box.textContent = text;
+  if (button) box.append(" ", button);
   box.className = tone || "";
   box.hidden = !text;
 }
 
-function say(text, tone) {  // a message of its own: no job is followed any more
-  followed = null;
-  show(text, tone);
+function setFollowed(value) {
+  followed = value;
+  if (value) sessionStorage.setItem(FOLLOW_KEY, JSON.stringify(value));
+  else sessionStorage.removeItem(FOLLOW_KEY);
+}
+
+function restoreFollowed() {
+  try {
+    followed = JSON.parse(sessionStorage.getItem(FOLLOW_KEY));
+  } catch (err) {  // not what this page wrote: forgotten, no job followed
+    console.warn("forgetting the followed job: " + err.message);
+    setFollowed(null);
+  }
+}
+
+function say(text, tone, button) {  // a message of its own: no job is followed any more
+  setFollowed(null);
+  show(text, tone, button);
+}
+
+// An interrupted job's "Run again" button, for the message (the row keeps its own).
+function rerunButton(row) {
+  const own = row.querySelector('button[data-action="rerun"]');
+  return own ? own.cloneNode(true) : null;
 }
 
 function follow(job, label) {
-  followed = {job: job.id, label};
+  setFollowed({job: job.id, label});
   show(label + ": job " + job.id + " " + job.status + ".", "");
 }
 
@@ -51,7 +75,14 @@ function follow(job, label) {
 function showFollowed() {
   if (!followed) return;
   const row = document.querySelector('.job[data-job="' + followed.job + '"]');
-  if (row) show(followed.label + ": " + row.dataset.summary, row.dataset.tone);
+  if (!row) return;
+  if (offlineSince !== null) {  // what the row says is what it was when the service stopped answering
+    show(followed.label + ": job " + followed.job + " was " + row.dataset.status + " when the service stopped "
+         + "answering; what became of it is not known until it answers again.", "warn");
+  } else {
+    show(followed.label + ": " + row.dataset.summary, row.dataset.tone,
+         row.dataset.interrupted === "true" ? rerunButton(row) : null);
+  }
 }
 
 // -- requests -------------------------------------------------------------------------------------------------
@@ -106,11 +137,62 @@ async function call(method, url, body) {
   return answer;
 }
 
-// -- calibration options --------------------------------------------------------------------------------------
-function numberField(fields, name) {
-  const value = fields.namedItem(name).value;
-  return value === "" ? null : Number(value);
+// -- number fields --------------------------------------------------------------------------------------------
+// Number fields are text read here (templates/_number.html): a browser's number input reads "1,5" as 15 in an
+// English locale, where the operator meant 1.5. A lone comma (no dot) is the decimal mark; anything else that is
+// not a plain number, or is outside the field's range, is refused with a message naming the range and unit.
+const NUMBER = /^[+-]?(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$/i;
+
+function parseNumber(text) {  // null when empty, NaN when not a number
+  let t = text.trim();
+  if (t === "") return null;
+  if (!t.includes(".") && (t.match(/,/g) || []).length === 1) t = t.replace(",", ".");
+  return NUMBER.test(t) ? Number(t) : NaN;
 }
+
+function numberProblem(input, value) {
+  const d = input.dataset;
+  const range = d.min + " .. " + d.max + " " + d.unit;
+  if (Number.isNaN(value)) return "not a number (write 1.5 or 1,5); " + range;
+  if (value === null) return "";
+  if (d.number === "integer" && !Number.isInteger(value)) return "a whole number of " + d.unit + ", " + range;
+  if (value < Number(d.min) || value > Number(d.max)) return "must be within " + range + ", got " + value;
+  return "";
+}
+
+function checkNumber(input) {  // the field's value (null: empty), its problem set as its validity
+  const value = parseNumber(input.value);
+  const problem = numberProblem(input, value);
+  input.setCustomValidity(problem ? input.dataset.what + ": " + problem : "");
+  return problem ? NaN : value;
+}
+
+const DATASET_ID = /^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$/;
+
+function checkDatasetId(input) {  // the browser alone says only "Please match the requested format."
+  const bad = input.value !== "" && !DATASET_ID.test(input.value);
+  input.setCustomValidity(bad ? "dataset id: " + input.title : "");
+}
+
+// A form's fields checked; false (the first problem shown beside its field and at the top) when one is refused.
+// ``reveal``: what makes the fields visible first (the options' fold).
+function formValid(form, reveal) {
+  for (const input of form.querySelectorAll("[data-number]")) checkNumber(input);
+  for (const input of form.querySelectorAll('input[name="dataset"]')) checkDatasetId(input);
+  if (form.checkValidity()) return true;
+  if (reveal) reveal();
+  say(form.querySelector("input:invalid, select:invalid").validationMessage, "bad");  // (a fieldset matches too)
+  form.reportValidity();
+  return false;
+}
+
+document.addEventListener("input", (event) => {
+  if (event.target.matches("[data-number]")) checkNumber(event.target);
+  if (event.target.matches('#capture-form input[name="dataset"]')) checkDatasetId(event.target);
+});
+
+// -- calibration options --------------------------------------------------------------------------------------
+function numberField(fields, name) { return checkNumber(fields.namedItem(name)); }
 
 // [values, sigma] of a prior's group, null when all empty; an error when only some are given.
 function priorGroup(fields, names, sigmaName, what) {
@@ -128,7 +210,8 @@ function calibrationBody(dataset) {
   const angles = priorGroup(fields, ["prior-roll", "prior-pitch", "prior-yaw"], "prior-sigma-deg", "the mounting angles");
   if (lever || angles) {
     body.prior = {};
-    if (lever) Object.assign(body.prior, {xyz_m: lever[0], sigma_cm: lever[1]});
+    // The page gives a lever arm in cm, as its tables show it; the API takes metres (xyz_m).
+    if (lever) Object.assign(body.prior, {xyz_m: lever[0].map((cm) => cm / 100), sigma_cm: lever[1]});
     if (angles) Object.assign(body.prior, {rpy_deg: angles[0], sigma_deg: angles[1]});
   }
   if (fields.namedItem("fix-translation").checked) body.fix_translation = true;
@@ -147,6 +230,7 @@ function syncInit() {
   const active = document.querySelector("[data-part=summary] .summary").dataset.active;
   const select = $("init-select");
   select.querySelector('option[value="active"]').disabled = !active;
+  $("first-activation").hidden = Boolean(active);
   if (!active && select.value === "active") select.value = "rig";
   if (active && !initTouched && select.value === "rig") select.value = "active";
 }
@@ -174,6 +258,20 @@ function confirmActivation(row) {
     dialog.oncancel = () => resolve(false);  // Esc
     dialog.showModal();
   });
+}
+
+// -- captures ---------------------------------------------------------------------------------------------------
+function datasetPairs(id) {  // the pairs a listed dataset holds (0: not listed, a new one)
+  const row = [...document.querySelectorAll("[data-part=datasets] .row")].find((r) => r.dataset.dataset === id);
+  return row ? Number(row.dataset.pairs) : 0;
+}
+
+// "pairs" is the count the dataset should hold in all: a capture into one that holds as many would write nothing.
+function nothingToCapture(id, n) {
+  const held = id ? datasetPairs(id) : 0;
+  if (!held || n === null || n > held) return null;  // (empty: the rig file's count, which the service knows)
+  return "Dataset " + id + " holds " + held + " pairs already: a capture to " + n + " pairs in all would "
+    + "write none. Set \"pairs in all\" above " + held + " to add pairs.";
 }
 
 // -- the advice's actions -------------------------------------------------------------------------------------
@@ -206,12 +304,16 @@ const advice = {
     $("init-select").scrollIntoView({block: "center"});
     say("The next calibration starts from a global search: Calibrate " + id + ".", "");
   },
-  capture(id) {
+  capture(id, el) {
     const form = $("capture-form").elements;
     form.namedItem("dataset").value = id;
-    form.namedItem("n").focus();
+    const n = form.namedItem("n");
+    if (el.dataset.pairs) n.value = el.dataset.pairs;  // the advice's one target, in all
+    checkNumber(n);
+    n.focus();
     $("capture").scrollIntoView({block: "center"});
-    say("A capture into " + id + " continues it at its next pair: set the pairs it should hold in all.", "");
+    say("A capture into " + id + " continues it at its next pair, up to " + (n.value || "the pairs set") + " in all"
+        + " (it holds " + datasetPairs(id) + " now).", "");
   },
 };
 
@@ -219,11 +321,7 @@ const advice = {
 const actions = {
   async calibrate(el) {
     const form = $("calibrate-form");
-    if (!form.checkValidity()) {
-      $("calibrate-options").open = true;
-      form.reportValidity();
-      return;
-    }
+    if (!formValid(form, () => { $("calibrate-options").open = true; })) return;
     let body;
     try {
       body = calibrationBody(el.dataset.dataset);
@@ -237,7 +335,7 @@ const actions = {
   },
   async check(el) {
     const job = await call("POST", "/check", {dataset: el.dataset.dataset, against: "active"});
-    if (job) follow(job, "Check of the active version on " + el.dataset.dataset);
+    if (job) follow(job, "Check");
   },
   async activate(el) {
     const row = el.closest(".version");
@@ -247,6 +345,10 @@ const actions = {
     }
     const v = await call("POST", "/extrinsics/versions/" + el.dataset.version + "/activate");
     if (v) say("Version " + v.number + " is " + v.status + ".", "ok");
+  },
+  async rerun(el) {
+    const job = await call("POST", el.dataset.url, JSON.parse(el.dataset.body));
+    if (job) follow(job, "Run again of job " + el.dataset.job);
   },
   async cancel(el) {
     const job = await call("DELETE", "/jobs/" + el.dataset.job);
@@ -258,7 +360,7 @@ const actions = {
   },
   advice(el) {
     markDataset(el.dataset.dataset);
-    advice[el.dataset.advice](el.dataset.dataset);
+    advice[el.dataset.advice](el.dataset.dataset, el);
   },
   view(el) {
     pickVersion(Number(el.dataset.version));
@@ -287,10 +389,14 @@ document.addEventListener("click", (event) => {
 
 $("capture-form").addEventListener("submit", async (event) => {
   event.preventDefault();
+  if (!formValid(event.target)) return;
   const fields = event.target.elements;  // (form.dataset would be the form's data-* attributes)
   const body = {source: fields.namedItem("source").value};
   if (fields.namedItem("dataset").value) body.dataset = fields.namedItem("dataset").value;
-  if (fields.namedItem("n").value) body.n = Number(fields.namedItem("n").value);
+  const n = checkNumber(fields.namedItem("n"));
+  if (n !== null) body.n = n;
+  const nothing = nothingToCapture(body.dataset, n);
+  if (nothing) { say(nothing, "bad"); fields.namedItem("n").focus(); return; }
   const job = await call("POST", "/capture", body);
   if (job) follow(job, "Capture into " + job.params.dataset);
 });
@@ -410,6 +516,8 @@ function showViewer() {
   $("viewer-title").textContent = (version ? "version " + viewer.id : "dataset " + viewer.id + " as captured")
     + ", pair " + viewer.pair + (viewer.sensor ? ", " + viewer.sensor : "");
   $("stage-toggle").hidden = !version;
+  $("lens-help").hidden = !version;  // a captured pair has no dots and no before | after
+  $("lens-help-pair").hidden = version;
   $("closeup").hidden = !version;
   $("pair-meta").hidden = version;
   $("pair-meta").textContent = version ? "" : pairMetaText(viewer.meta[viewer.pair]);
@@ -610,10 +718,12 @@ function lensEvents() {
 // -- refresh and the unreachable-service banner ---------------------------------------------------------------
 function setOffline(reason) {
   if (reason === null) {
-    if (offlineSince !== null) say("The service answers again.", "ok");
     offlineSince = null;
   } else if (offlineSince === null) {
     offlineSince = new Date();
+    busyAtOutage = [...document.querySelectorAll('.job[data-status="queued"], .job[data-status="running"]')]
+      .map((row) => row.dataset.job);
+    showFollowed();
   }
   document.body.classList.toggle("offline", offlineSince !== null);
   $("offline").hidden = offlineSince === null;
@@ -645,9 +755,11 @@ async function refresh() {
     if (response.status >= 500) throw new Error(response.status + ": " + detailText(live.detail));
     if (!response.ok) throw new Error("GET /ui/live: " + response.status + " " + detailText(live.detail));
     busy = live.busy;
+    const back = offlineSince !== null;
     setOffline(null);
     swapParts(live);
     afterParts();
+    if (back) afterOutage();
   } catch (err) {
     setOffline(err.message);
   }
@@ -655,7 +767,46 @@ async function refresh() {
   timer = setTimeout(refresh, document.hidden ? 30000 : offlineSince !== null ? 3000 : busy ? 1000 : 4000);
 }
 
+// The service answers again: say what became of the jobs that were running (a restart interrupts them), and load
+// again the images that failed while it did not answer (they would stay broken, on a phone too).
+function afterOutage() {
+  reloadFailedImages();
+  const interrupted = busyAtOutage.map((id) => document.querySelector('.job[data-job="' + id + '"]'))
+    .filter((row) => row && row.dataset.interrupted === "true");
+  busyAtOutage = [];
+  const mine = followed && interrupted.find((row) => row.dataset.job === String(followed.job));
+  if (mine) return;  // the followed job's message says so, with its button (showFollowed)
+  if (interrupted.length) {
+    const row = interrupted[0];
+    const more = interrupted.length > 1 ? " (and " + (interrupted.length - 1) + " more, see Jobs)" : "";
+    say("The service answers again, after a restart: " + row.dataset.summary + more + ".", "bad", rerunButton(row));
+  } else if (!followed || !document.querySelector('.job[data-job="' + followed.job + '"]')) {
+    say("The service answers again.", "ok");
+  }
+}
+
+function reloadFailedImages() {
+  for (const img of document.querySelectorAll("#viewer img[src]")) {
+    if (img.complete && img.naturalWidth === 0) {
+      const src = img.getAttribute("src");
+      img.removeAttribute("src");
+      img.setAttribute("src", src);
+    }
+  }
+}
+
+// Times are rendered in UTC (the server does not know the browser's zone): shown in local time, as the banner's.
+function localTimes() {
+  for (const el of document.querySelectorAll("time[data-local]")) {
+    const when = new Date(el.getAttribute("datetime"));
+    if (Number.isNaN(when.getTime())) continue;
+    el.textContent = el.dataset.local === "date" ? when.toLocaleString() : when.toLocaleTimeString();
+    el.title = el.getAttribute("datetime");
+  }
+}
+
 function afterParts() {
+  localTimes();
   showToken();
   syncInit();
   showFollowed();
@@ -666,5 +817,6 @@ document.addEventListener("visibilitychange", () => { if (!document.hidden) refr
 
 for (const part of document.querySelectorAll("[data-part]")) hashes[part.dataset.part] = part.dataset.hash;
 lensEvents();
+restoreFollowed();
 afterParts();
 timer = setTimeout(refresh, 1000);

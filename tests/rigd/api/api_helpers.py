@@ -98,9 +98,10 @@ class Server:
         headers = {"Authorization": f"Bearer {token}"} if token else {}
         return httpx.Client(base_url=self.url, timeout=30.0, headers=headers)
 
-    def start(self, timeout_s: float = 60.0) -> Server:
-        for _ in range(3):  # the free port may be taken between choosing and binding it
-            self.port = free_port()
+    def start(self, timeout_s: float = 60.0, same_port: bool = False) -> Server:
+        """Start it on a free port, or with ``same_port`` on the one it had (a restart, as a page sees it)."""
+        for _ in range(1 if same_port else 3):  # the free port may be taken between choosing and binding it
+            self.port = self.port if same_port else free_port()
             with self.log_path.open("ab") as log:
                 self.proc = subprocess.Popen(
                     [sys.executable, "-m", "rigd", "serve", "--port", str(self.port), "--log-level", "warning",

@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from api_helpers import Server, perturbed_truth, simulated_dataset, wait_job
+from api_helpers import Server, perturbed_truth, simulated_dataset, wait_job, wait_running
 from selenium import webdriver
 from selenium.common.exceptions import ElementClickInterceptedException, StaleElementReferenceException
 from selenium.webdriver.chrome.service import Service as DriverService
@@ -46,8 +46,8 @@ CHROMEDRIVER = Path("/usr/bin/chromedriver")
 INSTALL_BROWSER = "sudo apt-get install chromium chromium-driver"
 REQUIRE_BROWSER = "RIGD_REQUIRE_BROWSER"
 TOKEN = "correct-horse-battery-staple"
-DESKTOP = (1280, 900)
-PHONE = (360, 740)
+DESKTOP = (1366, 900)
+PHONE = (390, 844)
 # Test clocks (fast_timers): the page's timers run this many times faster. How much depends on what a request
 # given up on too soon (a slow answer taken for an offline service) would do: PAGE_CLOCK where it would replace
 # the message the test reads (a request still has 4 s; a loaded machine's slowest answer seen took 0.3 s);
@@ -429,6 +429,51 @@ def test_banner_while_the_service_does_not_answer(browser, fresh_service):
         browser.get("about:blank")
 
 
+def test_a_restart_during_a_job_says_it_was_interrupted_and_offers_it_again(browser, fresh_service):
+    """rigd serve stopped during a calibration the page started, and started again: the message does not keep
+    "running" while nothing answers, then says the job was interrupted with a button that runs it again; an image
+    asked for while the service was down is loaded once it answers. The versions' service, restarted."""
+    server = fresh_service
+    simulated_dataset(server.data_dir, "restart")
+    try:
+        browser.get("about:blank")
+        console_errors(browser)
+        with fast_timers(browser, BANNER_CLOCK):
+            load(browser, server.url + "/")
+        click(browser, 'button[data-action="pairs"][data-dataset="restart"]')
+        until(browser, 10, lambda d: "/pairs/0/image" in lens_state(d)["after"]["src"] and images_loaded(d))
+        click(browser, 'button[data-action="calibrate"][data-dataset="restart"]')
+        until(browser, 10, lambda d: "Calibration of restart: job" in message(d)[0])
+        with server.client() as client:
+            job = client.get("/jobs", params={"kind": "calibrate"}).json()[0]
+            wait_running(client, job["id"])
+        assert server.stop() in (0, -signal.SIGTERM)  # uvicorn re-raises the signal after a clean shutdown
+        until(browser, 30, lambda d: d.find_element(By.ID, "offline").is_displayed())
+        until(browser, 10, lambda d: "what became of it is not known" in message(d)[0])
+        assert message(browser)[1] == "warn"
+        click(browser, '#viewer-pairs button[data-pair="1"]')  # asked for while nothing answers: it fails
+        until(browser, 10, lambda d: d.execute_script(
+            "const i = document.getElementById('lens-after'); return i.getAttribute('src').includes('/pairs/1/')"
+            " && i.complete && i.naturalWidth === 0"))
+        server.start(same_port=True)
+        until(browser, 30, lambda d: not d.find_element(By.ID, "offline").is_displayed())
+        until(browser, 10, lambda d: f"job {job['id']} was interrupted" in message(d)[0])
+        assert message(browser)[1] == "bad" and "run it again" in message(browser)[0]
+        until(browser, 10, lambda d: images_loaded(d, ("lens-after",)))  # loaded again, not left broken
+        click(browser, '#message button[data-action="rerun"]')
+        with server.client() as client:
+            until(browser, 10, lambda d: len(client.get("/jobs", params={"kind": "calibrate"}).json()) == 2)
+            again = client.get("/jobs", params={"kind": "calibrate"}).json()[0]
+            assert again["id"] != job["id"] and again["params"]["dataset"] == "restart"
+            assert again["params"]["init"] == job["params"]["init"]
+            client.delete(f"/jobs/{again['id']}")
+            assert wait_job(client, again["id"], 60)["status"] in ("cancelled", "succeeded")
+        until(browser, 10, lambda d: f"Run again of job {job['id']}: job {again['id']}" in message(d)[0])
+        assert console_errors(browser, allowed=("/ui/live", "/pairs/1/", "net::ERR_CONNECTION_REFUSED")) == []
+    finally:
+        browser.get("about:blank")
+
+
 def big_pair(data: Path, name: str, width: int = 2048) -> str:
     """A one-pair dataset whose image is ``width`` px wide (a small simulated pair's image, enlarged)."""
     root = simulated_dataset(data, name, pairs=1)
@@ -610,6 +655,12 @@ def test_page_capture_in_the_clis_words(browser, server, figures):
     receiving = re.compile(r"[1-9][0-9]* packets/s")
     shown = watch(browser, "#capture-job", lambda t: bool(receiving.search(t)) or done(t), 120)
     assert "running" in shown[-1] and receiving.search(shown[-1]) and "still for" in shown[-1], shown  # live
+    # The Sensors card shows the capture's camera taking frames (not the probe's view of it), in local time.
+    sensors = text(browser, '[data-part="sensors"]')
+    assert "in use by capture job 1" in sensors and "absent" not in sensors, sensors
+    shown_time, local = browser.execute_script("const t = document.querySelector('[data-part=sensors] time');"
+                                               " return [t.textContent, new Date(t.dateTime).toLocaleTimeString()]")
+    assert shown_time == local and "UTC" not in sensors
     browser.save_screenshot(str(figures / "page-capturing.png"))
     shown += watch(browser, "#capture-job", done, 120)
     assert "succeeded" in shown[-1] and "2 pairs written" in shown[-1], shown
@@ -654,6 +705,9 @@ def test_page_fresh_install_shows_captured_pairs(browser, server):
     assert "none" in text(browser, '[data-part="summary"]')
     assert browser.find_element(By.ID, "init-select").get_attribute("value") == "rig"
     assert not browser.find_element(By.CSS_SELECTOR, '#init-select option[value="active"]').is_enabled()
+    # "activate if trusted" unticked: the page says a trusted first version is activated all the same.
+    assert not browser.find_element(By.ID, "auto-activate").is_selected()
+    assert "a trusted first version is activated either way" in text(browser, "#first-activation")
     captured_pairs_before_calibrating(browser, server)
     assert console_errors(browser) == []
 
@@ -697,6 +751,16 @@ def test_page_change_check_and_layout(browser, server, figures):
                             {"width": PHONE[0], "height": PHONE[1], "deviceScaleFactor": 1, "mobile": True})
     assert browser.execute_script("return document.documentElement.scrollWidth") <= PHONE[0]
     assert browser.find_element(By.CSS_SELECTOR, 'button[data-action="calibrate"]').is_displayed()
+    # A camera warning with a long path (as rigd.api.sensors words it) wraps: the page stays the screen's width
+    # (it was 468 px); every versions table's z column lies inside its card.
+    browser.execute_script("const dd = document.querySelectorAll('[data-part=sensors] dd')[1];"
+                           " const w = document.createElement('span'); w.className = 'warn'; w.textContent ="
+                           " 'cannot read /sys/module/usbcore/parameters/usbfs_memory_mb; check"
+                           " usbcore.usbfs_memory_mb by hand'; dd.append(document.createElement('br'), w);")
+    assert browser.execute_script("return document.documentElement.scrollWidth") <= PHONE[0]
+    assert browser.execute_script("return [...document.querySelectorAll('table.axes')].every(t =>"
+                                  " t.querySelector('thead th:last-child').getBoundingClientRect().right"
+                                  " <= t.closest('.card').getBoundingClientRect().right)")
     browser.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
     assert console_errors(browser) == []
 
@@ -714,6 +778,10 @@ def captured_pairs_before_calibrating(browser, server) -> None:
     assert state["after"]["natural"] == width  # the captured image itself (no smaller than the lens shows it)
     assert "/datasets/field/pairs/0/cloud.png" in attr(browser, "#ov-cloud", "src")
     assert not browser.find_element(By.ID, "stage-toggle").is_displayed()  # nothing to compare before calibrating
+    # Its help speaks of what is there: no dots, no before | after.
+    assert not browser.find_element(By.ID, "lens-help").is_displayed()
+    help_text = text(browser, "#lens-help-pair")
+    assert "zoom" in help_text and "before" not in help_text and "Dots" not in help_text
     assert "source" in text(browser, "#pair-meta")  # the pair's meta.yaml
     click(browser, '#viewer-pairs button[data-pair="1"]')
     until(browser, 10, lambda d: "/pairs/1/image" in lens_state(d)["after"]["src"])
@@ -724,6 +792,7 @@ def first_calibration(browser, server) -> dict:
     """Calibrate from the page as it was left (no choice of start): the job's verdict shown in its colour."""
     click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
     until(browser, 10, lambda d: d.find_elements(By.CSS_SELECTOR, '.job[data-kind="calibrate"]'))
+    browser.refresh()  # a reload mid-job: the message still follows the job to its verdict
     shown = watch(browser, '.job[data-kind="calibrate"]', lambda t: finished(browser, '.job[data-kind="calibrate"]'),
                   240)
     assert any("running" in s for s in shown), shown
@@ -739,6 +808,8 @@ def first_calibration(browser, server) -> dict:
     until(browser, 10, lambda d: "version 1, verdict" in message(d)[0])
     assert message(browser)[0].startswith(f"Calibration of field: job {job['id']} done: version 1, verdict {verdict}")
     assert message(browser)[1] == TONE[verdict]
+    # "activate if trusted" was unticked: a trusted first version is active all the same, and the page says why.
+    assert ("activated: the first version" in message(browser)[0]) == (v1["status"] == "active")
     until(browser, 10, lambda d: d.find_elements(By.ID, "v1"))
     return v1
 
@@ -750,6 +821,7 @@ def before_after_zoom_and_pan(browser, server, v1: dict) -> None:
     until(browser, 10, lambda d: images_loaded(d, ("lens-before", "lens-after", "ov-closeup", "ov-cloud")))
     state = lens_state(browser)
     assert "stage=after" in state["after"]["src"] and not state["after"]["hidden"] and state["before"]["hidden"]
+    assert "before (initial guess)" in text(browser, "#lens-help") and not text(browser, "#lens-help-pair")
     assert state["after"]["natural"] == v1["quality"]["image_size_px"][0]  # the overlay at full resolution
     click(browser, "#viewer button[data-zoom=in]")
     click(browser, "#viewer button[data-zoom=in]")
@@ -788,6 +860,7 @@ def activate_with_confirmation(browser, server, v1: dict) -> None:
     click(browser, '#v1 button[data-action="activate"]')
     click(browser, "#confirm-yes")
     until(browser, 10, lambda d: attr(d, "#v1", "data-status") == "active")
+    until(browser, 10, lambda d: not d.find_element(By.ID, "first-activation").is_displayed())
     # With an active version the next calibration starts from it (the operator did not choose otherwise).
     until(browser, 10, lambda d: d.find_element(By.ID, "init-select").get_attribute("value") == "active")
 
@@ -798,12 +871,33 @@ def advice_and_options(browser, server, v1: dict) -> None:
     assert bool(steps) == (v1["verdict"]["status"] != "trusted")
     if steps:
         assert texts(browser, "#v1 .next-steps li")[0].startswith(steps[0])
-        # Fewer than 12 pairs: the advice asks for more, and its button prepares that capture.
+        # Fewer than 12 pairs: the advice asks for more, one count in all, and its button prepares that capture.
+        counts = [int(a or b) for step in steps for a, b in re.findall(r"about (\d+) in all|--n (\d+)", step)]
         click(browser, '#v1 button[data-advice="capture"]')
         assert browser.find_element(By.NAME, "dataset").get_attribute("value") == "field"
+        assert browser.find_element(By.NAME, "n").get_attribute("value") == str(max(counts))
+        assert f"up to {max(counts)} in all (it holds 2 now)" in message(browser)[0]
+    # A capture that would write nothing (2 pairs in all into a dataset of 2) says so before it starts.
+    browser.find_element(By.NAME, "dataset").clear()
+    browser.find_element(By.NAME, "dataset").send_keys("field")
+    browser.find_element(By.NAME, "n").clear()
+    browser.find_element(By.NAME, "n").send_keys("2")
+    click(browser, "#capture-form button[type=submit]")
+    assert message(browser) == ("Dataset field holds 2 pairs already: a capture to 2 pairs in all would write "
+                                'none. Set "pairs in all" above 2 to add pairs.', "bad")
+    with server.client() as client:
+        assert client.get("/jobs", params={"kind": "capture"}).json()[0]["params"]["dataset"] == "captured"
+    # A dataset id the service would refuse: the page says what an id may hold, not only "match the format".
+    browser.find_element(By.NAME, "dataset").clear()
+    browser.find_element(By.NAME, "dataset").send_keys("site a/2")
+    click(browser, "#capture-form button[type=submit]")
+    assert message(browser)[0].startswith("dataset id: 1 to 64 letters, digits, '_', '.' or '-'")
+    browser.find_element(By.NAME, "dataset").clear()
     browser.execute_script("document.getElementById('calibrate-options').open = true")
-    for name, value in (("prior-x", "0.1"), ("prior-y", "0.05"), ("prior-z", "-0.15"), ("prior-sigma-cm", "1.5"),
-                        ("tolerance-deg", "0.3"), ("tolerance-cm", "2.5")):
+    # The lever arm in cm, as the versions table shows it; a comma read as the decimal mark ("1,5" is 1.5, not 15).
+    assert "in cm" in text(browser, '#calibrate-form fieldset[data-group="lever arm"] legend')
+    for name, value in (("prior-x", "10"), ("prior-y", "5"), ("prior-z", "-15"), ("prior-sigma-cm", "1,5"),
+                        ("tolerance-deg", "0,3"), ("tolerance-cm", "2.5")):
         field = browser.find_element(By.NAME, name)
         field.clear()
         field.send_keys(value)
@@ -815,21 +909,28 @@ def advice_and_options(browser, server, v1: dict) -> None:
     assert job["params"]["prior"] == {"xyz_m": [0.1, 0.05, -0.15], "sigma_cm": 1.5}
     assert job["params"]["fix_translation"] is True
     assert job["params"]["tolerance"] == {"rotation_deg": 0.3, "translation_cm": 2.5}
-    options = "lever arm ± 1.5 cm, translation fixed, tolerance 0.3° / 2.5 cm"
+    options = "lever arm (10.0, 5.0, -15.0) ± 1.5 cm, translation fixed, tolerance 0.3° / 2.5 cm"
     assert options in text(browser, f'[data-job="{job["id"]}"]')
     click(browser, f'button[data-action="cancel"][data-job="{job["id"]}"]')
     until(browser, 30, lambda d: f"job {job['id']} cancelled" in message(d)[0])
-    # An out-of-range value is refused by the browser before any request. The page calls fetch() within the
-    # click's handler, before its first await: a fetch spy that saw no request once the click returned is
-    # certain, where a pause before asking the service only made a late request unlikely.
-    field = browser.find_element(By.NAME, "tolerance-deg")
-    field.clear()
-    field.send_keys("50")
+    # An out-of-range value or one that is no number is refused by the page before any request, saying the
+    # range and unit. The page calls fetch() within the click's handler, before its first await: a fetch spy that
+    # saw no request once the click returned is certain, where a pause before asking only made a late one unlikely.
     browser.execute_script("window.sent = []; window.realFetch = window.fetch; window.fetch = (url, init) => {"
                            " window.sent.push(url); return window.realFetch(url, init); };")
-    click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
-    assert browser.execute_script("return window.sent.filter(u => !u.startsWith('/ui/live'))") == []
-    assert browser.execute_script("return document.getElementsByName('tolerance-deg')[0].validity.rangeOverflow")
+    for name, value, words in (("tolerance-deg", "50", "rotation tolerance: must be within 0.001 .. 10 °, got 50"),
+                               ("prior-x", "934", "lever arm x: must be within -500 .. 500 cm, got 934"),
+                               ("prior-sigma-cm", "1,000.5", "lever arm ±: not a number (write 1.5 or 1,5)")):
+        field = browser.find_element(By.NAME, name)
+        field.clear()
+        field.send_keys(value)
+        click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
+        assert browser.execute_script("return window.sent.filter(u => !u.startsWith('/ui/live'))") == []
+        assert words in browser.execute_script("return document.getElementsByName(arguments[0])[0]"
+                                               ".validationMessage", name)
+        assert message(browser) == (browser.find_element(By.NAME, name).get_attribute("validationMessage"), "bad")
+        field.clear()
+        field.send_keys({"tolerance-deg": "0.3", "prior-x": "10", "prior-sigma-cm": "1.5"}[name])
     with server.client() as client:
         assert len(client.get("/jobs", params={"kind": "calibrate"}).json()) == 2
     browser.execute_script("window.fetch = window.realFetch")
@@ -852,6 +953,11 @@ def manual_version_and_change(browser, server) -> None:
     until(browser, 10, lambda d: d.find_elements(By.ID, "v2"))
     change = [float(t) for t in texts(browser, "#v2 tr.change td")]
     assert change[3:] == [3.0, 0.0, 0.0]  # cm, exactly the lever arm's change
+    # Bold only what stands out (no sigma for a manual version: what the table shows as a change), not +0.00.
+    weights = browser.execute_script("return [...document.querySelectorAll('#v2 tr.change td')].map(td =>"
+                                     " Number(getComputedStyle(td).fontWeight))")
+    assert [w > 600 for w in weights] == [abs(c) >= 0.005 for c in change], (weights, change)
+    assert weights[4] < 600 and weights[5] < 600 and weights[3] > 600
     assert np.linalg.norm(change[:3]) == pytest.approx(0.5, abs=0.015)  # deg, the rotation between them
     click(browser, '#v2 button[data-action="activate"]')
     until(browser, 5, lambda d: d.find_element(By.ID, "confirm").is_displayed())
@@ -881,7 +987,8 @@ def check_with_every_reason(browser, server) -> None:
     for line, (name, g) in zip(lengths, sorted(groups.items()), strict=True):
         assert line.startswith(f"{name}: {g['length']:.3g} ") and f"at most {g['upper']:.3g}" in line
     assert text(browser, row + " .badge") == status
-    until(browser, 10, lambda d: f"job {check['id']} done: {status}" in message(d)[0])
+    assert text(browser, row + " b").endswith("check") and "check version 2 on field" in text(browser, row)
+    until(browser, 10, lambda d: f"job {check['id']} done: version 2 on field: {status}" in message(d)[0])
     assert message(browser)[1] == TONE[status]
 
 

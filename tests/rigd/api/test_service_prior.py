@@ -20,6 +20,12 @@ def test_prior_and_fixed_translation_reach_the_calibration(tmp_path):
             for bad in ({"xyz_m": lever}, {"sigma_deg": 2.0}, {"xyz_m": lever, "sigma_cm": -1}):
                 response = client.post("/calibrate", json={"dataset": "ds", "init": start, "prior": bad})
                 assert response.status_code == 422, (bad, response.text)
+            # The versions table's centimetres typed as metres: 19 m, no rig's lever arm; refused, unit named.
+            in_cm = {"xyz_m": [9.34, 6.24, -15.68], "sigma_cm": 1.0}
+            response = client.post("/calibrate", json={"dataset": "ds", "init": start, "prior": in_cm})
+            assert response.status_code == 422, response.text
+            assert "19.29 m from the camera, more than the 5 m any rig has: it is in metres" in response.text
+            assert client.get("/jobs").json() == []  # nothing queued
             body = {"dataset": "ds", "init": start, "prior": {"xyz_m": lever, "sigma_cm": 1.0},
                     "fix_translation": True, "tolerance": {"rotation_deg": 0.5, "translation_cm": 5.0}}
             job = wait_job(client, client.post("/calibrate", json=body).json()["id"])

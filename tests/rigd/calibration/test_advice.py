@@ -9,10 +9,11 @@ TRUST = TrustOptions()  # 0.2 deg / 2 cm, 2.5 sigma
 FAR = SceneFacts(pairs=12, typical_range_m=16.0, pixels_per_radian=1000.0, translation_prior=False)
 
 
-def assessment(sigma, status, weak, restarts=(), is_minimum=True, moved_deg=None, held_by=()):
+def assessment(sigma, status, weak, restarts=(), is_minimum=True, moved_deg=None, held_by=(), moved_m=None):
     sigma = np.asarray(sigma, dtype=float)
     unc = Uncertainty(np.eye(6), sigma, sigma, None, 0, "", is_minimum, 1.0, 0.9, held_by)
-    return Assessment(np.zeros(6), None, unc, tuple(restarts), Verdict(status, tuple(weak), ("r",)), moved_deg)
+    return Assessment(np.zeros(6), None, unc, tuple(restarts), Verdict(status, tuple(weak), ("r",)), moved_deg,
+                      moved_m)
 
 
 def test_trusted_needs_nothing():
@@ -98,3 +99,19 @@ def test_the_places_a_pose_rests_on_are_named_by_their_folders():
     pruned = FAR._replace(pairs=5, pair_names=tuple(f"pairs/{n:04d}" for n in (3, 4, 6, 8, 9)))
     steps = next_steps(assessment(sigma, Status.FAILED, ("z",), held_by=(4,)), pruned, TRUST)
     assert any("the pose rests on pairs/0009 (overlays/0004_*): without it " in s for s in steps)
+
+
+def test_the_pairs_asked_for_are_one_target_that_does_not_move_below_the_measured_count():
+    """4 pairs asked for "about 8 in all", then those 8 for "about 11": one target, 12 (rigd's measured count),
+    the same in the count step and in the "only N pairs" step."""
+    for pairs, pitch_sigma in ((4, 0.113), (8, 0.094)):  # 8 and 11 pairs by the 1/sqrt(pairs) estimate
+        facts = FAR._replace(pairs=pairs)
+        steps = next_steps(assessment([0.05, pitch_sigma, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), facts, TRUST)
+        assert "about 12 in all" in steps[0] and f"now {pairs})" in steps[0], steps
+        assert steps[1] == f"only {pairs} pairs: rigd is measured with 12 (rigd capture --n 12)"
+
+
+def test_a_translation_that_ran_metres_points_at_the_lever_arms_unit():
+    steps = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.FAILED, (), moved_m=19.1), FAR, TRUST)
+    assert steps[0].startswith("the translation ran 19.1 m from its start") and "in metres" in steps[0]
+    assert "rig.yaml prior" in steps[0] and "in cm on the page" in steps[0]

@@ -33,6 +33,7 @@ def test_prior_and_tolerance_round_trip(tmp_path):
     ({"xyz_m": [0, 0, 0], "sigma_cm": -1}, "positive"),
     ({"rpy_deg": [0, 0, 0]}, "rotation"),
     ({"lever": [0, 0, 0]}, "unknown prior keys"),
+    ({"xyz_m": [9.34, 6.24, -15.68], "sigma_cm": 1}, "more than the 5 m any rig has: it is in metres"),
     ([1, 2, 3], "mapping"),
 ])
 def test_bad_prior_names_the_file_and_the_problem(prior, words):
