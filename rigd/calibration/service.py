@@ -459,9 +459,11 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     photo = photo_params(method)
     search = dataset.rig.search or default_search(dataset.rig.camera.models()[0])
 
+    why = "" if request.search else "no initial guess: "  # chosen (--search), or no guess was given
+
     def on_search(done: int, total: int) -> None:
         if progress:
-            progress(f"no initial guess: global search over the mounts, pair {done}/{total}", 0.5 + 0.2 * done / total)
+            progress(f"{why}global search over the mounts, pair {done}/{total}", 0.5 + 0.2 * done / total)
 
     searched_at = time.monotonic()
     with worker_pool(request.workers) as pool:
@@ -470,7 +472,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             pairs = dataset_photo_pairs(dataset, photo, progress) if photo is not None else None
             search_photo = _search_photo(dataset, progress) if initial is None and method.uses_gmm else None
             if progress:
-                progress("optimising" if initial is not None else "no initial guess: global search", 0.5)
+                progress("optimising" if initial is not None else f"{why}global search", 0.5)
             result = calibrate_method(method, feats, pairs, initial, params, on_iter, prior, trust, search,
                                       on_search, pool, search_photo)
         except CalibError as exc:

@@ -130,7 +130,7 @@ def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path, ca
     search = report["initial_search"]
     assert search["grid"]["mounts"] == 600 and search["candidates"][0]["from_start_deg"] == 0.0
     assert search["grid"]["scores"] == ["edges", "mutual information"]  # the simulated clouds carry intensity
-    assert "global search" in captured.err
+    assert "no initial guess: global search" in captured.err  # none given (with --search: chosen, not missing)
     truth = open_dataset(small_dataset).ground_truth
     start = np.array(search["start"]["rpy_deg"])
     assert np.abs((start - truth.rpy_deg + 180.0) % 360.0 - 180.0).max() < 10.0  # inside the local basin
