@@ -127,6 +127,10 @@ class Uncertainty:
     # and the jackknife over places cannot see (docs/trust.md).
     jackknife_rings: F64 | None = None
     ring_groups: int = 0
+    # How far apart the restarts and the solve landed (6,) deg/cm, RMS of their offsets from the solution, where
+    # it enters the sigma (calib.assess_photo: Nelder-Mead on a cost rough below a pixel stops wherever its
+    # simplex shrinks); None for the GMM, whose restarts are judged by the rules of the verdict instead.
+    restart_spread: F64 | None = None
 
 
 UNHELD_SHARE = 0.999  # a left-out solve this close to the kernel's width ran to it (trust_region_step's bound)

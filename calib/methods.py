@@ -1,10 +1,10 @@
 """Calibration methods by name: rigd's GMM, the paper's GMM as printed, its ablations (paper 8.3), the
-photometric baselines of the paper's comparison (MI, NID, GOM; calib.photometric) and rigd+nid (the GMM, then
-NID from its solution).
+photometric baselines of the paper's comparison (MI, NID, GOM; calib.photometric), rigd+nid (the GMM, then
+NID from its solution) and nid-assessed (NID with the trust assessment of calib.assess_photo).
 
-Every method runs on the same pairs, camera models and initial guess. The trust assessment
-(calib.assess) is defined for the GMM cost only: photometric methods return no assessment (the caller reports
-the verdict as not assessed).
+Every method runs on the same pairs, camera models and initial guess. The trust assessment is the GMM's
+(calib.assess) for the GMM methods and calib.assess_photo's for nid-assessed; the photometric baselines
+return no assessment (the caller reports the verdict as not assessed).
 """
 
 from __future__ import annotations
@@ -17,12 +17,13 @@ from enum import Enum
 import numpy as np
 
 from calib.assess import TrustOptions
+from calib.assess_photo import as_optim, assess_photometric
 from calib.errors import CalibError, InitialGuessError
 from calib.geometry import Transform
 from calib.gmm import PairFeatures, SigmaModel
 from calib.initial import SearchOptions
-from calib.optimize import LevelTrace, OptimResult
-from calib.photometric import PhotoCost, PhotoPair, PhotoParams, PhotoResult, optimise_photometric
+from calib.optimize import OptimResult
+from calib.photometric import PhotoCost, PhotoPair, PhotoParams, optimise_photometric
 from calib.pipeline import CalibParams, CalibResult, PairStats, PointEdgeMethod, calibrate, paper_params, with_sigmas
 from calib.prior import Prior
 
@@ -34,6 +35,7 @@ class Method(Enum):
     NID = "nid"  # koide3's direct_visual_lidar_calibration
     GOM = "gom"  # Taylor et al. 2015
     RIGD_NID = "rigd+nid"  # rigd's GMM, then NID's two finest levels from its solution
+    NID_ASSESSED = "nid-assessed"  # NID with restarts, per-axis sigma and verdict (calib.assess_photo)
     GMM_W1 = "gmm-w1"  # ablation: rigd with w_ij = 1 (paper 8.3, non-weighted)
     GMM_UNIFORM = "gmm-uniform"  # ablation: rigd with sigma_i = sigma_in (paper 8.3, uniform sigma)
     GMM_PAPER_EDGES = "gmm-paper-edges"  # ablation: rigd with the paper's point edge score (eqs. 5-7)
@@ -41,11 +43,11 @@ class Method(Enum):
 
     @property
     def uses_gmm(self) -> bool:
-        return self not in (Method.MI, Method.NID, Method.GOM)
+        return self not in (Method.MI, Method.NID, Method.GOM, Method.NID_ASSESSED)
 
     @property
     def uses_photometric(self) -> bool:
-        return self in (Method.MI, Method.NID, Method.GOM, Method.RIGD_NID)
+        return self in (Method.MI, Method.NID, Method.GOM, Method.RIGD_NID, Method.NID_ASSESSED)
 
 
 # MI and NID compare values, not gradients: blurring the image by degrees flattens them (measured on the pinhole
@@ -61,6 +63,8 @@ def photo_params(method: Method) -> PhotoParams | None:
         return PhotoParams(cost=PhotoCost.GOM)
     if method in (Method.MI, Method.NID):
         return PhotoParams(cost=PhotoCost(method.value), **_HISTOGRAM_LEVELS)  # type: ignore[arg-type]
+    if method is Method.NID_ASSESSED:
+        return PhotoParams(cost=PhotoCost.NID, **_HISTOGRAM_LEVELS)  # type: ignore[arg-type]
     if method is Method.RIGD_NID:
         return PhotoParams(cost=PhotoCost.NID, blur_deg=(0.25, 0.0), step_rot_deg=(0.5, 0.2),
                            step_trans_m=(0.04, 0.01))
@@ -85,11 +89,6 @@ def gmm_params(method: Method) -> CalibParams | None:
     if method is Method.GMM_PAPER_SCHEDULE:
         return replace(rigd, optim=paper_params().optim, head_sigmas_deg=None)  # the ladder it names, a head's too
     return rigd
-
-
-def _as_optim(result: PhotoResult) -> OptimResult:
-    levels = tuple(LevelTrace(lv.blur_deg, lv.evaluations, True, lv.costs, lv.tau) for lv in result.levels)
-    return OptimResult(result.tau, levels, True, result.final_cost)
 
 
 def _fixed_translation(prior: Prior | None, method: Method) -> bool:
@@ -117,8 +116,9 @@ def calibrate_method(
 ) -> CalibResult:
     """Calibrate with ``method`` from ``initial``. ``feats``: the GMM features (GMM methods), ``photo``: the
     photometric pairs (MI, NID, GOM, rigd+nid). ``params`` overrides :func:`gmm_params` (GMM methods only).
-    The result has an assessment only for GMM-only methods with ``trust``. ``initial`` None: the global search
-    of :mod:`calib.initial` (it scores the GMM's edge fields, so the photometric-only methods need a guess).
+    The result has an assessment only for GMM-only methods and nid-assessed, with ``trust``. ``initial`` None:
+    the global search of :mod:`calib.initial` (it scores the GMM's edge fields, so the photometric-only methods
+    need a guess).
     ``executor``: the GMM's independent solves side by side (:func:`calib.pipeline.calibrate`).
     ``search_photo``: the pairs' images and reflectivity for the global search's score (calib.search_mi)."""
     gmm = (params if params is not None else gmm_params(method)) if method.uses_gmm else None
@@ -143,7 +143,11 @@ def calibrate_method(
     if fixed and prior is not None and prior.xyz_m is not None and result is None:
         start = Transform(start.rotation, prior.xyz_m)
     solved = optimise_photometric(photo, start.tau, photo_opts, fixed_translation=fixed)
-    optim = _as_optim(solved)
+    if method is Method.NID_ASSESSED and trust is not None:
+        a = assess_photometric(photo, solved, photo_opts, trust, fixed, starts=(start.tau,))
+        stats = tuple(PairStats(0, int(len(p.points_lidar))) for p in photo)
+        return CalibResult(Transform.from_tau(a.tau), a.optim, stats, a)
+    optim = as_optim(solved)
     if result is not None:  # rigd+nid: the GMM's levels, then NID's
         optim = OptimResult(solved.tau, result.optim.levels + optim.levels, result.optim.converged,
                             solved.final_cost)

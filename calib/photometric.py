@@ -400,16 +400,24 @@ def _nelder_mead(f: Callable[[F64], float], tau0: F64, step: F64, max_evals: int
     return tau_at(tau0, res.x * step), int(res.nfev), float(res.fun)
 
 
+def point_subsets(pairs: list[PhotoPair], tau: F64, params: PhotoParams) -> list[tuple[F64, F64]]:
+    """The points each evaluation uses: per pair those in view at ``tau`` (10 % margin), an equal share of
+    ``params.max_points`` (at least ``params.min_points_per_pair``), and their reflectivity."""
+    cap = max(params.max_points // max(len(pairs), 1), params.min_points_per_pair)
+    return [_in_view(p, tau, params, cap) for p in pairs]
+
+
 def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
-                         fixed_translation: bool = False) -> PhotoResult:
+                         fixed_translation: bool = False, subset_tau: F64 | None = None) -> PhotoResult:
     """Coarse to fine over ``params.blur_deg`` from ``tau0``; each level one
     Nelder-Mead, the last rerun from its result up to ``params.restarts`` times until it moves less than the
-    restart tolerance. ``fixed_translation`` holds t (a zero simplex step)."""
+    restart tolerance. ``fixed_translation`` holds t (a zero simplex step). ``subset_tau``: the pose whose
+    view chooses the points (default ``tau0``; the trust assessment's restarts use the solution's, so their
+    costs compare with its)."""
     if not pairs:
         raise CalibError("no pairs to calibrate")
     tau = np.asarray(tau0, dtype=np.float64).copy()
-    cap = max(params.max_points // len(pairs), params.min_points_per_pair)
-    subsets = [_in_view(p, tau, params, cap) for p in pairs]
+    subsets = point_subsets(pairs, tau if subset_tau is None else np.asarray(subset_tau, dtype=np.float64), params)
     if sum(len(s[0]) for s in subsets) == 0:
         raise CalibError("no LiDAR point projects into any image under the initial guess")
     traces = []

@@ -130,6 +130,7 @@ class Uncertainty(Sigmas):
     laplace: NotRequired[Laplace]
     jackknife: NotRequired[Jackknife | None]
     jackknife_rings: NotRequired[Jackknife | None]  # each ring of the LiDAR left out in turn (groups: rings)
+    restart_spread: NotRequired[Sigmas | None]  # RMS of the restarts' offsets (nid-assessed; docs/trust.md)
     matched_share: NotRequired[float | None]
     restarts: NotRequired[list[Restart]]
 

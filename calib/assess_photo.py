@@ -1,0 +1,343 @@
+"""Trust assessment of an NID solution: the GMM's restarts, per-axis sigma and verdict (calib.assess) on the
+photometric cost (docs/trust.md, "A photometric solution").
+
+The cost is koide3's NID (calib.photometric): per pair a soft 16x16 joint histogram of LiDAR reflectivity and
+grey level, ``NID = (H(X, Y) - MI) / H(X, Y)``, the mean over pairs. It is not a sum over points, so the
+GMM's per-cluster gradients have no direct counterpart; what the sandwich needs is each cluster's part of
+the gradient, and for a function of a histogram that is the cluster's *influence*: the gradient minus the
+gradient without the cluster (for a sum over clusters exactly its terms; for a smooth function of the
+histogram the first-order part). The soft histogram is additive over samples, so every cluster's histogram
+is formed once per pose and "without the cluster" is a subtraction.
+
+1. **Restarts.** The schedule's last ``trust.restart_levels`` levels rerun from ``trust.restarts`` poses
+   around the solution (the GMM's draws: +-2 deg, +-5 cm, seeded), every one on the points in view at the
+   solution, and compared by the finest level's cost on those points. One that ends lower is the solution.
+2. **Uncertainty** at the solution, on the finest level (no blur): ``H`` the cost's Hessian by central second
+   differences in local coordinates (steps of ``step_px`` pixels at the image, translation at the points'
+   typical range), ``B`` the scatter of the clusters' influences on the gradient (clusters: 5 deg image cells
+   of each pair, as the GMM's), ``kappa`` the cost's NLL scale (median ``B_kk / H_kk``), the sandwich
+   ``H^-1 B H^-1`` with the information floored over +- the reach (the schedule's widest blur), and a
+   delete-a-group jackknife (each pair left out, or with fewer than 4 pairs 8 random groups of cells), each
+   left-out solve one bounded Newton step of the left-out cost with its own Hessian and gradient.
+3. **Verdict**: :func:`calib.assess._verdict`, the GMM's rules unchanged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from calib.assess import Assessment, Restart, TrustOptions, Uncertainty, _combine, _holding, _verdict, trust_region_step
+from calib.errors import CalibError
+from calib.geometry import rotation_angle_deg, so3_exp
+from calib.gmm import transform_points
+from calib.optimize import LevelTrace, OptimResult
+from calib.photometric import (
+    PhotoCost,
+    PhotoPair,
+    PhotoParams,
+    PhotoResult,
+    _LevelPair,
+    _projected,
+    level_pairs,
+    nid,
+    optimise_photometric,
+    point_subsets,
+    sample,
+)
+from calib.uncertainty import (
+    TO_DISPLAY,
+    nll_scale,
+    positive_part,
+    sandwich,
+    scatter,
+    sigmas_display,
+    symmetric,
+    tau_at,
+    weakest_direction,
+    xi_of,
+)
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class PhotoTrustOptions:
+    """``step_px``: the finite-difference step of the Hessian, in pixels of image motion (rotation: step_px /
+    pixels per radian; translation: that angle times the points' typical range). Below about 2 px the NID's
+    second differences are dominated by its bilinear sampling (measured on ours_3: 1e-4 of noise against
+    5e-4 of curvature at 1.5 px); at 3 px, a few per cent. ``cell_deg``: the clusters' angular image cells."""
+
+    step_px: float = 3.0
+    cell_deg: float = 5.0
+
+
+@dataclass(frozen=True)
+class _Stencil:
+    """The cost around a pose: ``offsets`` (S,6) local coordinates, and at each, ``full`` (S,) the cost,
+    ``groups`` (S,G) the cost with each jackknife group left out, ``clusters`` (S,C) with each cluster left
+    out (only at the first 13 offsets: the centre and +-h per axis, the gradient's)."""
+
+    offsets: F64
+    full: F64
+    groups: F64
+    clusters: F64
+
+
+def _nid_or_one(joint: F64) -> float:
+    return nid(joint) if joint.sum() > 1e-9 else 1.0
+
+
+def _offsets(h: F64) -> F64:
+    """(73,6) central-difference stencil: 0, +-h_k e_k (the gradient's 12), then +-h_j e_j +-h_k e_k (j < k)."""
+    rows = [np.zeros(6)]
+    for k in range(6):
+        for s in (1.0, -1.0):
+            e = np.zeros(6)
+            e[k] = s * h[k]
+            rows.append(e)
+    for j in range(6):
+        for k in range(j + 1, 6):
+            for sj, sk in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+                e = np.zeros(6)
+                e[j], e[k] = sj * h[j], sk * h[k]
+                rows.append(e)
+    return np.array(rows)
+
+
+def _cluster_hists(lp: _LevelPair, tau: F64, labels: I64, n_clusters: int, bins: int) -> F64:
+    """(n_clusters, bins, bins) soft joint histograms (calib.photometric.soft_joint_histogram) of each
+    cluster's samples at ``tau`` (``labels`` (M,) cluster of each point, -1: none)."""
+    uv, inside = _projected(lp, tau)
+    keep = inside & (labels >= 0)
+    a = np.clip(lp.reflectivity[keep], 0.0, 1.0) * (bins - 1)
+    b = np.clip(sample(lp.grey, lp.camera, uv[keep]), 0.0, 1.0) * (bins - 1)
+    lab = labels[keep]
+    ia = np.minimum(np.floor(a).astype(np.int64), bins - 2)
+    ib = np.minimum(np.floor(b).astype(np.int64), bins - 2)
+    fa, fb = a - ia, b - ib
+    base = lab * bins * bins
+    idx = np.concatenate([base + ia * bins + ib, base + (ia + 1) * bins + ib, base + ia * bins + ib + 1,
+                          base + (ia + 1) * bins + ib + 1])
+    w = np.concatenate([(1 - fa) * (1 - fb), fa * (1 - fb), (1 - fa) * fb, fa * fb])
+    counts = np.bincount(idx, weights=w, minlength=n_clusters * bins * bins)
+    return np.asarray(counts, dtype=np.float64).reshape(n_clusters, bins, bins)
+
+
+def _mean_without(hists: list[F64], drop: list[F64] | None) -> float:
+    """The NID cost (mean over pairs) with ``drop[i]`` (bins,bins) removed from pair i's histogram ``hists[i]``;
+    a pair left empty leaves the mean."""
+    terms = []
+    for i, h in enumerate(hists):
+        rest = h if drop is None else h - drop[i]
+        if rest.sum() > 1e-9:
+            terms.append(_nid_or_one(rest))
+    return float(np.mean(terms)) if terms else 1.0
+
+
+def _stencil(lps: list[_LevelPair], tau: F64, labels: list[I64], cluster_pair: I64, group_of: I64, n_groups: int,
+             offsets: F64, bins: int) -> _Stencil:
+    """The cost at ``tau`` + each of ``offsets``, in full, without each jackknife group, and (first 13 offsets)
+    without each cluster (``cluster_pair`` (C,) the pair of each cluster; ``group_of`` (C,) its group)."""
+    n_c = len(cluster_pair)
+    full = np.zeros(len(offsets))
+    groups = np.zeros((len(offsets), n_groups))
+    clusters = np.zeros((13, n_c))
+    for s, xi in enumerate(offsets):
+        at = tau_at(tau, xi)
+        per = [_cluster_hists(lp, at, lab, n_c, bins) for lp, lab in zip(lps, labels, strict=True)]
+        hists = [p.sum(axis=0) for p in per]
+        full[s] = _mean_without(hists, None)
+        for g in range(n_groups):
+            mine = group_of == g
+            groups[s, g] = _mean_without(hists, [p[mine].sum(axis=0) for p in per])
+        if s < 13:
+            filled = np.array([h.sum() > 1e-9 for h in hists])
+            base = np.array([_nid_or_one(h) if f else 0.0 for h, f in zip(hists, filled, strict=True)])
+            for c in range(n_c):  # only the cluster's own pair changes: the mean's sum and count adjust
+                i = int(cluster_pair[c])
+                rest = hists[i] - per[i][c]
+                total, count = float(base.sum() - base[i]), int(filled.sum()) - int(filled[i])
+                if rest.sum() > 1e-9:
+                    total, count = total + _nid_or_one(rest), count + 1
+                clusters[s, c] = total / count if count else 1.0
+    return _Stencil(offsets, full, groups, clusters)
+
+
+def _gradient(values: F64, h: F64) -> F64:
+    """Central-difference gradient (..., 6) from the stencil's first 13 values (..., 13)."""
+    return np.stack([(values[..., 1 + 2 * k] - values[..., 2 + 2 * k]) / (2 * h[k]) for k in range(6)], axis=-1)
+
+
+def _hessian(values: F64, h: F64) -> F64:
+    """Central second-difference Hessian (6,6) from the 73 stencil values."""
+    out = np.zeros((6, 6))
+    for k in range(6):
+        out[k, k] = (values[1 + 2 * k] - 2 * values[0] + values[2 + 2 * k]) / h[k] ** 2
+    i = 13
+    for j in range(6):
+        for k in range(j + 1, 6):
+            pp, pm, mp, mm = values[i:i + 4]
+            out[j, k] = out[k, j] = (pp - pm - mp + mm) / (4 * h[j] * h[k])
+            i += 4
+    return out
+
+
+def _clusters(lps: list[_LevelPair], tau: F64, cell_deg: float) -> tuple[list[I64], I64]:
+    """Each point's cluster (the ``cell_deg`` angular image cell it projects into at ``tau``, per pair; -1 for
+    points out of view), and (C,) the pair of each cluster."""
+    labels, pair_of = [], []
+    first = 0
+    for i, lp in enumerate(lps):
+        uv, inside = _projected(lp, tau)
+        cell = np.floor(np.where(inside[:, None], uv, 0.0) / (np.radians(cell_deg) * lp.camera.pixels_per_radian))
+        key = cell[:, 0].astype(np.int64) * 1_000_003 + cell[:, 1].astype(np.int64)
+        uniq, inv = np.unique(key[inside], return_inverse=True)
+        lab = np.full(len(uv), -1, np.int64)
+        lab[inside] = np.asarray(inv, np.int64).reshape(-1) + first
+        labels.append(lab)
+        pair_of.append(np.full(len(uniq), i, np.int64))
+        first += len(uniq)
+    return labels, (np.concatenate(pair_of) if pair_of else np.zeros(0, np.int64))
+
+
+def typical_range(lps: list[_LevelPair], tau: F64) -> float:
+    """Harmonic mean range (m) of the points in view at ``tau``: how far a translation's parallax is seen."""
+    ranges = []
+    for lp in lps:
+        _, inside = _projected(lp, tau)
+        ranges.append(np.linalg.norm(transform_points(tau, lp.points_lidar[inside])[0], axis=1))
+    r = np.concatenate(ranges) if ranges else np.zeros(0)
+    r = r[r > 0.1]
+    return float(len(r) / np.sum(1.0 / r)) if r.size else 10.0
+
+
+def _groups(cluster_pair: I64, n_pairs: int, trust: TrustOptions) -> tuple[I64, int, bool]:
+    """The jackknife group of each cluster: its pair (``n_pairs`` >= trust.jackknife_min_pairs), else one of
+    ``trust.jackknife_groups`` random groups of clusters (cells); and whether the groups are pairs."""
+    if n_pairs >= trust.jackknife_min_pairs:
+        return cluster_pair, n_pairs, True
+    rng = np.random.default_rng(trust.seed)
+    return rng.permutation(len(cluster_pair)) % trust.jackknife_groups, trust.jackknife_groups, False
+
+
+def photo_uncertainty(pairs: list[PhotoPair], tau: F64, params: PhotoParams, trust: TrustOptions,
+                      fixed_translation: bool = False, opts: PhotoTrustOptions | None = None) -> Uncertainty:
+    """The per-axis uncertainty of the NID solution ``tau`` (module docstring, step 2), on the points in view at
+    ``tau``. ``fixed_translation``: the translation was held (sigma 0)."""
+    opts = opts or PhotoTrustOptions()
+    if params.cost is not PhotoCost.NID:
+        raise CalibError(f"the photometric assessment is defined for NID, not {params.cost.value}")
+    lps = level_pairs(pairs, tau, params, len(params.blur_deg) - 1, point_subsets(pairs, tau, params))
+    labels, cluster_pair = _clusters(lps, tau, opts.cell_deg)
+    groups, n_groups, by_pair = _groups(cluster_pair, len(pairs), trust)
+    ppr = float(np.median([lp.camera.pixels_per_radian for lp in lps]))
+    r_typ = typical_range(lps, tau)
+    h = np.array([opts.step_px / ppr] * 3 + [opts.step_px / ppr * r_typ] * 3)
+    st = _stencil(lps, tau, labels, cluster_pair, groups, n_groups, _offsets(h), params.n_bins)
+    free = np.array([True] * 3 + [not fixed_translation] * 3)
+    hess = symmetric(_hessian(st.full, h))[np.ix_(free, free)]
+    grad = _gradient(st.full[:13], h)[free]
+    influence = grad[None, :] - _gradient(st.clusters.T, h)[:, free]  # (C, free): each cluster's part
+    b = scatter(influence) if len(influence) > int(free.sum()) else np.full((int(free.sum()),) * 2, np.nan)
+    known = bool(np.all(np.isfinite(b)))
+    kappa = nll_scale(hess, b) if known else 1.0
+    _, is_min = positive_part(hess)
+    # Beyond the schedule's widest blur the level that shaped the basin no longer holds the pose.
+    radius = float(np.radians(max(params.blur_deg)))
+    scale = np.array([1.0] * 3 + [1.0 / r_typ] * 3)
+    cov_l = np.zeros((6, 6))
+    cov_l[np.ix_(free, free)] = sandwich(hess, b, np.zeros_like(hess), radius / scale[free]) if known \
+        else np.diag(np.full(int(free.sum()), np.inf))
+    steps, left_out = [], []
+    for g in range(n_groups):
+        if not np.any(groups == g):
+            continue
+        h_rest = symmetric(_hessian(st.groups[:, g], h))[np.ix_(free, free)]
+        g_rest = _gradient(st.groups[:13, g], h)[free]
+        step = np.zeros(6)
+        step[free] = trust_region_step(h_rest, g_rest, scale[free], radius)
+        steps.append(step)
+        left_out.append(g)
+    jack = held = None
+    if len(steps) >= 3:
+        xs = np.array(steps)
+        centred = xs - xs.mean(axis=0)
+        k = len(steps)
+        jack = sigmas_display((k - 1.0) / k * centred.T @ centred)
+        held = _holding(xs, left_out, scale, radius) if by_pair else ()
+    laplace = sigmas_display(cov_l)
+    sigma = laplace if jack is None else np.maximum(laplace, jack)
+    if not is_min:
+        sigma = np.where(free, np.inf, 0.0)
+    cov = _combine(cov_l, sigma)
+    weakest = weakest_direction(cov, trust.tolerance_display) if np.all(np.isfinite(cov)) else \
+        "the solution is not a minimum of the cost: no axis is known"
+    return Uncertainty(cov, sigma, laplace, jack, n_groups if jack is not None else 0, weakest, is_min, kappa,
+                       _in_view_share(lps, tau), held or ())
+
+
+def _in_view_share(lps: list[_LevelPair], tau: F64) -> float:
+    """Share of the evaluated points that land in their image at ``tau`` (the GMM reports the share of its edge
+    points matched; for NID every point in view takes part)."""
+    total = sum(len(lp.points_lidar) for lp in lps)
+    return sum(int(np.count_nonzero(_projected(lp, tau)[1])) for lp in lps) / max(total, 1)
+
+
+def as_optim(result: PhotoResult) -> OptimResult:
+    """A photometric solve's trace as the GMM optimiser's (a level per blur; its ``sigma_in_deg`` is the blur)."""
+    levels = tuple(LevelTrace(lv.blur_deg, lv.evaluations, True, lv.costs, lv.tau) for lv in result.levels)
+    return OptimResult(result.tau, levels, True, result.final_cost)
+
+
+def _tail(params: PhotoParams, levels: int) -> PhotoParams:
+    """The schedule's last ``levels`` levels, every one moving the translation too."""
+    k = min(levels, len(params.blur_deg))
+    return replace(params, blur_deg=params.blur_deg[-k:], step_rot_deg=params.step_rot_deg[-k:],
+                   step_trans_m=params.step_trans_m[-k:], rotation_only_levels=0)
+
+
+def _finest_cost(pairs: list[PhotoPair], at: F64, params: PhotoParams) -> Callable[[F64], float]:
+    """The finest level's cost on the points in view at ``at`` (the restarts' common ground)."""
+    lps = level_pairs(pairs, at, params, len(params.blur_deg) - 1, point_subsets(pairs, at, params))
+    return lambda tau: _mean_without([_cluster_hists(lp, tau, np.zeros(len(lp.points_lidar), np.int64), 1,
+                                                     params.n_bins)[0] for lp in lps], None)
+
+
+def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, trust: TrustOptions,
+                       fixed_translation: bool = False, starts: tuple[F64, ...] = (),
+                       opts: PhotoTrustOptions | None = None) -> Assessment:
+    """Restarts, uncertainty and verdict of the NID solution ``result`` (module docstring). ``starts``: the
+    poses (6,) tau the solve started from (the rotation and translation moved from the nearest are reported,
+    and beyond ``trust.max_move_deg`` / ``max_move_m`` fail the result, as the GMM's)."""
+    anchor = np.asarray(result.tau, dtype=np.float64)
+    cost = _finest_cost(pairs, anchor, params)
+    rng = np.random.default_rng(trust.seed)
+    tail = _tail(params, trust.restart_levels)
+    runs: list[tuple[PhotoResult, float]] = [(result, cost(anchor))]
+    for _ in range(trust.restarts):
+        offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
+                                 np.zeros(3) if fixed_translation else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
+        run = optimise_photometric(pairs, tau_at(anchor, offset), tail, fixed_translation, subset_tau=anchor)
+        runs.append((run, cost(run.tau)))
+    best, best_cost = min(runs, key=lambda r: r[1])
+    unc = photo_uncertainty(pairs, best.tau, params, trust, fixed_translation, opts)
+    offsets = np.array([xi_of(best.tau, r.tau) * TO_DISPLAY for r, _ in runs])
+    # Every run from around the solution (the solve's own included) lands where the simplex shrank: their spread
+    # is how well the solve finds this cost's minimum, which its curvature alone does not say.
+    spread = np.sqrt(np.sum(offsets**2, axis=0) / max(len(runs) - 1, 1))
+    if unc.is_minimum:
+        sigma = np.maximum(unc.sigma, spread)
+        unc = replace(unc, sigma=sigma, covariance=_combine(unc.covariance, sigma), restart_spread=spread)
+        unc = replace(unc, weakest=weakest_direction(unc.covariance, trust.tolerance_display))
+    restarts = tuple(Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (c - best_cost) / unc.kappa,
+                             "solution" if r is result else "restart")
+                     for r, c in runs if r is not best)
+    moved = min((rotation_angle_deg(so3_exp(s[:3]), so3_exp(best.tau[:3])) for s in starts), default=None)
+    moved_m = min((float(np.linalg.norm(s[3:] - best.tau[3:])) for s in starts), default=None)
+    verdict = _verdict(unc, list(restarts), trust, moved, moved_m)
+    return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m)
