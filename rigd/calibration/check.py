@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
@@ -12,7 +11,7 @@ from calib.check import DriftOptions, DriftResult, GroupChange, check_drift, per
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.pipeline import CalibParams
-from rigd.calibration.service import Progress, dataset_features
+from rigd.calibration.service import Progress, cores, dataset_features
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import transform_from_yaml, transform_to_yaml
 from rigd.dataset.store import read_yaml_mapping
@@ -82,11 +81,6 @@ def check_report(result: DriftResult, checked: Transform, opts: DriftOptions, da
     }
 
 
-def _cores() -> int:
-    """The processors this process may run on (Linux: its affinity, as a pinned service's)."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
 def with_rig_tolerance(opts: DriftOptions, dataset: Dataset) -> DriftOptions:
     """``opts`` with the rig file's field tolerance (if it has one) for the pairs' own verdict, as rigd calibrate."""
     return opts if dataset.rig.tolerance is None else replace(opts, trust=dataset.rig.tolerance)
@@ -100,7 +94,7 @@ def run_check(dataset_dir: Path, checked: Transform, opts: DriftOptions,
     params = CalibParams()
     # Threads, not processes: the edges' FFTs and OpenCV release the GIL, and a spawned process would first spend
     # about a second importing; the same features either way.
-    with ThreadPoolExecutor(max(1, min(_cores(), len(dataset)))) as threads:
+    with ThreadPoolExecutor(max(1, min(cores(), len(dataset)))) as threads:
         feats = dataset_features(dataset, params, progress, threads)
     if progress:
         progress("searching around the checked extrinsics", 0.6)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import collections
 import functools
+import importlib
 import itertools
 import multiprocessing
 import os
@@ -53,6 +54,11 @@ def _start_worker(parent_pid: int, initializer: Callable[..., None] | None, init
         initializer(*initargs)
 
 
+def preload(module: str) -> None:
+    """A worker initializer: import ``module`` (what the worker's tasks will need) before any task arrives."""
+    importlib.import_module(module)
+
+
 def _call(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
     return fn(*(_resolve(a) for a in args), **kwargs)
 
@@ -82,6 +88,8 @@ class FeaturePool(Executor):
         start = (os.getpid(), initializer, initargs)
         self._workers = [ProcessPoolExecutor(1, mp_context=context, initializer=_start_worker, initargs=start)
                          for _ in range(workers)]
+        for w in self._workers:  # spawned now, not at the first task: their imports overlap the caller's work
+            w.submit(int)
         self._busy = [False] * workers
         self._queue: collections.deque[_Task] = collections.deque()
         self._held: dict[int, tuple[list[PairFeatures], dict[int, int]]] = {}  # id -> (list, worker -> token)

@@ -46,8 +46,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--method", choices=[m.value for m in Method], default=Method.RIGD.value,
                         help="rigd (default): the paper's GMM with the changes in docs/method.md; paper: the paper's "
                         "settings as printed; mi, nid, gom: the photometric baselines (LiDAR reflectivity against the "
-                        "image; no trust assessment, exit code 5); rigd+nid: rigd, then NID from its solution; "
-                        "gmm-*: the ablations (docs/results.md)")
+                        "image; no trust assessment, exit code 5); nid-assessed: NID with restarts, per-axis sigma "
+                        "and verdict (docs/baselines.md); rigd+nid: rigd, then NID from its solution; gmm-*: the "
+                        "ablations (docs/results.md)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration; for a "
                         "bag BAG_calibration beside it, or DIR/calibration with --keep-dataset DIR)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
