@@ -429,8 +429,8 @@ def _write_pair_visuals(dataset: Dataset, i: int, edge_points: list[NDArray[np.f
     if edge_points is None:
         points = edge_points_of(pair.cloud.points_lidar, pair.cloud.ring, CalibParams()).points_lidar
         edge_points = [points] * len(cameras)
-    for v, (image, camera) in enumerate(zip(pair.images, cameras, strict=True)):
-        views = edge_views(image, camera, initial, T, edge_points[v])
+    for v, (image, camera, mask) in enumerate(zip(pair.images, cameras, dataset.masks, strict=True)):
+        views = edge_views(image, camera, initial, T, edge_points[v], mask)
         for name in OVERLAY_STAGES:
             cv2.imwrite(str(out / "overlays" / f"{overlay_stem(dataset, i, v)}_{name}.png"), getattr(views, name))
     seen = list(zip(pair.images, cameras, dataset.masks, strict=True))

@@ -26,12 +26,18 @@ UNSEEN_BGR = (90, 90, 90)  # points the camera does not see
 
 
 def project_visible(
-    camera: CameraModel, T_camera_lidar: Transform, points_lidar: NDArray[np.float64]
+    camera: CameraModel, T_camera_lidar: Transform, points_lidar: NDArray[np.float64],
+    mask: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
-    """(indices of points that land in the image, their uv (K,2) px, camera range (K,) m)."""
+    """(indices of points that land in the image, on a pixel ``mask`` (H,W) keeps if given, their uv (K,2) px,
+    camera range (K,) m)."""
     p_cam = T_camera_lidar.apply(points_lidar)
     uv, valid = camera.project(p_cam)
     inside = np.flatnonzero(in_image(camera, uv, valid))
+    if mask is not None:
+        px = np.rint(uv[inside]).astype(np.intp)
+        px = np.clip(px, 0, [mask.shape[1] - 1, mask.shape[0] - 1])
+        inside = inside[mask[px[:, 1], px[:, 0]]]
     return inside, uv[inside], np.linalg.norm(p_cam[inside], axis=1)
 
 
@@ -169,12 +175,13 @@ class EdgeViews:
 
 
 def edge_views(image: NDArray[np.uint8], camera: CameraModel, before: Transform, after: Transform,
-               edge_points_lidar: NDArray[np.float64]) -> EdgeViews:
+               edge_points_lidar: NDArray[np.float64], mask: NDArray[np.bool_] | None = None) -> EdgeViews:
     """The edge points (N,3) m, LiDAR frame, drawn as range-coloured dots with each transform, on the image shown
-    upright (:class:`Upright`). The dots are thinned so that the image's edges stay visible between them, the same
-    points in both (a point seen with the solution is kept or dropped in both), so one sees each dot move."""
-    idx_b, uv_b, rng_b = project_visible(camera, before, edge_points_lidar)
-    idx_a, uv_a, rng_a = project_visible(camera, after, edge_points_lidar)
+    upright (:class:`Upright`), none on pixels ``mask`` (H,W) leaves out (the rig, a sensor's dark border). The
+    dots are thinned so that the image's edges stay visible between them, the same points in both (a point seen
+    with the solution is kept or dropped in both), so one sees each dot move."""
+    idx_b, uv_b, rng_b = project_visible(camera, before, edge_points_lidar, mask)
+    idx_a, uv_a, rng_a = project_visible(camera, after, edge_points_lidar, mask)
     box = largest_change_box(camera, idx_b, uv_b, idx_a, uv_a)  # found in the image's own pixels
     upright = Upright.of(camera)
     base = _dimmed_bgr(upright.image(image))

@@ -159,3 +159,15 @@ def test_a_sensor_lying_on_its_side_is_drawn_upright():
     # A sensor looking up has no up in its image: as it is.
     up = Mounted("cam5", camera.sensor, np.eye(3), np.zeros(3))
     assert Upright.of(up).turns == 0 and Upright.of(CAMERA).turns == 0
+
+
+def test_no_dot_on_a_masked_pixel():
+    """A mask's left-out pixels (the rig, a sensor's dark border) get no dots, before or after."""
+    image = np.full((256, 512), 200, np.uint8)
+    points = np.vstack([wall(3.0, np.array([-0.5, 0.5]))])  # two edges, left and right of straight ahead
+    mask = np.ones((256, 512), bool)
+    mask[:, 256:] = False  # straight ahead is column 256: its right half is left out
+    coloured = lambda img: np.ptp(img.astype(int), axis=2) > 40  # noqa: E731
+    for name in ("before", "after"):
+        shown = getattr(edge_views(image, CAMERA, IDENTITY, IDENTITY, points, mask), name)
+        assert coloured(shown)[:, :250].any() and not coloured(shown)[:, 262:].any(), name
