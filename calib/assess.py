@@ -205,13 +205,14 @@ def _shared_restarts(feats: list[PairFeatures], starts: list[F64], tail: OptimOp
                      prior: Prior | None, kappas: tuple[float | None, ...],
                      executor: Executor | None,
                      while_waiting: Callable[[], None] | None = None) -> list[OptimResult]:
-    """The restarts from ``starts``, in their order. With ``executor``, this process and one worker each take
-    the next restart not yet taken when they finish one, so neither waits while restarts remain (restarts
-    differ in length: split in fixed halves, one side waited ~4 s of a 14 s phase on the Ford head). This
-    process uses the field bands the main solve built here, the worker those its own solves built (the
-    application's pool hands a features list back to the worker that holds it); a worker per restart would
-    compete with this process for the cores of a small rig computer. Same results as without ``executor``.
-    ``while_waiting`` runs here when no restart is left to take but the worker's last one has not ended."""
+    """The restarts from ``starts``, in their order. With ``executor``, this process and each of its workers
+    (``executor.workers``, else one) take the next restart not yet taken when they finish one, so none waits
+    while restarts remain (restarts differ in length: split in fixed halves, one side waited ~4 s of a 14 s
+    phase on the Ford head). This process uses the field bands the main solve built here, a worker those its
+    own solves built (the application's pool hands a features list back to the worker that holds it); the pool
+    has one worker fewer than the cores, so a worker per core takes restarts beside this process. Same results
+    as without ``executor``. ``while_waiting`` runs here when no restart is left to take but a worker's last
+    one has not ended."""
     runs: list[OptimResult | None] = [None] * len(starts)
     order = iter(range(len(starts)))
     lock = threading.Lock()
@@ -220,25 +221,26 @@ def _shared_restarts(feats: list[PairFeatures], starts: list[F64], tail: OptimOp
         with lock:
             return next(order, None)
 
-    def feed() -> None:  # on a thread: one restart at a time to the worker, each when its previous ended
+    def feed() -> None:  # on a thread per worker: one restart at a time, each when its previous ended
         assert executor is not None
         while (i := take()) is not None:
             runs[i] = executor.submit(_restart_solve, feats, starts[i], tail, gmm, prior, kappas).result()
 
     failed: list[BaseException] = []
-    feeder = None if executor is None else threading.Thread(target=_capturing, args=(feed, failed), daemon=True)
-    if feeder is not None:
+    n_feeders = 0 if executor is None else max(1, int(getattr(executor, "workers", 1)))
+    feeders = [threading.Thread(target=_capturing, args=(feed, failed), daemon=True) for _ in range(n_feeders)]
+    for feeder in feeders:
         feeder.start()
     try:
         while (i := take()) is not None:
             runs[i] = _restart_solve(feats, starts[i], tail, gmm, prior, kappas)
-        if feeder is not None and feeder.is_alive() and while_waiting is not None:
+        if any(f.is_alive() for f in feeders) and while_waiting is not None:
             while_waiting()
     finally:
-        with lock:  # on an error here, the worker takes no further restart
+        with lock:  # on an error here, the workers take no further restart
             for _ in order:
                 pass
-        if feeder is not None:
+        for feeder in feeders:
             feeder.join()
     if failed:
         raise failed[0]

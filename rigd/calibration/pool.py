@@ -98,6 +98,11 @@ class FeaturePool(Executor):
         self._settled = threading.Condition(self._lock)  # notified when a task ends
         self._closed = False
 
+    @property
+    def workers(self) -> int:
+        """How many processes take tasks (calib.assess feeds each of them restarts)."""
+        return len(self._workers)
+
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future[Any]:
         future: Future[Any] = Future()
         with self._lock:

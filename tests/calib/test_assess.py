@@ -380,6 +380,31 @@ def test_this_process_works_while_the_worker_ends_its_last_restart(monkeypatch) 
     assert [side for side, _ in runs].count("worker") == 1 and waited == [True]
 
 
+class _Workers(ThreadPoolExecutor):
+    """A pool that says how many workers it has, as the application's FeaturePool does."""
+
+    @property
+    def workers(self) -> int:
+        return self._max_workers
+
+
+def test_every_worker_of_the_pool_takes_restarts_beside_this_process(monkeypatch) -> None:
+    """Four restarts, three workers: each restart waits until all four run at once, which only happens when
+    this process and every worker took one (with one worker fed, the barrier breaks)."""
+    together = threading.Barrier(4, timeout=10)
+
+    def solve(feats, start, *rest):
+        together.wait()
+        return threading.current_thread().name, float(start[0])
+
+    monkeypatch.setattr(assess_module, "_restart_solve", solve)
+    starts = [np.full(6, float(i)) for i in range(4)]
+    with _Workers(3, thread_name_prefix="worker") as executor:
+        runs = assess_module._shared_restarts([], starts, OptimOptions(), GmmOptions(), None, (), executor)
+    assert [value for _, value in runs] == [0.0, 1.0, 2.0, 3.0]
+    assert len({name for name, _ in runs}) == 4
+
+
 def test_a_left_out_solve_that_carries_most_of_the_spread_holds_the_pose_short_of_the_kernel_width():
     radius, scale = 1.0, np.ones(6)
     steps = np.zeros((5, 6))
