@@ -166,12 +166,13 @@ def _edge_score(feats: list[PairFeatures], opts: SearchOptions) -> Score:
 
 
 def _mi_score(photo: list[PhotoPair]) -> Score:
-    """Minus the mutual information (calib.search_mi) with the images blurred by the width, each blur prepared
-    once."""
+    """Minus the mutual information (calib.search_mi) with the images blurred by the width, one blur held at a
+    time (a Ladybug5-size head's 60 sensor images blurred are 300 MB per width; callers go width by width)."""
     prepared: dict[float, list[MiSearchPair]] = {}
 
     def score(rotations: F64, translation_m: F64, blur_deg: float) -> F64:
         if blur_deg not in prepared:
+            prepared.clear()
             prepared[blur_deg] = prepare(photo, blur_deg)
         return mi_costs(prepared[blur_deg], rotations, translation_m)
 
@@ -184,15 +185,30 @@ def _polish(score: Score, rotation: F64, translation_m: F64, steps: tuple[tuple[
     Gaussian's, or the image blur of the MI score) that narrows with the step, until the centre is best; then
     the next step. Returns the rotation and its cost at the last width (the same for every candidate, so the
     costs compare)."""
-    cost = 0.0
+    return _polish_all(score, [rotation], translation_m, steps, rounds)[0]
+
+
+def _polish_all(score: Score, rotations: list[F64], translation_m: F64, steps: tuple[tuple[float, float], ...],
+                rounds: int) -> list[tuple[F64, float]]:
+    """:func:`_polish` of each of ``rotations``, step by step for all of them (each one's path is its own), so a
+    score that holds one width at a time prepares each width once."""
+    polished = [(rotation, 0.0) for rotation in rotations]
     for step_deg, width_deg in steps:
         offsets = [so3_exp(np.radians(step_deg) * s) for s in _STENCIL]
-        for _ in range(rounds):
-            costs = score(np.stack([rotation @ o for o in offsets]), translation_m, width_deg)
-            best = int(np.argmin(costs))
-            rotation, cost = rotation @ offsets[best], float(costs[best])
-            if np.all(_STENCIL[best] == 0.0):
-                break
+        polished = [_polish_step(score, rotation, translation_m, offsets, width_deg, rounds)
+                    for rotation, _ in polished]
+    return polished
+
+
+def _polish_step(score: Score, rotation: F64, translation_m: F64, offsets: list[F64], width_deg: float,
+                 rounds: int) -> tuple[F64, float]:
+    cost = 0.0
+    for _ in range(rounds):
+        costs = score(np.stack([rotation @ o for o in offsets]), translation_m, width_deg)
+        best = int(np.argmin(costs))
+        rotation, cost = rotation @ offsets[best], float(costs[best])
+        if np.all(_STENCIL[best] == 0.0):
+            break
     return rotation, cost
 
 
@@ -278,8 +294,8 @@ def _mi_candidates(photo: list[PhotoPair], rotations: F64, mounts: F64, translat
     if not np.any(costs < 0):
         return []
     minima = _grid_minima(rotations, costs, opts)
-    mi = _mi_score(photo)
-    polished = [_polish(mi, rotations[k], translation_m, opts.mi_polish, opts.polish_rounds) for k in minima]
+    polished = _polish_all(_mi_score(photo), [rotations[k] for k in minima], translation_m, opts.mi_polish,
+                           opts.polish_rounds)
     return _candidates(minima, polished, mounts, translation_m, "mutual information")
 
 

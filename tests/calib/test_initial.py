@@ -1,10 +1,12 @@
 """calib.initial: the global search for an initial guess, and its runners-up in the assessment."""
 
 import dataclasses
+import weakref
 
 import numpy as np
 import pytest
 
+import calib.initial as initial_module
 from calib.assess import TrustOptions, assess
 from calib.camera import Pinhole
 from calib.geometry import Transform, rotation_angle_deg, so3_exp
@@ -83,3 +85,27 @@ def test_an_alternative_that_ends_lower_replaces_a_stuck_solution(pairs):
     # restart that ends lower is the solution, and the first solution is listed in its place).
     restarts = [r for r in a.restarts if r.origin in ("restart", "solution")]
     assert restarts and all(np.all(np.abs(r.offset) < [0.2, 0.2, 0.2, 1.0, 1.0, 1.0]) for r in restarts)
+
+
+class _Blurred(list):  # a stand-in for one width's blurred pairs, weakly referenceable
+    pass
+
+
+def test_the_mi_polish_prepares_each_blur_once_and_holds_only_the_current_one(monkeypatch):
+    """The candidates are polished width by width and the score keeps one width's blurred images (300 MB per
+    width on a Ladybug5-size head): each width is prepared once, and an earlier width's copies are let go."""
+    made: list[tuple[float, weakref.ref]] = []
+
+    def prepare(photo, blur_deg, seed=0):
+        blurred = _Blurred([blur_deg])
+        made.append((blur_deg, weakref.ref(blurred)))
+        return blurred
+
+    monkeypatch.setattr(initial_module, "prepare", prepare)
+    monkeypatch.setattr(initial_module, "mi_costs", lambda prepared, rotations, t: np.zeros(len(rotations)))
+    score = initial_module._mi_score([])
+    steps = ((8.0, 2.0), (4.0, 1.0), (2.0, 1.0), (1.0, 0.5))
+    polished = initial_module._polish_all(score, [np.eye(3)] * 3, np.zeros(3), steps, 2)
+    assert len(polished) == 3
+    assert [width for width, _ in made] == [2.0, 1.0, 0.5]
+    assert [ref() is not None for _, ref in made] == [False, False, True]
