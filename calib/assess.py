@@ -316,7 +316,7 @@ def _jackknife(grads: F64, hessians: F64, extra_h: F64, groups: NDArray[np.int64
     the other groups leave a direction flat or curved down, the left-out solve would slide along it to
     wherever the cost next rises, and an unbounded Newton step put thousands of degrees into the jackknife
     of one frame. ``free`` masks the estimated coordinates. Also returns the groups that hold the pose
-    (:func:`_holding`)."""
+    (:func:`holding_groups`)."""
     offsets, left_out = [], []
     total_g, total_h = grads.sum(axis=0), hessians.sum(axis=0)
     for g in range(n_groups):
@@ -333,10 +333,11 @@ def _jackknife(grads: F64, hessians: F64, extra_h: F64, groups: NDArray[np.int64
     xs = np.array(offsets)
     centred = xs - xs.mean(axis=0)
     k = len(offsets)
-    return np.asarray((k - 1.0) / k * centred.T @ centred, dtype=np.float64), _holding(xs, left_out, scale, radius)
+    cov = np.asarray((k - 1.0) / k * centred.T @ centred, dtype=np.float64)
+    return cov, holding_groups(xs, left_out, scale, radius)
 
 
-def _holding(steps: F64, groups: list[int], scale: F64, radius: float) -> tuple[int, ...]:
+def holding_groups(steps: F64, groups: list[int], scale: F64, radius: float) -> tuple[int, ...]:
     """The groups whose left-out solve (``steps`` (K,6), local coordinates) ran to the kernel's width, or
     ``HOLDING_REACH`` of it while carrying more than ``HOLDING_SPREAD`` of the solves' squared distances."""
     reach = np.linalg.norm(steps * scale, axis=1) / radius
@@ -354,7 +355,7 @@ def _in_image_count(feats: tuple[PairFeatures, ...], tau: F64, use_folds: bool) 
     return total
 
 
-def _combine(cov_l: F64, sigma: F64) -> F64:
+def combine_covariance(cov_l: F64, sigma: F64) -> F64:
     """The covariance with per-axis ``sigma`` (deg/cm) and the sandwich's correlations."""
     d_l = np.sqrt(np.maximum(np.diag(cov_l), 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -406,7 +407,7 @@ def _uncertainty(feats: list[PairFeatures], tau: F64, opts: OptimOptions, gmm: G
     sigma = np.maximum.reduce([s for s in (laplace, jack_sigma, ring_sigma) if s is not None])
     if not is_min:
         sigma = np.where(free, np.inf, 0.0)
-    cov = _combine(cov_l, sigma)
+    cov = combine_covariance(cov_l, sigma)
     weakest = weakest_direction(cov, trust.tolerance_display) if np.all(np.isfinite(cov)) else \
         "the solution is not a minimum of the cost: no axis is known"
     share = matched_points(model, frozen, tau) / max(_in_image_count(model.feats, tau, model.gmm.use_folds), 1)
@@ -431,6 +432,14 @@ def restarts_elsewhere(unc: Uncertainty, restarts: list[Restart], trust: TrustOp
             "minima within the restart offsets")
 
 
+def moved_from(starts: tuple[F64, ...], tau: F64) -> tuple[float | None, float | None]:
+    """How far the solution ``tau`` (6,) ended from the nearest of ``starts``: rotation (deg) and translation (m),
+    each over the nearest start by that measure; None, None without starts."""
+    moved_deg = min((rotation_angle_deg(so3_exp(s[:3]), so3_exp(tau[:3])) for s in starts), default=None)
+    moved_m = min((float(np.linalg.norm(s[3:] - tau[3:])) for s in starts), default=None)
+    return moved_deg, moved_m
+
+
 def _moved_far(moved_m: float | None, trust: TrustOptions) -> Verdict | None:
     """Failed when the translation ended metres from every start; None otherwise."""
     if moved_m is None or moved_m <= trust.max_move_m:
@@ -440,7 +449,7 @@ def _moved_far(moved_m: float | None, trust: TrustOptions) -> Verdict | None:
         "arm is that far from its guess; check the lever arm given (the prior's xyz_m is in metres, not cm)",))
 
 
-def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None = None,
+def verdict_of(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None = None,
              moved_m: float | None = None) -> Verdict:
     tol = trust.tolerance_display
     reasons: list[str] = []
@@ -524,7 +533,6 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
         Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (r.final_cost - best.final_cost) / unc.kappa, origin)
         for r, origin in solves if r is not best
     )
-    moved = min((rotation_angle_deg(so3_exp(s[:3]), so3_exp(best.tau[:3])) for s in starts), default=None)
-    moved_m = min((float(np.linalg.norm(s[3:] - best.tau[3:])) for s in starts), default=None)
-    return Assessment(best.tau, best, unc, restarts, _verdict(unc, list(restarts), trust, moved, moved_m), moved,
+    moved, moved_m = moved_from(starts, best.tau)
+    return Assessment(best.tau, best, unc, restarts, verdict_of(unc, list(restarts), trust, moved, moved_m), moved,
                       moved_m)

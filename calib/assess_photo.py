@@ -19,7 +19,7 @@ is formed once per pose and "without the cluster" is a subtraction.
    ``H^-1 B H^-1`` with the information floored over +- the reach (the schedule's widest blur), and a
    delete-a-group jackknife (each pair left out, or with fewer than 4 pairs 8 random groups of cells), each
    left-out solve one bounded Newton step of the left-out cost with its own Hessian and gradient.
-3. **Verdict**: :func:`calib.assess._verdict`, the GMM's rules unchanged.
+3. **Verdict**: :func:`calib.assess.verdict_of`, the GMM's rules unchanged.
 """
 
 from __future__ import annotations
@@ -30,22 +30,31 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.assess import Assessment, Restart, TrustOptions, Uncertainty, _combine, _holding, _verdict, trust_region_step
+from calib.assess import (
+    Assessment,
+    Restart,
+    TrustOptions,
+    Uncertainty,
+    combine_covariance,
+    holding_groups,
+    moved_from,
+    trust_region_step,
+    verdict_of,
+)
 from calib.errors import CalibError
-from calib.geometry import rotation_angle_deg, so3_exp
 from calib.gmm import transform_points
 from calib.optimize import LevelTrace, OptimResult
 from calib.photometric import (
+    LevelPair,
     PhotoCost,
     PhotoPair,
     PhotoParams,
     PhotoResult,
-    _LevelPair,
-    _projected,
     level_pairs,
     nid,
     optimise_photometric,
     point_subsets,
+    project_level,
     sample,
 )
 from calib.uncertainty import (
@@ -109,10 +118,10 @@ def _offsets(h: F64) -> F64:
     return np.array(rows)
 
 
-def _cluster_hists(lp: _LevelPair, tau: F64, labels: I64, n_clusters: int, bins: int) -> F64:
+def _cluster_hists(lp: LevelPair, tau: F64, labels: I64, n_clusters: int, bins: int) -> F64:
     """(n_clusters, bins, bins) soft joint histograms (calib.photometric.soft_joint_histogram) of each
     cluster's samples at ``tau`` (``labels`` (M,) cluster of each point, -1: none)."""
-    uv, inside = _projected(lp, tau)
+    uv, inside = project_level(lp, tau)
     keep = inside & (labels >= 0)
     a = np.clip(lp.reflectivity[keep], 0.0, 1.0) * (bins - 1)
     b = np.clip(sample(lp.grey, lp.camera, uv[keep]), 0.0, 1.0) * (bins - 1)
@@ -139,7 +148,7 @@ def _mean_without(hists: list[F64], drop: list[F64] | None) -> float:
     return float(np.mean(terms)) if terms else 1.0
 
 
-def _stencil(lps: list[_LevelPair], tau: F64, labels: list[I64], cluster_pair: I64, group_of: I64, n_groups: int,
+def _stencil(lps: list[LevelPair], tau: F64, labels: list[I64], cluster_pair: I64, group_of: I64, n_groups: int,
              offsets: F64, bins: int) -> _Stencil:
     """The cost at ``tau`` + each of ``offsets``, in full, without each jackknife group, and (first 13 offsets)
     without each cluster (``cluster_pair`` (C,) the pair of each cluster; ``group_of`` (C,) its group)."""
@@ -187,13 +196,13 @@ def _hessian(values: F64, h: F64) -> F64:
     return out
 
 
-def _clusters(lps: list[_LevelPair], tau: F64, cell_deg: float) -> tuple[list[I64], I64]:
+def _clusters(lps: list[LevelPair], tau: F64, cell_deg: float) -> tuple[list[I64], I64]:
     """Each point's cluster (the ``cell_deg`` angular image cell it projects into at ``tau``, per pair; -1 for
     points out of view), and (C,) the pair of each cluster."""
     labels, pair_of = [], []
     first = 0
     for i, lp in enumerate(lps):
-        uv, inside = _projected(lp, tau)
+        uv, inside = project_level(lp, tau)
         cell = np.floor(np.where(inside[:, None], uv, 0.0) / (np.radians(cell_deg) * lp.camera.pixels_per_radian))
         key = cell[:, 0].astype(np.int64) * 1_000_003 + cell[:, 1].astype(np.int64)
         uniq, inv = np.unique(key[inside], return_inverse=True)
@@ -205,11 +214,11 @@ def _clusters(lps: list[_LevelPair], tau: F64, cell_deg: float) -> tuple[list[I6
     return labels, (np.concatenate(pair_of) if pair_of else np.zeros(0, np.int64))
 
 
-def typical_range(lps: list[_LevelPair], tau: F64) -> float:
+def typical_range(lps: list[LevelPair], tau: F64) -> float:
     """Harmonic mean range (m) of the points in view at ``tau``: how far a translation's parallax is seen."""
     ranges = []
     for lp in lps:
-        _, inside = _projected(lp, tau)
+        _, inside = project_level(lp, tau)
         ranges.append(np.linalg.norm(transform_points(tau, lp.points_lidar[inside])[0], axis=1))
     r = np.concatenate(ranges) if ranges else np.zeros(0)
     r = r[r > 0.1]
@@ -269,23 +278,23 @@ def photo_uncertainty(pairs: list[PhotoPair], tau: F64, params: PhotoParams, tru
         centred = xs - xs.mean(axis=0)
         k = len(steps)
         jack = sigmas_display((k - 1.0) / k * centred.T @ centred)
-        held = _holding(xs, left_out, scale, radius) if by_pair else ()
+        held = holding_groups(xs, left_out, scale, radius) if by_pair else ()
     laplace = sigmas_display(cov_l)
     sigma = laplace if jack is None else np.maximum(laplace, jack)
     if not is_min:
         sigma = np.where(free, np.inf, 0.0)
-    cov = _combine(cov_l, sigma)
+    cov = combine_covariance(cov_l, sigma)
     weakest = weakest_direction(cov, trust.tolerance_display) if np.all(np.isfinite(cov)) else \
         "the solution is not a minimum of the cost: no axis is known"
     return Uncertainty(cov, sigma, laplace, jack, n_groups if jack is not None else 0, weakest, is_min, kappa,
                        _in_view_share(lps, tau), held or ())
 
 
-def _in_view_share(lps: list[_LevelPair], tau: F64) -> float:
+def _in_view_share(lps: list[LevelPair], tau: F64) -> float:
     """Share of the evaluated points that land in their image at ``tau`` (the GMM reports the share of its edge
     points matched; for NID every point in view takes part)."""
     total = sum(len(lp.points_lidar) for lp in lps)
-    return sum(int(np.count_nonzero(_projected(lp, tau)[1])) for lp in lps) / max(total, 1)
+    return sum(int(np.count_nonzero(project_level(lp, tau)[1])) for lp in lps) / max(total, 1)
 
 
 def as_optim(result: PhotoResult) -> OptimResult:
@@ -332,12 +341,11 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
     spread = np.sqrt(np.sum(offsets**2, axis=0) / max(len(runs) - 1, 1))
     if unc.is_minimum:
         sigma = np.maximum(unc.sigma, spread)
-        unc = replace(unc, sigma=sigma, covariance=_combine(unc.covariance, sigma), restart_spread=spread)
+        unc = replace(unc, sigma=sigma, covariance=combine_covariance(unc.covariance, sigma), restart_spread=spread)
         unc = replace(unc, weakest=weakest_direction(unc.covariance, trust.tolerance_display))
     restarts = tuple(Restart(xi_of(best.tau, r.tau) * TO_DISPLAY, (c - best_cost) / unc.kappa,
                              "solution" if r is result else "restart")
                      for r, c in runs if r is not best)
-    moved = min((rotation_angle_deg(so3_exp(s[:3]), so3_exp(best.tau[:3])) for s in starts), default=None)
-    moved_m = min((float(np.linalg.norm(s[3:] - best.tau[3:])) for s in starts), default=None)
-    verdict = _verdict(unc, list(restarts), trust, moved, moved_m)
+    moved, moved_m = moved_from(starts, best.tau)
+    verdict = verdict_of(unc, list(restarts), trust, moved, moved_m)
     return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m)

@@ -239,7 +239,7 @@ def nid(joint: F64) -> float:
 
 
 @dataclass(frozen=True)
-class _LevelPair:
+class LevelPair:
     """One pair at one level: blurred grey (H,W) float32, the kept points (M,3) m and their reflectivity (M,),
     and for GOM the frozen plane fit (:class:`GradientFit`) and the reflectivity gradients (M,2) per px."""
 
@@ -300,7 +300,7 @@ def sample(image: F32, camera: CameraModel, uv: F64) -> F64:
     return np.asarray(out, dtype=np.float64).reshape(-1)[:n]
 
 
-def _projected(lp: _LevelPair, tau: F64) -> tuple[F64, NDArray[np.bool_]]:
+def project_level(lp: LevelPair, tau: F64) -> tuple[F64, NDArray[np.bool_]]:
     uv, valid = lp.camera.project(transform_points(tau, lp.points_lidar)[0])
     inside = in_image(lp.camera, uv, valid)
     if lp.mask is not None:
@@ -331,7 +331,7 @@ def gom_terms(g_image: F64, g_lidar: F64) -> tuple[F64, F64]:
     return agree, mag
 
 
-def level_cost(pairs: list[_LevelPair], tau: F64, params: PhotoParams) -> float:
+def level_cost(pairs: list[LevelPair], tau: F64, params: PhotoParams) -> float:
     """The level's cost at ``tau`` (lower is better): -MI, mean NID or -GOM over ``pairs``."""
     bins = params.n_bins
     if params.cost is PhotoCost.GOM:
@@ -339,14 +339,14 @@ def level_cost(pairs: list[_LevelPair], tau: F64, params: PhotoParams) -> float:
         for lp in pairs:
             if lp.fit is None or lp.lidar_grad is None:
                 continue
-            uv, inside = _projected(lp, tau)
+            uv, inside = project_level(lp, tau)
             g_img = lp.fit.gradients(sample(lp.grey, lp.camera, uv))  # the matched estimator (module docstring)
             agree, mag = gom_terms(g_img[inside], lp.lidar_grad[inside])
             num, den = num + float(agree.sum()), den + float(mag.sum())
         return -num / den if den > 0 else 0.0
     joints = []
     for lp in pairs:
-        uv, inside = _projected(lp, tau)
+        uv, inside = project_level(lp, tau)
         joints.append(soft_joint_histogram(lp.reflectivity[inside], sample(lp.grey, lp.camera, uv[inside]), bins))
     if params.cost is PhotoCost.NID:
         return float(np.mean([nid(j) if j.sum() > 0 else 1.0 for j in joints]))
@@ -369,12 +369,12 @@ def _in_view(pair: PhotoPair, tau0: F64, params: PhotoParams, cap: int) -> tuple
 
 
 def level_pairs(pairs: list[PhotoPair], tau: F64, params: PhotoParams, level: int,
-                subsets: list[tuple[F64, F64]]) -> list[_LevelPair]:
+                subsets: list[tuple[F64, F64]]) -> list[LevelPair]:
     """Each pair at ``level``: the blurred image (and its gradient and the frozen LiDAR gradients for GOM)."""
     out = []
     for pair, (pts, refl) in zip(pairs, subsets, strict=True):
         grey = _blur(pair.grey, pair.camera, params.blur_deg[level])
-        lp = _LevelPair(pair.camera, grey, pts, refl, mask=pair.mask)
+        lp = LevelPair(pair.camera, grey, pts, refl, mask=pair.mask)
         if params.cost is PhotoCost.GOM:
             uv, valid = pair.camera.project(transform_points(tau, pts)[0])
             keep = np.flatnonzero(valid)  # points behind a pinhole have no image position to fit on
@@ -429,7 +429,7 @@ def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
                         + [0.0 if hold_t else params.step_trans_m[level]] * 3)
         step = np.where(step > 0, step, 1e-12)
 
-        def f(t: F64, lps: list[_LevelPair] = lps) -> float:
+        def f(t: F64, lps: list[LevelPair] = lps) -> float:
             return level_cost(lps, t, params)
 
         start_cost = f(tau)

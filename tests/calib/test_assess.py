@@ -16,9 +16,9 @@ from calib.assess import (
     Uncertainty,
     _jackknife,
     _run_restarts,
-    _verdict,
     assess,
     trust_region_step,
+    verdict_of,
 )
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
@@ -138,34 +138,34 @@ def _unc(sigma, is_min=True):
 
 def test_verdict_trusted_weak_and_failed():
     trust = TrustOptions()
-    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [], trust).status is Status.TRUSTED
-    weak = _verdict(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], trust)
+    assert verdict_of(_unc([0.05] * 3 + [0.5] * 3), [], trust).status is Status.TRUSTED
+    weak = verdict_of(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], trust)
     assert weak.status is Status.WEAK and weak.weak_axes == ("z",) and "z" in weak.reasons[0]
     tie = Restart(np.array([0.0, 0.5, 0.0, 0.0, 0.0, 0.0]), delta_nll=1.0)  # another pose, equally good
-    amb = _verdict(_unc([0.05] * 3 + [0.5] * 3), [tie], trust)
+    amb = verdict_of(_unc([0.05] * 3 + [0.5] * 3), [tie], trust)
     assert amb.status is Status.WEAK and amb.weak_axes == ("pitch",)
     far_but_worse = Restart(np.array([3.0, 0, 0, 0, 0, 0]), delta_nll=50.0)  # a worse minimum: no ambiguity
     back = Restart(np.array([0.01, 0, 0, 0.1, 0, 0]), delta_nll=0.1)
     one_stuck = [far_but_worse, back, back, back]
-    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), one_stuck, trust).status is Status.TRUSTED
+    assert verdict_of(_unc([0.05] * 3 + [0.5] * 3), one_stuck, trust).status is Status.TRUSTED
     # Most restarts at other, worse minima: the solution is one of several nearby, so nothing is claimed.
-    rugged = _verdict(_unc([0.05] * 3 + [0.5] * 3), [far_but_worse, far_but_worse, back, far_but_worse], trust)
+    rugged = verdict_of(_unc([0.05] * 3 + [0.5] * 3), [far_but_worse, far_but_worse, back, far_but_worse], trust)
     assert rugged.status is Status.FAILED and "1 of 4 restarts came back" in rugged.reasons[-1]
     runner_up = Restart(np.array([30.0, 0, 0, 0, 0, 0]), delta_nll=80.0, origin="search runner-up")
-    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [back, runner_up], trust).status is Status.TRUSTED
+    assert verdict_of(_unc([0.05] * 3 + [0.5] * 3), [back, runner_up], trust).status is Status.TRUSTED
     far_tie = Restart(np.array([3.0, 0, 0, 0, 0, 0]), delta_nll=0.5)
-    assert _verdict(_unc([0.05] * 3 + [0.5] * 3), [far_tie], trust).status is Status.FAILED
-    assert _verdict(_unc([0.05] * 6, is_min=False), [], trust).status is Status.FAILED
-    assert _verdict(_unc([2.0] * 3 + [30.0] * 3), [], trust).status is Status.FAILED
+    assert verdict_of(_unc([0.05] * 3 + [0.5] * 3), [far_tie], trust).status is Status.FAILED
+    assert verdict_of(_unc([0.05] * 6, is_min=False), [], trust).status is Status.FAILED
+    assert verdict_of(_unc([2.0] * 3 + [30.0] * 3), [], trust).status is Status.FAILED
     # Every axis over its tolerance, two of them far (measured: ours_1+2 with a 1 cm lever-arm prior, 8.3 deg
     # off, roll and pitch sigma 1.6 and 0.65 deg, yaw 0.16 deg, the prior's 1 cm): nothing is vouched for.
-    none_known = _verdict(_unc([1.56, 0.65, 0.16, 1.0, 1.0, 1.0]), [], trust)
+    none_known = verdict_of(_unc([1.56, 0.65, 0.16, 1.0, 1.0, 1.0]), [], trust)
     assert none_known.status is Status.FAILED and none_known.weak_axes == ("roll", "pitch", "yaw", "x", "y", "z")
     assert "no axis is known" in none_known.reasons[-1]
-    five = _verdict(_unc([1.56, 0.65, 0.05, 1.0, 1.0, 1.0]), [], trust)  # yaw known: the rest is named
+    five = verdict_of(_unc([1.56, 0.65, 0.05, 1.0, 1.0, 1.0]), [], trust)  # yaw known: the rest is named
     assert five.status is Status.WEAK and "yaw" not in five.weak_axes
     loose = TrustOptions(tolerance_trans_cm=10.0)  # the rig file's tolerance decides
-    assert _verdict(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], loose).status is Status.TRUSTED
+    assert verdict_of(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], loose).status is Status.TRUSTED
 
 
 def test_a_solution_far_from_every_start_fails_however_well_determined_it_looks():
@@ -173,11 +173,11 @@ def test_a_solution_far_from_every_start_fails_however_well_determined_it_looks(
     looking fine (measured: ours_1+2 with a 1 cm lever-arm prior, yaw 45.5 deg off, yaw sigma 0.05 deg)."""
     trust = TrustOptions()
     sharp = _unc([0.05] * 3 + [0.5] * 3)
-    assert _verdict(sharp, [], trust, moved_deg=19.0).status is Status.TRUSTED
-    far = _verdict(sharp, [], trust, moved_deg=45.5)
+    assert verdict_of(sharp, [], trust, moved_deg=19.0).status is Status.TRUSTED
+    far = verdict_of(sharp, [], trust, moved_deg=45.5)
     assert far.status is Status.FAILED and far.weak_axes == ("roll", "pitch", "yaw", "x", "y", "z")
     assert "45.5 deg from its start" in far.reasons[0]
-    assert _verdict(sharp, [], TrustOptions(max_move_deg=60.0), moved_deg=45.5).status is Status.TRUSTED
+    assert verdict_of(sharp, [], TrustOptions(max_move_deg=60.0), moved_deg=45.5).status is Status.TRUSTED
 
 
 def test_a_translation_metres_from_its_start_fails_and_names_the_unit():
@@ -185,8 +185,8 @@ def test_a_translation_metres_from_its_start_fails_and_names_the_unit():
     from its start, where sigmas and restarts can look fine: failed, saying how far and in which unit."""
     trust = TrustOptions()
     sharp = _unc([0.05] * 3 + [0.5] * 3)
-    assert _verdict(sharp, [], trust, moved_m=0.4).status is Status.TRUSTED
-    far = _verdict(sharp, [], trust, moved_deg=0.5, moved_m=19.07)
+    assert verdict_of(sharp, [], trust, moved_m=0.4).status is Status.TRUSTED
+    far = verdict_of(sharp, [], trust, moved_deg=0.5, moved_m=19.07)
     assert far.status is Status.FAILED and far.weak_axes == ("roll", "pitch", "yaw", "x", "y", "z")
     assert "19.07 m from its start" in far.reasons[0] and "in metres" in far.reasons[0]
 
@@ -409,9 +409,9 @@ def test_a_left_out_solve_that_carries_most_of_the_spread_holds_the_pose_short_o
     radius, scale = 1.0, np.ones(6)
     steps = np.zeros((5, 6))
     steps[:, 5] = [0.02, -0.26, -0.04, 0.16, 0.71]  # the Ford subset's left-out solves, in kernel widths (z)
-    assert assess_module._holding(steps, [0, 1, 2, 3, 4], scale, radius) == (4,)
+    assert assess_module.holding_groups(steps, [0, 1, 2, 3, 4], scale, radius) == (4,)
     even = np.zeros((5, 6))
     even[:, 5] = [0.6, -0.6, 0.55, -0.58, 0.62]  # far, but no place carries most of it: noise, not one place
-    assert assess_module._holding(even, [0, 1, 2, 3, 4], scale, radius) == ()
+    assert assess_module.holding_groups(even, [0, 1, 2, 3, 4], scale, radius) == ()
     small = steps * 0.5  # the same shares, nowhere near the width: the pose is held
-    assert assess_module._holding(small, [0, 1, 2, 3, 4], scale, radius) == ()
+    assert assess_module.holding_groups(small, [0, 1, 2, 3, 4], scale, radius) == ()

@@ -13,9 +13,9 @@ from calib.methods import Method, calibrate_method
 from calib.photometric import (
     PhotoCost,
     PhotoParams,
-    _projected,
     level_pairs,
     optimise_photometric,
+    project_level,
     sample,
     soft_joint_histogram,
 )
@@ -42,7 +42,7 @@ def test_cluster_histograms_add_up_to_the_pair_histogram():
     lp = level_pairs([pair], TRUTH.tau, SMALL, 1, [(pair.points_lidar, pair.reflectivity)])[0]
     labels = np.arange(len(lp.points_lidar)) % 7
     per = _cluster_hists(lp, TRUTH.tau, labels, 7, SMALL.n_bins)
-    uv, inside = _projected(lp, TRUTH.tau)
+    uv, inside = project_level(lp, TRUTH.tau)
     whole = soft_joint_histogram(lp.reflectivity[inside], sample(lp.grey, lp.camera, uv[inside]), SMALL.n_bins)
     assert per.sum(axis=0) == pytest.approx(whole, abs=1e-9)
 
