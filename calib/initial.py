@@ -21,7 +21,7 @@ keeps roll and pitch within ``tilt_deg`` of looking level along the LiDAR's hori
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import Executor, as_completed
+from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -31,6 +31,7 @@ from calib.camera import CameraModel, Equirectangular, Mounted, Pinhole, project
 from calib.errors import InitialGuessError
 from calib.geometry import rotation_angle_deg, rpy_deg_to_matrix, so3_exp, so3_log
 from calib.gmm import PairFeatures
+from calib.handed import Handed, collect, hand
 from calib.photometric import PhotoPair
 from calib.search_mi import MiSearchPair, mi_costs, prepare
 
@@ -238,25 +239,11 @@ def _distinct(cands: list[Candidate], distinct_deg: float) -> list[Candidate]:
     return kept
 
 
-def _pair_costs(feats: list[PairFeatures], rotations: F64, translation_m: F64, opts: SearchOptions,
-                on_progress: Callable[[int, int], None] | None, executor: Executor | None) -> list[F64]:
-    """The grid cost (K,) of every rotation for each pair, in the pairs' order (pair by pair in ``executor``
-    if given)."""
-    def progress(done: int) -> None:
-        if on_progress is not None:
-            on_progress(done, len(feats))
-
-    if executor is None:
-        out = []
-        for feat in feats:
-            out.append(_costs([feat], rotations, translation_m, opts.sigma_deg, opts.batch))
-            progress(len(out))
-        return out
-    pending = [executor.submit(_costs, [feat], rotations, translation_m, opts.sigma_deg, opts.batch)
-               for feat in feats]
-    for done, _ in enumerate(as_completed(pending)):
-        progress(done + 1)
-    return [f.result() for f in pending]
+def _pair_grid(feats: list[PairFeatures], pair: int, rotations: F64, translation_m: F64,
+               opts: SearchOptions) -> F64:
+    """The grid cost (K,) of pair ``pair`` of ``feats`` (the whole list travels: a pool sends it once and its
+    worker keeps the fields' rungs for the polish and the solves after)."""
+    return _costs([feats[pair]], rotations, translation_m, opts.sigma_deg, opts.batch)
 
 
 def _mi_grid(photo: list[PhotoPair], rotations: F64, translation_m: F64, opts: SearchOptions,
@@ -272,12 +259,12 @@ def _mi_grid(photo: list[PhotoPair], rotations: F64, translation_m: F64, opts: S
     return out
 
 
-def _edge_candidates(feats: list[PairFeatures], rotations: F64, mounts: F64, translation_m: F64,
-                     opts: SearchOptions, on_progress: Callable[[int, int], None] | None,
+def _edge_candidates(feats: list[PairFeatures], grid: list[Handed[F64]], rotations: F64, mounts: F64,
+                     translation_m: F64, opts: SearchOptions, on_progress: Callable[[int, int], None] | None,
                      executor: Executor | None) -> list[Candidate]:
     costs = np.zeros(len(mounts))
-    for pair_costs in _pair_costs(feats, rotations, translation_m, opts, on_progress, executor):
-        costs += pair_costs
+    for pair_costs in collect(grid, None if on_progress is None else lambda done: on_progress(done, len(grid))):
+        costs += pair_costs  # in the pairs' order, wherever each was computed
     if not np.any(costs < 0):
         raise InitialGuessError("global search: no grid mount brings any LiDAR edge near an image edge")
     minima = _grid_minima(rotations, costs, opts)
@@ -330,14 +317,17 @@ def search_initial(
     (:mod:`calib.search_mi`) too, and each score's best start comes before the runners-up: neither score finds
     every rig (the edges failed on a real head's street scenes, MI on a simulated set with sensor effects and
     on one real narrow camera), and the GMM solves from both (:func:`calib.pipeline.calibrate`) decide.
-    ``executor`` (the application's process pool): the pairs' edge grids and all edge candidates but the first
-    are computed there, to the same result (the per-pair grids are summed in the pairs' order either way)."""
+    ``executor`` (the application's process pool): the pairs' edge grids go there while this process scores
+    mutual information, then takes back the pairs no worker has started; all edge candidates but the first are
+    polished there. The same result (the per-pair grids are summed in the pairs' order either way)."""
     opts = opts or default_search(feats[0].camera)
     mounts = grid_mounts(opts)
     rotations = _rotations(base_rotation(feats[0].camera), mounts)
-    edges = _distinct(_edge_candidates(feats, rotations, mounts, translation_m, opts, on_progress, executor),
+    # The pairs' edge grids go to the pool while this process scores mutual information.
+    grid = [hand(executor, _pair_grid, feats, i, rotations, translation_m, opts) for i in range(len(feats))]
+    mi = _distinct(_mi_candidates(photo, rotations, mounts, translation_m, opts), opts.distinct_deg) if photo else []
+    edges = _distinct(_edge_candidates(feats, grid, rotations, mounts, translation_m, opts, on_progress, executor),
                       opts.distinct_deg)
     if not photo:
         return SearchResult(tuple(edges), len(mounts))
-    mi = _distinct(_mi_candidates(photo, rotations, mounts, translation_m, opts), opts.distinct_deg)
     return SearchResult(tuple(_interleaved(edges, mi, opts.distinct_deg)), len(mounts), ("edges", "mutual information"))

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from calib.errors import CalibError
 from calib.gmm import CostGrad, Evaluator, Frozen, GmmOptions, PairFeatures, cost_and_gradient, freeze_all
+from calib.handed import collect, hand
 from calib.prior import Prior
 from calib.uncertainty import LevelModel, clusters_at, local_gradient, nll_scale, scatter
 
@@ -329,8 +330,9 @@ def optimise(
     ends on the same finest level, whose cost decides, so the extra run can only lower the objective.
 
     ``executor`` (the application's process pool): the other schedules run there while this process runs
-    the main one; the result is the same as without it (each solve is deterministic, the fields' values do
-    not depend on what was sampled before).
+    the main one, which then takes back those no worker has started (:mod:`calib.handed`); the result is the
+    same as without it (each solve is deterministic, the fields' values do not depend on what was sampled
+    before).
     """
     shorter = [replace(opts, sigmas_deg=opts.sigmas_deg[k:], rotation_only_levels=0)
                for k in range(1, min(opts.alternative_schedules, len(opts.sigmas_deg) - 1) + 1)]
@@ -338,12 +340,9 @@ def optimise(
         shorter.append(tail_options(opts, opts.tail_from_start))
     cut = [None if kappas is None else kappas[len(opts.sigmas_deg) - len(s.sigmas_deg):] for s in shorter]
     runs = list(zip(shorter, cut, strict=True))
-    pending = [executor.submit(_coarse_to_fine, feats, tau0, s, gmm, None, prior, k) for s, k in runs] \
-        if executor is not None else []
+    handed = [hand(executor, _coarse_to_fine, feats, tau0, s, gmm, None, prior, k) for s, k in runs]
     best = _coarse_to_fine(feats, tau0, opts, gmm, on_iter, prior, kappas)
-    others = [f.result() for f in pending] if executor is not None \
-        else (_coarse_to_fine(feats, tau0, s, gmm, None, prior, k) for s, k in runs)
-    for other in others:
+    for other in collect(handed):
         if other.final_cost < best.final_cost:
             best = other
     return best

@@ -25,6 +25,7 @@ from calib.errors import FeaturelessError, InitialGuessError
 from calib.fields import EdgeFields
 from calib.geometry import Transform
 from calib.gmm import Evaluator, GmmOptions, KernelNorm, PairFeatures, in_image, transform_points
+from calib.handed import collect, hand
 from calib.initial import SearchOptions, SearchResult, search_initial
 from calib.optimize import OptimOptions, OptimResult, optimise
 from calib.photometric import PhotoPair
@@ -235,12 +236,10 @@ def _alternatives(feats: list[PairFeatures], starts: list[F64], optim: OptimOpti
                   prior: Prior | None, executor: Executor | None) -> Callable[[], list[OptimResult]]:
     """Full solves from ``starts``, the global search's next-best distinct starts (the assessment weighs
     them): started in ``executor`` now if given, so they run while this process solves from the best start;
-    call the result to collect them."""
+    call the result to collect them (this process takes back those no worker has started: calib.handed)."""
     single = replace(optim, alternative_schedules=0)
-    if executor is None:
-        return lambda: [optimise(feats, s, single, gmm, None, prior) for s in starts]
-    pending = [executor.submit(optimise, feats, s, single, gmm, None, prior) for s in starts]
-    return lambda: [f.result() for f in pending]
+    handed = [hand(executor, optimise, feats, s, single, gmm, None, prior) for s in starts]
+    return lambda: collect(handed)
 
 
 def calibrate(

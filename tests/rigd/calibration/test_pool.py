@@ -14,6 +14,7 @@ import pytest
 
 from calib.assess import TrustOptions
 from calib.geometry import Transform
+from calib.initial import SearchOptions, search_initial
 from calib.pipeline import CalibParams, calibrate, with_sigmas
 from rigd.calibration.pool import FeaturePool
 from tests.calib.synthetic import TRUTH, make_pair
@@ -79,6 +80,27 @@ def test_a_calibration_in_the_pool_ends_exactly_where_the_serial_one_does(pairs,
         assert np.array_equal(a.offset, b.offset) and a.delta_nll == b.delta_nll
     assert serial.assessment.verdict == pooled.assessment.verdict
 
+
+
+def test_the_search_in_the_pool_finds_what_the_serial_one_does(pairs, pool, tmp_path):
+    coarse = SearchOptions(yaw_step_deg=30.0, tilt_step_deg=30.0)
+    serial = search_initial(pairs, np.zeros(3), coarse)
+    release = tmp_path / "release"
+    busy = [pool.submit(_pid_after, 0.0, release) for _ in range(pool.workers)]  # the grid's tasks wait queued
+    workers_busy_when_done = []
+
+    def progress(done: int, total: int) -> None:
+        if done == total:  # every pair's grid in: the queued ones were taken back by this process
+            workers_busy_when_done.append(not any(f.done() for f in busy))
+            release.touch()
+
+    taken_back = search_initial(pairs, np.zeros(3), coarse, progress, pool)
+    in_workers = search_initial(pairs, np.zeros(3), coarse, None, pool)
+    assert workers_busy_when_done == [True]
+    for found in (taken_back, in_workers):
+        assert [c.cost for c in found.candidates] == [c.cost for c in serial.candidates]
+        for a, b in zip(serial.candidates, found.candidates, strict=True):
+            assert np.array_equal(a.tau, b.tau)
 
 PARENT = """
 import json, time
