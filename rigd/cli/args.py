@@ -16,6 +16,7 @@ from calib.assess import TrustOptions
 from calib.errors import CalibError
 from calib.evaluate import OutlierRule
 from calib.geometry import Transform, rpy_deg_to_matrix
+from calib.methods import Method
 from calib.prior import Prior
 from rigd.dataset.records import lever_arm_problem
 from rigd.errors import RigdError
@@ -155,6 +156,13 @@ def evaluation_trust(args: argparse.Namespace) -> TrustOptions | None:
     return None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions())
 
 
+def add_method_option(parser: argparse.ArgumentParser) -> None:
+    """``--method`` for the protocols that run calibrations from starts (convergence, precision)."""
+    parser.add_argument("--method", choices=[m.value for m in Method], default=Method.RIGD.value,
+                        help="what every run solves with, as `rigd calibrate --method` (default rigd; "
+                        "nid-assessed needs clouds with intensity)")
+
+
 def evaluation_settings(args: argparse.Namespace, trust: TrustOptions | None) -> EvaluationSettings:
     """The options of :func:`add_evaluation_options`, read."""
     return EvaluationSettings(
@@ -168,4 +176,5 @@ def evaluation_settings(args: argparse.Namespace, trust: TrustOptions | None) ->
         trust=trust,
         cluster=args.cluster,
         cluster_timeout_s=args.cluster_timeout,
+        method=Method(getattr(args, "method", Method.RIGD.value)),
     )

@@ -10,6 +10,7 @@ from calib.check import DriftOptions
 from calib.evaluate import Params6, PoseError
 from rigd.cli.args import (
     add_evaluation_options,
+    add_method_option,
     evaluation_settings,
     evaluation_trust,
     non_negative_float,
@@ -50,6 +51,7 @@ def register(subparsers: Any) -> None:
         "roll/pitch/yaw and +-TRANS_M on each of x/y/z around the reference: the ground truth when the dataset "
         "has one, else a first calibration from --init / rig.yaml's initial_guess.")
     add_evaluation_options(conv)
+    add_method_option(conv)
     conv.add_argument("--trials", type=positive_int, default=200, help="number of starts (default 200)")
     conv.add_argument("--rot-deg", type=non_negative_float, default=5.0, help="start range in degrees (default 5)")
     conv.add_argument("--trans-m", type=non_negative_float, default=0.1, help="start range in metres (default 0.1)")
@@ -59,6 +61,7 @@ def register(subparsers: Any) -> None:
         description="Calibrate SUBSETS random subsets of SIZE pairs, all from one start (--init, else rig.yaml's "
         "initial_guess, else the ground truth), and report the per-parameter standard deviation.")
     add_evaluation_options(prec)
+    add_method_option(prec)
     prec.add_argument("--subsets", type=positive_int, default=100, help="number of subsets (default 100)")
     prec.add_argument("--size", type=positive_int, default=12, help="pairs per subset (default 12)")
     prec.set_defaults(func=run)

@@ -34,6 +34,7 @@ from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.comm.registry import get_backend
 
 from calib.assess import TrustOptions
+from calib.methods import Method
 from calib.pipeline import CalibParams
 from rigd.errors import RigdError
 from rigd.evaluate.trials import WorkerState, collect, extract_state
@@ -51,6 +52,7 @@ class FeatureKey:
     stamp: str
     params: CalibParams
     trust: TrustOptions | None
+    method: Method = Method.RIGD
 
 
 def dataset_stamp(root: Path) -> str:
@@ -94,7 +96,7 @@ def _features(key: FeatureKey) -> WorkerState:
         _COUNTS["tasks"] += 1
         if _CACHED is None or _CACHED[0] != key:
             _CACHED = None  # free the previous dataset's features before extracting the next
-            _CACHED = (key, extract_state(key.root, key.params, key.trust))
+            _CACHED = (key, extract_state(key.root, key.params, key.trust, key.method))
             _COUNTS["extractions"] += 1
         return _CACHED[1]
 
@@ -118,7 +120,7 @@ class DaskCluster:
     """The workers of the Dask scheduler at ``address`` (a :class:`rigd.evaluate.runner.TrialRunner`)."""
 
     def __init__(self, address: str, timeout_s: float, root: Path, params: CalibParams,
-                 trust: TrustOptions | None) -> None:
+                 trust: TrustOptions | None, method: Method = Method.RIGD) -> None:
         self._address = address
         try:
             scheme, location = parse_address(address)
@@ -139,7 +141,7 @@ class DaskCluster:
             raise RigdError(f"--cluster {address}: the scheduler has no workers after {timeout_s:g} s; start "
                             f"them with `dask worker {address}`") from exc
         self.workers = len(self._client.nthreads())
-        self._key = FeatureKey(root, dataset_stamp(root), params, trust)
+        self._key = FeatureKey(root, dataset_stamp(root), params, trust, method)
 
     def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
         futures = [self._client.submit(_on_worker, self._key, code_version(), fn, t, pure=False) for t in tasks]

@@ -27,7 +27,8 @@ from calib.evaluate import (
     run_stats,
 )
 from calib.geometry import Transform
-from calib.pipeline import CalibParams, calibrate
+from calib.methods import calibrate_method
+from calib.pipeline import CalibParams
 from rigd.calibration.service import of_pairs
 from rigd.dataset import Dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
@@ -87,8 +88,10 @@ class EvaluationOutcome:
 def _run_task(state: WorkerState, task: Task) -> Run:
     started = time.monotonic()
     try:
-        feats = of_pairs(state.feats, state.n_pairs, task.pairs)
-        result = calibrate(feats, task.start, state.params, prior=state.prior, trust=state.trust)
+        feats = of_pairs(state.feats, state.n_pairs, task.pairs) if state.feats else None
+        photo = of_pairs(state.photo, state.n_pairs, task.pairs) if state.photo else None
+        result = calibrate_method(state.method, feats, photo, task.start, state.params, prior=state.prior,
+                                  trust=state.trust)
     except CalibError as exc:  # a start that sees nothing: a failed run, counted as not converged
         return Run(task.index, task.pairs, task.start, None, str(exc), None, 0, time.monotonic() - started)
     iterations = sum(level.iterations for level in result.optim.levels)
@@ -112,7 +115,7 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     started = time.monotonic()
     s = request.settings
     dataset = open_for(s)
-    params = calib_params(s.sigmas_deg)
+    params = calib_params(s.sigmas_deg, s.method)
     pairs = tuple(range(len(dataset)))
     with trial_runner(s, dataset.root, params, s.trust) as workers:
         where = where_run(s, workers)
@@ -142,7 +145,7 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     started = time.monotonic()
     s = request.settings
     dataset = open_for(s)
-    params = calib_params(s.sigmas_deg)
+    params = calib_params(s.sigmas_deg, s.method)
     subsets = random_subsets(len(dataset), request.size, request.subsets, s.seed)
     initial = _initial(s, dataset)
     start, start_source = ((initial, Source.INITIAL_GUESS) if initial is not None
@@ -273,7 +276,8 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
         "protocol": protocol.value,
         "dataset": str(dataset.root),
         "pairs_in_dataset": len(dataset),
-        "settings": {**setup, "seed": s.seed, "sigmas_deg": list(params.optim.sigmas_deg)},
+        "settings": {**setup, "seed": s.seed, "method": s.method.value,
+                     **({"sigmas_deg": list(params.optim.sigmas_deg)} if s.method.uses_gmm else {})},
         "reference": {"source": source.value, "T_camera_lidar": transform_to_yaml(reference)},
         "summary": _summary_yaml(stats, runs, with_error=dataset.ground_truth is not None),
         "wall_time_s": round(time.monotonic() - started, 2),

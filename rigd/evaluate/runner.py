@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from calib.assess import TrustOptions
+from calib.methods import Method
 from calib.pipeline import CalibParams
 from rigd.errors import RigdError
 from rigd.evaluate.trials import EvaluationSettings, WorkerState, collect, extract_state
@@ -42,9 +43,9 @@ class TrialRunner(typing.Protocol):
 _STATE: WorkerState | None = None  # one per local pool process, set by _init_worker
 
 
-def _init_worker(root: Path, params: CalibParams, trust: TrustOptions | None) -> None:
+def _init_worker(root: Path, params: CalibParams, trust: TrustOptions | None, method: Method) -> None:
     global _STATE
-    _STATE = extract_state(root, params, trust)
+    _STATE = extract_state(root, params, trust, method)
 
 
 def _in_pool(fn: Callable[[WorkerState, T], R], task: T) -> R:
@@ -56,11 +57,12 @@ def _in_pool(fn: Callable[[WorkerState, T], R], task: T) -> R:
 class LocalPool:
     """``workers`` processes on this machine, each extracting the features once in its initializer."""
 
-    def __init__(self, root: Path, params: CalibParams, workers: int, trust: TrustOptions | None) -> None:
+    def __init__(self, root: Path, params: CalibParams, workers: int, trust: TrustOptions | None,
+                 method: Method = Method.RIGD) -> None:
         # spawn, not fork: a child forked from a process whose OpenCV/BLAS threads hold locks can deadlock on
         # its first cv2 call (seen: the test suite's process hung in cv2.setNumThreads in every forked worker).
         self._executor = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                                             initargs=(root, params, trust),
+                                             initargs=(root, params, trust, method),
                                              mp_context=multiprocessing.get_context("spawn"))
         self.workers = workers
 
@@ -84,7 +86,7 @@ def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams,
     """The local process pool, or with ``s.cluster`` the Dask cluster at that address."""
     runner: TrialRunner
     if s.cluster is None:
-        runner = LocalPool(root, params, s.workers, trust)
+        runner = LocalPool(root, params, s.workers, trust, s.method)
     else:
         try:
             from rigd.evaluate.cluster import DaskCluster  # distributed is the [cluster] extra: imported only here
@@ -92,7 +94,7 @@ def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams,
             if exc.name not in ("distributed", "dask"):
                 raise
             raise RigdError(f"--cluster needs Dask distributed ({exc}): pip install 'rigd[cluster]'") from exc
-        runner = DaskCluster(s.cluster, s.cluster_timeout_s, root.resolve(), params, trust)
+        runner = DaskCluster(s.cluster, s.cluster_timeout_s, root.resolve(), params, trust, s.method)
     try:
         yield runner
     finally:

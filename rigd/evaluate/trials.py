@@ -18,9 +18,11 @@ from calib.errors import CalibError
 from calib.evaluate import OutlierRule
 from calib.geometry import Transform
 from calib.gmm import PairFeatures
+from calib.methods import Method, gmm_params, photo_params
+from calib.photometric import PhotoPair
 from calib.pipeline import CalibParams
 from calib.prior import Prior
-from rigd.calibration.service import dataset_features, params_with_sigmas
+from rigd.calibration.service import dataset_features, dataset_photo_pairs, params_with_sigmas
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
@@ -43,6 +45,7 @@ class EvaluationSettings:
     cluster: str | None = None  # a Dask scheduler's address (tcp://host:8786): run there instead of `workers`
     cluster_timeout_s: float = 10.0  # for connecting to it and for its first worker
     trust: TrustOptions | None = TrustOptions()  # None: no uncertainty/verdict per run (faster, no coverage check)
+    method: Method = Method.RIGD  # what every run solves with (`rigd calibrate --method`)
 
 
 @dataclass(frozen=True)
@@ -72,8 +75,9 @@ class Run:
 
 @dataclass(frozen=True)
 class WorkerState:
-    """What a worker keeps for all its trials: one dataset's features, the settings they were made with, and
-    the rig file's prior, which every trial's solve uses as `rigd calibrate` does."""
+    """What a worker keeps for all its trials: one dataset's features (the GMM's edges, the photometric
+    pairs, as ``method`` needs), the settings they were made with, and the rig file's prior, which every
+    trial's solve uses as `rigd calibrate` does."""
 
     feats: tuple[PairFeatures, ...]
     params: CalibParams
@@ -81,6 +85,8 @@ class WorkerState:
     error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
     prior: Prior | None = None
     n_pairs: int = 0  # the dataset's pairs (feats holds one per view of each, view by view)
+    method: Method = Method.RIGD
+    photo: tuple[PhotoPair, ...] = ()  # one per view of each pair, view by view, for a photometric method
 
     def checked(self) -> WorkerState:
         """``self``, or the feature extraction's error raised."""
@@ -89,20 +95,25 @@ class WorkerState:
         return self
 
 
-def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None) -> WorkerState:
-    """``root``'s features, or the reason there are none (raised later by the trial that needs them)."""
+def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None,
+                  method: Method = Method.RIGD) -> WorkerState:
+    """``root``'s features for ``method``, or the reason there are none (raised later by the trial that needs
+    them)."""
     cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
     try:
         dataset = open_dataset(root, WORKING_WIDTH_PX)
-        feats = tuple(dataset_features(dataset, params, None))
+        feats = tuple(dataset_features(dataset, params, None)) if method.uses_gmm else ()
+        photo_opts = photo_params(method)
+        photo = () if photo_opts is None else tuple(dataset_photo_pairs(dataset, photo_opts, None))
     except (RigdError, CalibError) as exc:
-        return WorkerState((), params, trust, f"{root}: {exc}")
-    return WorkerState(feats, params, trust, None, dataset.rig.prior, len(dataset))
+        return WorkerState((), params, trust, f"{root}: {exc}", method=method)
+    return WorkerState(feats, params, trust, None, dataset.rig.prior, len(dataset), method, photo)
 
 
-def calib_params(sigmas_deg: tuple[float, ...] | None) -> CalibParams:
-    """``CalibParams()`` with only the sigma schedule replaced (when given)."""
-    params = CalibParams()
+def calib_params(sigmas_deg: tuple[float, ...] | None, method: Method = Method.RIGD) -> CalibParams:
+    """``method``'s GMM settings (``CalibParams()`` for a photometric-only method, whose solve ignores them) with
+    only the sigma schedule replaced (when given), as `rigd calibrate` sets them."""
+    params = gmm_params(method) or CalibParams()
     if sigmas_deg is None:
         return params
     return params_with_sigmas(params, sigmas_deg)

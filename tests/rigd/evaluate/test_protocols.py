@@ -7,11 +7,15 @@ import numpy as np
 import pytest
 import yaml
 
+from calib.assess import TrustOptions
 from calib.evaluate import random_starts, random_subsets, run_stats
 from calib.geometry import Transform
+from calib.methods import Method, calibrate_method, photo_params
+from rigd.calibration.service import dataset_photo_pairs
 from rigd.cli import main
 from rigd.dataset import open_dataset, write_pair
 from rigd.dataset.pcd import Cloud
+from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.evaluate.protocols import std_not_failed
 from rigd.evaluate.trials import Run
 
@@ -116,6 +120,24 @@ def test_the_runs_use_the_rig_file_prior_as_calibrate_does(small_dataset, tmp_pa
     for run in report["runs"]:
         assert np.linalg.norm(np.array(run["result"]["xyz_m"]) - lever_arm) < 0.005
 
+
+
+def test_a_method_is_evaluated_as_calibrate_runs_it(small_dataset, tmp_path, capsys):
+    out = tmp_path / "nid"
+    code = main(["evaluate", "convergence", str(small_dataset), "--trials", "1", "--seed", "2", "--workers", "1",
+                 "--rot-deg", "1", "--trans-m", "0.02", "--out", str(out), "--method", "nid-assessed"])
+    assert code == 0, capsys.readouterr().err
+    report = yaml.safe_load((out / "convergence.yaml").read_text())
+    assert report["settings"]["method"] == "nid-assessed" and "sigmas_deg" not in report["settings"]
+    assert "uncertainty_check" in report["summary"]  # the method is assessed: its sigmas are checked
+    dataset = open_dataset(small_dataset, WORKING_WIDTH_PX)
+    (start,) = random_starts(dataset.ground_truth, 1, 1.0, 0.02, seed=2)
+    photo = dataset_photo_pairs(dataset, photo_params(Method.NID_ASSESSED), None)
+    direct = calibrate_method(Method.NID_ASSESSED, None, photo, start, trust=TrustOptions())
+    (run,) = report["runs"]
+    assert direct.assessment is not None and run["verdict"] == direct.assessment.verdict.status.value
+    assert np.allclose(run["result"]["rpy_deg"], direct.T_camera_lidar.rpy_deg, atol=1e-9)
+    assert np.allclose(run["result"]["xyz_m"], direct.T_camera_lidar.translation_m, atol=1e-12)
 
 def test_the_spread_of_the_results_a_user_is_given_leaves_out_failed_runs():
     """Five-place subsets of a real head: the runs rigd fails (not to be used) carry most of the spread, so the
