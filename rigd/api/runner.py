@@ -46,7 +46,7 @@ from rigd.store import (
 )
 from rigd.store.datasets import DatasetCatalog
 
-CALIBRATION_METHOD = "kang-doh-2020-gmm-edge-alignment"
+CALIBRATION_METHOD = "kang-doh-2020-gmm-edge-alignment"  # a version's method when the GMM (rigd) solved it
 # What a refused client is told to wait: a small dataset calibrates in tens of seconds, a large one in minutes.
 QUEUE_RETRY_AFTER_S = 30
 PROGRESS_INTERVAL_S = 0.5  # progress is written at most this often (plus every change of stage)
@@ -418,7 +418,7 @@ class JobRunner:
         new = NewVersion(
             T_camera_lidar=Transform.from_matrix(np.asarray(result["matrix"])),
             quality=quality,
-            method=CALIBRATION_METHOD,
+            method=CALIBRATION_METHOD if report["method"]["name"] == "rigd" else report["method"]["name"],
             parameters={**params, "pair_numbers": pairs, "change_from_initial": report["change_from_initial"]},
             code_version=self.code_version,
             dataset_id=params["dataset"],

@@ -52,7 +52,7 @@ from rigd.calibration.visuals import (
     write_coloured_ply,
 )
 from rigd.dataset import Dataset, Pair, open_dataset
-from rigd.dataset.records import prior_to_yaml, transform_to_yaml
+from rigd.dataset.records import CameraConfig, CameraKind, prior_to_yaml, transform_to_yaml
 from rigd.dataset.reference import agreement
 from rigd.dataset.store import write_yaml
 from rigd.dataset.working import WORKING_WIDTH_PX
@@ -85,7 +85,7 @@ class CalibrationRequest:
     initial: Transform | None = None  # None: the dataset's rig.yaml initial_guess
     sigmas_deg: tuple[float, ...] | None = None  # None: the method's own schedule
     write_visuals: bool = True
-    method: Method = Method.RIGD
+    method: Method | None = None  # None: default_method
     prior: Prior | None = None  # None: the dataset's rig.yaml prior (if any)
     fix_translation: bool = False  # hold the translation at the prior's (or the initial guess's) lever arm
     tolerance: TrustOptions | None = None  # None: rig.yaml's tolerance, else 0.2 deg / 2 cm
@@ -110,6 +110,18 @@ def _initial(request: CalibrationRequest, dataset: Dataset) -> Transform | None:
     if request.search:
         return None
     return request.initial if request.initial is not None else dataset.rig.initial_guess
+
+
+def default_method(dataset: Dataset, initial: Transform | None, prior: Prior | None) -> Method:
+    """The method when none is asked for: NID with its assessment on a single pinhole camera, where on real
+    frames the GMM's finest cost has no minimum near the reference and NID's has (docs/baselines.md), when NID
+    can run: from a start (the global search scores the GMM's edges), on clouds with intensity, without a
+    Gaussian prior (NID's cost is not a likelihood to weigh one against). Elsewhere the GMM."""
+    camera = dataset.source_camera
+    pinhole = isinstance(camera, CameraConfig) and camera.kind is CameraKind.PINHOLE
+    if not pinhole or initial is None or (prior is not None and prior.active) or len(dataset) == 0:
+        return Method.RIGD
+    return Method.NID_ASSESSED if dataset.load_pair(0).cloud.intensity is not None else Method.RIGD
 
 
 def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> InitialSearch:
@@ -488,12 +500,12 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     started = time.monotonic()
     dataset = open_dataset(request.dataset, request.max_width)
     initial = _initial(request, dataset)
-    params = gmm_params(request.method) or CalibParams()
+    prior = _prior(request, dataset)
+    method = request.method or default_method(dataset, initial, prior)
+    params = gmm_params(method) or CalibParams()
     if request.sigmas_deg is not None:
         params = params_with_sigmas(params, request.sigmas_deg)
-    prior = _prior(request, dataset)
     trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
-    method = request.method
     photo = photo_params(method)
     search = dataset.rig.search or default_search(dataset.rig.camera.models()[0])
 

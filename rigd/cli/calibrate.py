@@ -43,12 +43,13 @@ def register(subparsers: Any) -> None:
                         help="sigma_in per coarse-to-fine level, degrees at 1 m (default: "
                         f"{','.join(map(str, DEFAULT_SIGMAS_DEG))}; with --method paper the paper's 15,10,5 px of a "
                         f"1024-wide panorama = {','.join(map(str, PAPER_SIGMAS_DEG))})")
-    parser.add_argument("--method", choices=[m.value for m in Method], default=Method.RIGD.value,
-                        help="rigd (default): the paper's GMM with the changes in docs/method.md; paper: the paper's "
+    parser.add_argument("--method", choices=[m.value for m in Method], default=None,
+                        help="rigd: the paper's GMM with the changes in docs/method.md, the default; nid-assessed: NID "
+                        "with restarts, per-axis sigma and verdict, the default on a single pinhole camera given a "
+                        "start, clouds with intensity and no Gaussian prior (docs/baselines.md); paper: the paper's "
                         "settings as printed; mi, nid, gom: the photometric baselines (LiDAR reflectivity against the "
-                        "image; no trust assessment, exit code 5); nid-assessed: NID with restarts, per-axis sigma "
-                        "and verdict (docs/baselines.md); rigd+nid: rigd, then NID from its solution; gmm-*: the "
-                        "ablations (docs/results.md)")
+                        "image; no trust assessment, exit code 5); rigd+nid: rigd, then NID from its solution; gmm-*: "
+                        "the ablations (docs/results.md)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration; for a "
                         "bag BAG_calibration beside it, or DIR/calibration with --keep-dataset DIR)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
@@ -111,7 +112,7 @@ def _calibrate(args: argparse.Namespace, data: DatasetInput) -> int:
         out_dir=args.out or data.default_out("calibration"),
         initial=parse_init(args.init) if args.init else None,
         sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
-        method=Method(args.method),
+        method=Method(args.method) if args.method else None,
         write_visuals=not args.no_visuals,
         prior=parse_prior(args.prior, args.prior_rotation),
         fix_translation=args.fix == "translation",

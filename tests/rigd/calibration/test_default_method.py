@@ -1,0 +1,70 @@
+"""rigd.calibration.service.default_method: NID with its assessment on a single pinhole camera when NID can run
+(a start, clouds with intensity, no Gaussian prior), the GMM everywhere else; rigd calibrate without --method
+reports the method it chose."""
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from calib.geometry import Transform
+from calib.methods import Method
+from calib.prior import Prior
+from rigd.calibration.service import default_method
+from rigd.cli import main
+from rigd.cli.exit_codes import Calibrate
+from rigd.dataset import open_dataset
+from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
+from rigd.simulate import write_simulated_dataset
+from tests.testdata import PINHOLE_FRAME
+
+
+def _pinhole_dataset(root: Path, with_intensity: bool = True) -> Path:
+    """The real pinhole frame ours_3 as a one-pair dataset (its cloud with or without intensity)."""
+    calibration = yaml.safe_load((PINHOLE_FRAME / "calibration.yaml").read_text())
+    (root / "pairs" / "0000").mkdir(parents=True)
+    (root / "rig.yaml").write_text(yaml.safe_dump({"camera": calibration["camera"], "lidar": {"model": "64-ring"}}))
+    (root / "ground_truth.yaml").write_text(yaml.safe_dump({"T_camera_lidar": calibration["T_camera_lidar"]}))
+    shutil.copy(PINHOLE_FRAME / "image.jpg", root / "pairs" / "0000" / "image.jpg")
+    cloud = read_pcd(PINHOLE_FRAME / "calib.pcd")
+    assert cloud.intensity is not None
+    write_pcd(root / "pairs" / "0000" / "cloud.pcd", cloud if with_intensity else Cloud(cloud.points_lidar))
+    return root
+
+
+@pytest.fixture(scope="module")
+def pinhole(tmp_path_factory):
+    return _pinhole_dataset(tmp_path_factory.mktemp("pin") / "ours_3")
+
+
+def test_a_pinhole_camera_with_a_start_is_solved_by_assessed_nid(pinhole, tmp_path):
+    dataset = open_dataset(pinhole)
+    start = dataset.ground_truth
+    assert default_method(dataset, start, None) is Method.NID_ASSESSED
+    assert default_method(dataset, start, Prior(fix_translation=True)) is Method.NID_ASSESSED  # held, not weighed
+    assert default_method(dataset, None, None) is Method.RIGD  # no start: the global search scores the GMM's edges
+    drawing = Prior(xyz_m=start.translation_m, sigma_xyz_m=np.full(3, 0.01))
+    assert default_method(dataset, start, drawing) is Method.RIGD  # a Gaussian prior weighs the GMM's likelihood
+    no_intensity = open_dataset(_pinhole_dataset(tmp_path / "bare", with_intensity=False))
+    assert default_method(no_intensity, start, None) is Method.RIGD
+
+
+def test_a_panorama_keeps_the_gmm(tmp_path):
+    root = write_simulated_dataset(tmp_path / "pano", "indoor", 1, seed=5, width=256, height=128, progress=False)
+    dataset = open_dataset(root)
+    assert dataset.ground_truth is not None
+    assert default_method(dataset, dataset.ground_truth, None) is Method.RIGD
+
+
+def test_calibrate_without_a_method_reports_the_one_it_chose(pinhole, tmp_path, capsys):
+    truth = open_dataset(pinhole).ground_truth
+    start = Transform.from_rpy_xyz(truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m + [0.02, -0.02, 0.02])
+    init = ",".join(f"{v:.6f}" for v in [*start.rpy_deg, *start.translation_m])
+    out = tmp_path / "out"
+    code = main(["calibrate", str(pinhole), "--init", init, "--no-visuals", "--max-width", "480", "--out", str(out)])
+    assert code in (Calibrate.TRUSTED, Calibrate.WEAK, Calibrate.FAILED), capsys.readouterr().err  # any verdict
+    report = yaml.safe_load((out / "extrinsics.yaml").read_text())
+    assert report["method"]["name"] == "nid-assessed"
+    assert report["verdict"]["status"] != "not_assessed"
