@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from calib.errors import CalibError
 from calib.geometry import Transform, rotation_angle_deg
-from calib.uncertainty import TO_DISPLAY, xi_of
+from calib.uncertainty import TO_DISPLAY, tau_at, xi_of
 
 F64 = NDArray[np.float64]
 
@@ -52,8 +52,9 @@ class Params6(NamedTuple):
 
 
 class PoseError(NamedTuple):
-    """A pose minus a reference: rotation angle of the relative rotation, translation distance, and per
-    parameter (roll, pitch, yaw in degrees; x, y, z in centimetres)."""
+    """A pose minus a reference: rotation angle of the relative rotation, translation distance, and per axis
+    (the rotation from the reference about the LiDAR's x, y, z in degrees, named roll, pitch, yaw as they are
+    for a panorama (:func:`parameter_values`); x, y, z in centimetres)."""
 
     rotation_deg: float
     translation_cm: float
@@ -76,14 +77,15 @@ class ErrorMedian(NamedTuple):
 class RunStats:
     """Statistics of N calibration runs of one protocol against a reference pose.
 
-    ``values`` (N,6) float64: roll, pitch, yaw (deg; each within 180 deg of the reference's, so medians do
-    not break at the +-180 wrap) and x, y, z (m) of every run; a row of NaN for a run that failed (raised).
-    ``converged`` (N,) bool: finished and not an outlier. ``median``: per-parameter median of the finished
-    runs (the outlier rule's centre). ``mean``/``std``: over all finished runs (Table 1, Fig. 11);
-    ``std_converged``: over the converged runs (Fig. 19); standard deviations are sample ones (ddof=1) and
-    None with fewer than two runs. ``solution``: per-parameter median of the converged runs and
-    ``solution_error`` its error vs the reference; ``run_error_median``: the median of the converged runs'
-    own errors.
+    ``values`` (N,6) float64: :func:`parameter_values` of every run (roll, pitch, yaw columns: the reference's
+    plus the run's rotation about the LiDAR's x, y, z, deg; x, y, z m); a row of NaN for a run that failed
+    (raised). ``converged`` (N,) bool: finished and not an outlier. ``median``: the pose at the per-column
+    median of the finished runs (the outlier rule's centre), as roll, pitch, yaw and x, y, z. ``mean``/``std``:
+    over all finished runs (Table 1, Fig. 11; ``mean`` the pose at the column means, ``std`` of the columns:
+    about the LiDAR's axes); ``std_converged``: over the converged runs (Fig. 19); standard deviations are
+    sample ones (ddof=1) and None with fewer than two runs. ``solution``: the pose at the per-column median of
+    the converged runs and ``solution_error`` its error vs the reference; ``run_error_median``: the median of
+    the converged runs' own errors.
     """
 
     values: F64
@@ -116,28 +118,34 @@ class RunStats:
         return 100.0 * self.converged_count / self.runs if self.runs else 0.0
 
 
-def _wrap_deg(angles: F64) -> F64:
-    """Angles in degrees mapped to [-180, 180)."""
-    return np.asarray((angles + 180.0) % 360.0 - 180.0, dtype=np.float64)
-
-
 def parameter_values(reference: Transform, results: Sequence[Transform | None]) -> F64:
-    """(N,6) roll, pitch, yaw deg (unwrapped around ``reference``'s) and x, y, z m; NaN rows for None."""
+    """(N,6) per run: roll, pitch, yaw columns as the reference's roll, pitch, yaw (deg) plus the run's rotation
+    from the reference about the LiDAR's x, y, z (deg, the axes of the reported sigmas), and x, y, z (m); NaN rows
+    for None. Where roll, pitch, yaw turn about three distinct axes (a panorama: roll and pitch near 0) this is the
+    run's own roll, pitch, yaw to first order; near pitch +-90 deg (every forward pinhole camera under a ROS
+    LiDAR) roll and yaw turn about one axis, so their own values swing by degrees between poses a tenth of a
+    degree apart, and medians and spreads of them mean nothing."""
     values = np.full((len(results), 6), np.nan)
-    ref_rpy = reference.rpy_deg
+    ref_rpy, ref_tau = reference.rpy_deg, reference.tau
     for i, t in enumerate(results):
         if t is not None:
-            values[i, :3] = ref_rpy + _wrap_deg(t.rpy_deg - ref_rpy)
+            values[i, :3] = ref_rpy + np.degrees(xi_of(ref_tau, t.tau)[:3])
             values[i, 3:] = t.translation_m
     return values
 
 
-def _pose(values: F64) -> Transform:
-    return Transform.from_rpy_xyz(values[:3], values[3:])
+def _pose(reference: Transform, values: F64) -> Transform:
+    """The pose of one row of :func:`parameter_values` around ``reference``."""
+    xi = np.concatenate([np.radians(values[:3] - reference.rpy_deg), values[3:] - reference.translation_m])
+    return Transform.from_tau(tau_at(reference.tau, xi))
+
+
+def _params(pose: Transform) -> Params6:
+    return Params6.from_array(np.concatenate([pose.rpy_deg, pose.translation_m]))
 
 
 def pose_error(pose: Transform, reference: Transform) -> PoseError:
-    d_rpy = _wrap_deg(pose.rpy_deg - reference.rpy_deg)
+    d_rpy = np.degrees(xi_of(reference.tau, pose.tau)[:3])  # about the LiDAR's x, y, z: see parameter_values
     d_xyz_cm = (pose.translation_m - reference.translation_m) * 100.0
     return PoseError(
         rotation_angle_deg(reference.rotation, pose.rotation), float(np.linalg.norm(d_xyz_cm)),
@@ -146,14 +154,15 @@ def pose_error(pose: Transform, reference: Transform) -> PoseError:
     )
 
 
-def _outliers(values: F64, centre: F64, rule: OutlierRule, rot_tol_deg: float, trans_tol_m: float) -> NDArray[np.bool_]:
+def _outliers(reference: Transform, values: F64, centre: F64, rule: OutlierRule, rot_tol_deg: float,
+              trans_tol_m: float) -> NDArray[np.bool_]:
     """(N,) True for a finished run farther from ``centre`` (6,) than the rule allows; ``values`` finite."""
     if rule is OutlierRule.PER_PARAMETER:
         far_rot = (np.abs(values[:, :3] - centre[:3]) > rot_tol_deg).any(axis=1)
         far_trans = (np.abs(values[:, 3:] - centre[3:]) > trans_tol_m).any(axis=1)
         return np.asarray(far_rot | far_trans)
-    centre_pose = _pose(centre)
-    angles = np.array([rotation_angle_deg(centre_pose.rotation, _pose(v).rotation) for v in values])
+    centre_pose = _pose(reference, centre)
+    angles = np.array([rotation_angle_deg(centre_pose.rotation, _pose(reference, v).rotation) for v in values])
     distances = np.linalg.norm(values[:, 3:] - centre[3:], axis=1)
     return np.asarray((angles > rot_tol_deg) | (distances > trans_tol_m))
 
@@ -179,18 +188,18 @@ def run_stats(
     if len(done) == 0:
         return RunStats(values, converged, rule, rot_tol_deg, trans_tol_m, None, None, None, None, None, None, None)
     centre = np.median(done, axis=0)
-    converged[finished] = ~_outliers(done, centre, rule, rot_tol_deg, trans_tol_m)
+    converged[finished] = ~_outliers(reference, done, centre, rule, rot_tol_deg, trans_tol_m)
     good = values[converged]
     solution = solution_error = run_error = None
     if len(good):
-        solution_values = np.median(good, axis=0)
-        solution = Params6.from_array(solution_values)
-        solution_error = pose_error(_pose(solution_values), reference)
-        errors = np.array([pose_error(_pose(v), reference)[:2] for v in good])
+        solution_pose = _pose(reference, np.median(good, axis=0))
+        solution = _params(solution_pose)
+        solution_error = pose_error(solution_pose, reference)
+        errors = np.array([pose_error(_pose(reference, v), reference)[:2] for v in good])
         run_error = ErrorMedian(float(np.median(errors[:, 0])), float(np.median(errors[:, 1])))
     return RunStats(
-        values, converged, rule, rot_tol_deg, trans_tol_m, Params6.from_array(centre),
-        Params6.from_array(done.mean(axis=0)), _std(done), _std(good), solution, solution_error, run_error,
+        values, converged, rule, rot_tol_deg, trans_tol_m, _params(_pose(reference, centre)),
+        _params(_pose(reference, done.mean(axis=0))), _std(done), _std(good), solution, solution_error, run_error,
     )
 
 

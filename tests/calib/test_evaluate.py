@@ -169,3 +169,27 @@ def test_coverage_against_an_uncertain_reference_weighs_both_sigmas() -> None:
     assert estimate.trusted_but_wrong == 0 and estimate.per_axis[5] == 1.0
     far = Transform(np.eye(3), np.array([0.0, 0.0, 0.09]))  # beyond 2 cm + 2.5 x 2.5 cm: the reference can tell
     assert coverage(reference, [far], [sigma], ["trusted"], tol, ref_sigma).trusted_but_wrong == 1
+
+
+def test_a_pinhole_reference_at_pitch_minus_90_keeps_close_runs_close():
+    # A forward pinhole camera under a ROS LiDAR: optical z = LiDAR x, so pitch is -88.6 deg, where roll and
+    # yaw turn about nearly one axis. Runs 0.1 deg away about the LiDAR's axes swing roll and yaw by degrees.
+    optical = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    tilt = Transform.from_rpy_xyz(np.array([0.0, 1.44, 0.0]), np.zeros(3)).rotation
+    reference = Transform.from_tau(np.concatenate([
+        Transform(optical @ tilt, np.zeros(3)).tau[:3], [-0.03, -0.35, -0.1]]))
+    assert reference.rpy_deg[1] == pytest.approx(-88.56, abs=0.01)
+    rng = np.random.default_rng(3)
+    turns = rng.normal(size=(8, 3))
+    turns *= np.radians(0.1) / np.linalg.norm(turns, axis=1, keepdims=True)
+    runs = [Transform.from_tau(tau_at(reference.tau, np.concatenate([w, np.zeros(3)]))) for w in turns]
+    assert np.ptp([r.rpy_deg[0] for r in runs]) > 1.0  # roll itself swings by degrees
+    stats = run_stats(reference, runs, OutlierRule.PER_PARAMETER)
+    assert stats.converged.all()
+    assert max(stats.std_converged[:3]) < 0.1
+    assert stats.solution_error.rotation_deg < 0.1
+    assert rotation_angle_deg(_as_pose(stats.solution).rotation, reference.rotation) < 0.1
+
+
+def _as_pose(p):
+    return Transform.from_rpy_xyz(np.array(p[:3]), np.array(p[3:]))
