@@ -158,9 +158,10 @@ def evaluation_trust(args: argparse.Namespace) -> TrustOptions | None:
 
 def add_method_option(parser: argparse.ArgumentParser) -> None:
     """``--method`` for the protocols that run calibrations from starts (convergence, precision)."""
-    parser.add_argument("--method", choices=[m.value for m in Method], default=Method.RIGD.value,
-                        help="what every run solves with, as `rigd calibrate --method` (default rigd; "
-                        "nid-assessed needs clouds with intensity)")
+    parser.add_argument("--method", choices=[m.value for m in Method], default=None,
+                        help="what every run solves with, as `rigd calibrate --method` (default: what `rigd "
+                        "calibrate` picks, nid-assessed on a single pinhole camera with intensity and no prior, "
+                        "else rigd)")
 
 
 def evaluation_settings(args: argparse.Namespace, trust: TrustOptions | None) -> EvaluationSettings:
@@ -176,5 +177,5 @@ def evaluation_settings(args: argparse.Namespace, trust: TrustOptions | None) ->
         trust=trust,
         cluster=args.cluster,
         cluster_timeout_s=args.cluster_timeout,
-        method=Method(getattr(args, "method", Method.RIGD.value)),
+        method=Method(args.method) if getattr(args, "method", None) else None,
     )

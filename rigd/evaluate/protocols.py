@@ -27,7 +27,7 @@ from calib.evaluate import (
     run_stats,
 )
 from calib.geometry import Transform
-from calib.methods import calibrate_method
+from calib.methods import Method, calibrate_method
 from calib.pipeline import CalibParams
 from rigd.calibration.service import of_pairs
 from rigd.dataset import Dataset
@@ -37,7 +37,7 @@ from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 from rigd.evaluate.plots import plot_convergence, plot_precision
 from rigd.evaluate.runner import TrialRunner, trial_runner, where_run
-from rigd.evaluate.trials import EvaluationSettings, Run, Task, WorkerState, calib_params, open_for
+from rigd.evaluate.trials import EvaluationSettings, Run, Task, WorkerState, calib_params, method_for, open_for
 
 
 class Protocol(Enum):
@@ -113,11 +113,12 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     """Paper 8.5: calibrate from ``trials`` random starts around the ground truth (or, without one, around a
     first calibration from the initial guess); writes OUT/convergence.yaml and convergence.png."""
     started = time.monotonic()
+    dataset = open_for(request.settings)
     s = request.settings
-    dataset = open_for(s)
-    params = calib_params(s.sigmas_deg, s.method)
+    method = method_for(s, dataset)
+    params = calib_params(s.sigmas_deg, method)
     pairs = tuple(range(len(dataset)))
-    with trial_runner(s, dataset.root, params, s.trust) as workers:
+    with trial_runner(s, dataset.root, params, s.trust, method) as workers:
         where = where_run(s, workers)
         if dataset.ground_truth is not None:
             reference, source = dataset.ground_truth, Source.GROUND_TRUTH
@@ -136,16 +137,17 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
         runs = _run_all(workers, [Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
     setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m, **where}
-    return _finish(Protocol.CONVERGENCE, s, dataset, params, setup, runs, stats, reference, source, started)
+    return _finish(Protocol.CONVERGENCE, s, method, dataset, params, setup, runs, stats, reference, source, started)
 
 
 def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     """Paper 8.2.2: calibrate ``subsets`` random subsets of ``size`` pairs from one start (``--init``, rig.yaml's
     initial_guess or, failing both, the ground truth); writes OUT/precision.yaml and precision.png."""
     started = time.monotonic()
+    dataset = open_for(request.settings)
     s = request.settings
-    dataset = open_for(s)
-    params = calib_params(s.sigmas_deg, s.method)
+    method = method_for(s, dataset)
+    params = calib_params(s.sigmas_deg, method)
     subsets = random_subsets(len(dataset), request.size, request.subsets, s.seed)
     initial = _initial(s, dataset)
     start, start_source = ((initial, Source.INITIAL_GUESS) if initial is not None
@@ -153,7 +155,7 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     if start is None:
         raise RigdError(f"{dataset.root}: no initial_guess in rig.yaml and no ground_truth.yaml; give the start "
                         "with --init 'r,p,y,x,y,z'")
-    with trial_runner(s, dataset.root, params, s.trust) as workers:
+    with trial_runner(s, dataset.root, params, s.trust, method) as workers:
         where = where_run(s, workers)
         runs = _run_all(workers, [Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
     truth = dataset.ground_truth
@@ -162,7 +164,7 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
     setup = {"subsets": request.subsets, "size": request.size, "start": start_source.value,
              "start_T_camera_lidar": transform_to_yaml(start), **where}
-    return _finish(Protocol.PRECISION, s, dataset, params, setup, runs, stats, reference, source, started)
+    return _finish(Protocol.PRECISION, s, method, dataset, params, setup, runs, stats, reference, source, started)
 
 
 def _params_yaml(p: Params6 | None) -> dict[str, float] | None:
@@ -260,7 +262,7 @@ def _runs_yaml(runs: Sequence[Run], stats: RunStats, protocol: Protocol) -> list
     return out
 
 
-def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params: CalibParams,
+def _finish(protocol: Protocol, s: EvaluationSettings, method: Method, dataset: Dataset, params: CalibParams,
             setup: dict[str, Any], runs: tuple[Run, ...], stats: RunStats, reference: Transform, source: Source,
             started: float) -> EvaluationOutcome:
     out = Path(s.out_dir) if s.out_dir is not None else dataset.root / "evaluation"
@@ -276,8 +278,8 @@ def _finish(protocol: Protocol, s: EvaluationSettings, dataset: Dataset, params:
         "protocol": protocol.value,
         "dataset": str(dataset.root),
         "pairs_in_dataset": len(dataset),
-        "settings": {**setup, "seed": s.seed, "method": s.method.value,
-                     **({"sigmas_deg": list(params.optim.sigmas_deg)} if s.method.uses_gmm else {})},
+        "settings": {**setup, "seed": s.seed, "method": method.value,
+                     **({"sigmas_deg": list(params.optim.sigmas_deg)} if method.uses_gmm else {})},
         "reference": {"source": source.value, "T_camera_lidar": transform_to_yaml(reference)},
         "summary": _summary_yaml(stats, runs, with_error=dataset.ground_truth is not None),
         "wall_time_s": round(time.monotonic() - started, 2),

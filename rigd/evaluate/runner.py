@@ -81,12 +81,13 @@ class LocalPool:
 
 
 @contextmanager
-def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams,
-                 trust: TrustOptions | None) -> Iterator[TrialRunner]:
-    """The local process pool, or with ``s.cluster`` the Dask cluster at that address."""
+def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams, trust: TrustOptions | None,
+                 method: Method = Method.RIGD) -> Iterator[TrialRunner]:
+    """The local process pool, or with ``s.cluster`` the Dask cluster at that address; every run solves with
+    ``method``."""
     runner: TrialRunner
     if s.cluster is None:
-        runner = LocalPool(root, params, s.workers, trust, s.method)
+        runner = LocalPool(root, params, s.workers, trust, method)
     else:
         try:
             from rigd.evaluate.cluster import DaskCluster  # distributed is the [cluster] extra: imported only here
@@ -94,7 +95,7 @@ def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams,
             if exc.name not in ("distributed", "dask"):
                 raise
             raise RigdError(f"--cluster needs Dask distributed ({exc}): pip install 'rigd[cluster]'") from exc
-        runner = DaskCluster(s.cluster, s.cluster_timeout_s, root.resolve(), params, trust, s.method)
+        runner = DaskCluster(s.cluster, s.cluster_timeout_s, root.resolve(), params, trust, method)
     try:
         yield runner
     finally:

@@ -22,7 +22,7 @@ from calib.methods import Method, gmm_params, photo_params
 from calib.photometric import PhotoPair
 from calib.pipeline import CalibParams
 from calib.prior import Prior
-from rigd.calibration.service import dataset_features, dataset_photo_pairs, params_with_sigmas
+from rigd.calibration.service import dataset_features, dataset_photo_pairs, default_method, params_with_sigmas
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
@@ -45,7 +45,9 @@ class EvaluationSettings:
     cluster: str | None = None  # a Dask scheduler's address (tcp://host:8786): run there instead of `workers`
     cluster_timeout_s: float = 10.0  # for connecting to it and for its first worker
     trust: TrustOptions | None = TrustOptions()  # None: no uncertainty/verdict per run (faster, no coverage check)
-    method: Method = Method.RIGD  # what every run solves with (`rigd calibrate --method`)
+    # What every run solves with (`rigd calibrate --method`); None: what `rigd calibrate` picks for the dataset
+    # (rigd.calibration.service.default_method: nid-assessed on a single pinhole camera, else the GMM).
+    method: Method | None = None
 
 
 @dataclass(frozen=True)
@@ -117,6 +119,14 @@ def calib_params(sigmas_deg: tuple[float, ...] | None, method: Method = Method.R
     if sigmas_deg is None:
         return params
     return params_with_sigmas(params, sigmas_deg)
+
+
+def method_for(settings: EvaluationSettings, dataset: Dataset) -> Method:
+    """The runs' method: as asked, or what `rigd calibrate` picks for ``dataset`` from a start (every run has one)
+    with rig.yaml's prior, which the runs use."""
+    if settings.method is not None:
+        return settings.method
+    return default_method(dataset, Transform.identity(), dataset.rig.prior)
 
 
 def open_for(settings: EvaluationSettings) -> Dataset:

@@ -17,6 +17,7 @@ from rigd.cli import main
 from rigd.cli.exit_codes import Calibrate
 from rigd.dataset import open_dataset
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
+from rigd.evaluate.trials import EvaluationSettings, method_for
 from rigd.simulate import write_simulated_dataset
 from tests.testdata import PINHOLE_FRAME
 
@@ -56,6 +57,14 @@ def test_a_panorama_keeps_the_gmm(tmp_path):
     dataset = open_dataset(root)
     assert dataset.ground_truth is not None
     assert default_method(dataset, dataset.ground_truth, None) is Method.RIGD
+    assert method_for(EvaluationSettings(dataset=root), dataset) is Method.RIGD
+
+
+def test_the_evaluation_protocols_run_what_calibrate_picks(pinhole):
+    dataset = open_dataset(pinhole)
+    assert method_for(EvaluationSettings(dataset=pinhole), dataset) is Method.NID_ASSESSED
+    asked = EvaluationSettings(dataset=pinhole, method=Method.RIGD)
+    assert method_for(asked, dataset) is Method.RIGD
 
 
 def test_calibrate_without_a_method_reports_the_one_it_chose(pinhole, tmp_path, capsys):
