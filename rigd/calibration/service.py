@@ -121,7 +121,8 @@ def default_method(dataset: Dataset, initial: Transform | None, prior: Prior | N
     pinhole = isinstance(camera, CameraConfig) and camera.kind is CameraKind.PINHOLE
     if not pinhole or initial is None or (prior is not None and prior.active) or len(dataset) == 0:
         return Method.RIGD
-    return Method.NID_ASSESSED if dataset.load_pair(0).cloud.intensity is not None else Method.RIGD
+    intensity = dataset.load_pair(0).cloud.intensity  # a field of one value (some drivers write 0) is none
+    return Method.NID_ASSESSED if intensity is not None and np.ptp(intensity) > 0 else Method.RIGD
 
 
 def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> InitialSearch:

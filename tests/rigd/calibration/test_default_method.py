@@ -22,8 +22,9 @@ from rigd.simulate import write_simulated_dataset
 from tests.testdata import PINHOLE_FRAME
 
 
-def _pinhole_dataset(root: Path, with_intensity: bool = True) -> Path:
-    """The real pinhole frame ours_3 as a one-pair dataset (its cloud with or without intensity)."""
+def _pinhole_dataset(root: Path, with_intensity: bool = True, flat: bool = False) -> Path:
+    """The real pinhole frame ours_3 as a one-pair dataset (its cloud with or without intensity, or with an
+    intensity field of zeros: ``flat``)."""
     calibration = yaml.safe_load((PINHOLE_FRAME / "calibration.yaml").read_text())
     (root / "pairs" / "0000").mkdir(parents=True)
     (root / "rig.yaml").write_text(yaml.safe_dump({"camera": calibration["camera"], "lidar": {"model": "64-ring"}}))
@@ -31,6 +32,8 @@ def _pinhole_dataset(root: Path, with_intensity: bool = True) -> Path:
     shutil.copy(PINHOLE_FRAME / "image.jpg", root / "pairs" / "0000" / "image.jpg")
     cloud = read_pcd(PINHOLE_FRAME / "calib.pcd")
     assert cloud.intensity is not None
+    if flat:
+        cloud = Cloud(cloud.points_lidar, np.zeros(len(cloud), np.float32), cloud.ring)
     write_pcd(root / "pairs" / "0000" / "cloud.pcd", cloud if with_intensity else Cloud(cloud.points_lidar))
     return root
 
@@ -50,6 +53,8 @@ def test_a_pinhole_camera_with_a_start_is_solved_by_assessed_nid(pinhole, tmp_pa
     assert default_method(dataset, start, drawing) is Method.RIGD  # a Gaussian prior weighs the GMM's likelihood
     no_intensity = open_dataset(_pinhole_dataset(tmp_path / "bare", with_intensity=False))
     assert default_method(no_intensity, start, None) is Method.RIGD
+    zeros = open_dataset(_pinhole_dataset(tmp_path / "zeros", flat=True))  # NID has nothing to align
+    assert default_method(zeros, start, None) is Method.RIGD
 
 
 def test_a_panorama_keeps_the_gmm(tmp_path):
