@@ -169,12 +169,15 @@ def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[n
                ring: NDArray[np.int16] | None, camera: CameraModel, params: PhotoParams, index: int = 0,
                mask: NDArray[np.bool_] | None = None) -> PhotoPair:
     """The arrays the photometric costs need of one pair (``mask``: see :class:`PhotoPair`); raises
-    FeaturelessError when the cloud has no intensity (reflectivity) field."""
+    FeaturelessError when the cloud has no intensity (reflectivity) field, or one of a single value."""
     if intensity is None:
         raise FeaturelessError(f"pair {index}: the cloud has no intensity field; MI, NID and GOM compare LiDAR "
                                "reflectivity with the image")
     if len(intensity) != len(points_lidar):
         raise CalibError(f"pair {index}: {len(intensity)} intensities for {len(points_lidar)} points")
+    if len(intensity) and float(np.ptp(intensity)) == 0.0:
+        raise FeaturelessError(f"pair {index}: every point of the cloud has intensity {float(intensity[0]):g}; MI, "
+                               "NID and GOM compare LiDAR reflectivity with the image and have nothing to compare")
     grey_u8 = np.rint(to_grey(image) * 255.0).astype(np.uint8)
     grey = (cv2.equalizeHist(grey_u8).astype(np.float32) / np.float32(255.0))
     groups = ring if params.per_ring else None

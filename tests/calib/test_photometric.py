@@ -166,6 +166,9 @@ def test_pair_without_intensity_is_refused():
     pair = ideal_pair(0)
     with pytest.raises(FeaturelessError, match="intensity"):
         photo_pair(np.zeros((150, 200), np.uint8), pair.points_lidar, None, None, pair.camera, PhotoParams())
+    flat = np.zeros(len(pair.points_lidar), np.float32)  # a driver that writes the field but no reflectivity
+    with pytest.raises(FeaturelessError, match="every point of the cloud has intensity 0"):
+        photo_pair(np.zeros((150, 200), np.uint8), pair.points_lidar, flat, None, pair.camera, PhotoParams())
 
 
 def test_fixed_translation_holds_t():
