@@ -113,8 +113,8 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     """Paper 8.5: calibrate from ``trials`` random starts around the ground truth (or, without one, around a
     first calibration from the initial guess); writes OUT/convergence.yaml and convergence.png."""
     started = time.monotonic()
-    dataset = open_for(request.settings)
     s = request.settings
+    dataset = open_for(s)
     method = method_for(s, dataset)
     params = calib_params(s.sigmas_deg, method)
     pairs = tuple(range(len(dataset)))
@@ -144,8 +144,8 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     """Paper 8.2.2: calibrate ``subsets`` random subsets of ``size`` pairs from one start (``--init``, rig.yaml's
     initial_guess or, failing both, the ground truth); writes OUT/precision.yaml and precision.png."""
     started = time.monotonic()
-    dataset = open_for(request.settings)
     s = request.settings
+    dataset = open_for(s)
     method = method_for(s, dataset)
     params = calib_params(s.sigmas_deg, method)
     subsets = random_subsets(len(dataset), request.size, request.subsets, s.seed)
