@@ -209,10 +209,29 @@ def _rng(seed: int) -> np.random.Generator:
     return np.random.default_rng(seed)
 
 
-def random_starts(reference: Transform, count: int, rot_deg: float, trans_m: float, seed: int) -> tuple[Transform, ...]:
-    """``count`` starts: ``reference``'s roll, pitch, yaw each plus U(-rot_deg, rot_deg) and x, y, z each plus
-    U(-trans_m, trans_m) (paper 8.5: +-5 deg, +-10 cm), from ``numpy.random.default_rng(seed)``; the first k
-    of n starts equal the k starts of the same seed."""
+class StartAxes(Enum):
+    """How :func:`random_starts` turns the reference."""
+
+    # The paper's: roll, pitch and yaw each plus a draw. Near pitch +-90 deg (a forward pinhole camera under a ROS
+    # LiDAR) roll and yaw turn about one axis, so these draws turn it by up to twice the range and leave the
+    # third axis (the image's pan) all but untouched.
+    RPY = "rpy"
+    # The reference turned about the LiDAR's x, y, z by a draw each (the sigmas' local axes).
+    LIDAR = "lidar"
+    # RPY where roll, pitch and yaw name three distinct axes (|pitch| <= 45 deg: panoramas, heads), else LIDAR.
+    AUTO = "auto"
+
+    def resolve(self, reference: Transform) -> StartAxes:
+        if self is not StartAxes.AUTO:
+            return self
+        return StartAxes.RPY if abs(float(reference.rpy_deg[1])) <= 45.0 else StartAxes.LIDAR
+
+
+def random_starts(reference: Transform, count: int, rot_deg: float, trans_m: float, seed: int,
+                  axes: StartAxes = StartAxes.AUTO) -> tuple[Transform, ...]:
+    """``count`` starts: ``reference`` turned by U(-rot_deg, rot_deg) about each of ``axes`` (:class:`StartAxes`;
+    paper 8.5: roll, pitch, yaw, +-5 deg) and its x, y, z each plus U(-trans_m, trans_m) (paper: +-10 cm), from
+    ``numpy.random.default_rng(seed)``; the first k of n starts equal the k starts of the same seed."""
     if count < 1:
         raise EvaluationError(f"the number of starts must be at least 1, got {count}")
     if not (np.isfinite(rot_deg) and np.isfinite(trans_m) and rot_deg >= 0 and trans_m >= 0):
@@ -220,7 +239,11 @@ def random_starts(reference: Transform, count: int, rot_deg: float, trans_m: flo
     # One row of 6 draws per start, so the first k of n starts are the k starts of the same seed.
     unit = _rng(seed).uniform(-1.0, 1.0, size=(count, 6))
     rpy, xyz = reference.rpy_deg, reference.translation_m
-    return tuple(Transform.from_rpy_xyz(rpy + rot_deg * u[:3], xyz + trans_m * u[3:]) for u in unit)
+    if axes.resolve(reference) is StartAxes.RPY:
+        return tuple(Transform.from_rpy_xyz(rpy + rot_deg * u[:3], xyz + trans_m * u[3:]) for u in unit)
+    return tuple(Transform.from_tau(tau_at(reference.tau, np.concatenate([np.radians(rot_deg * u[:3]),
+                                                                          trans_m * u[3:]])))
+                 for u in unit)
 
 
 def random_subsets(n_pairs: int, size: int, count: int, seed: int) -> tuple[tuple[int, ...], ...]:

@@ -14,7 +14,7 @@ from tqdm import tqdm
 
 from calib.assess import TrustOptions
 from calib.errors import CalibError
-from calib.evaluate import OutlierRule
+from calib.evaluate import OutlierRule, StartAxes
 from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.methods import Method
 from calib.prior import Prior
@@ -154,6 +154,14 @@ def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
 def evaluation_trust(args: argparse.Namespace) -> TrustOptions | None:
     """Each run's trust assessment: None with --no-uncertainty, else with --tolerance (default 0.2,2)."""
     return None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions())
+
+
+def add_start_axes_option(parser: argparse.ArgumentParser) -> None:
+    """``--start-axes`` for the protocols that draw random starts (convergence, compare)."""
+    parser.add_argument("--start-axes", choices=[a.value for a in StartAxes], default=StartAxes.AUTO.value,
+                        help="turn the reference about these axes to draw a start: rpy (roll, pitch, yaw, the "
+                        "paper's), lidar (the LiDAR's x, y, z), auto (rpy unless pitch is beyond 45 deg, as for "
+                        "a pinhole camera, where roll and yaw turn about one axis; default)")
 
 
 def add_method_option(parser: argparse.ArgumentParser) -> None:

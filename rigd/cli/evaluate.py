@@ -7,10 +7,11 @@ import argparse
 from typing import Any
 
 from calib.check import DriftOptions
-from calib.evaluate import Params6, PoseError
+from calib.evaluate import Params6, PoseError, StartAxes
 from rigd.cli.args import (
     add_evaluation_options,
     add_method_option,
+    add_start_axes_option,
     evaluation_settings,
     evaluation_trust,
     non_negative_float,
@@ -55,6 +56,7 @@ def register(subparsers: Any) -> None:
     conv.add_argument("--trials", type=positive_int, default=200, help="number of starts (default 200)")
     conv.add_argument("--rot-deg", type=non_negative_float, default=5.0, help="start range in degrees (default 5)")
     conv.add_argument("--trans-m", type=non_negative_float, default=0.1, help="start range in metres (default 0.1)")
+    add_start_axes_option(conv)
     conv.set_defaults(func=run)
     prec = protocols.add_parser(
         "precision", help="random subsets of pairs from one start (paper Table 1, Fig. 11)",
@@ -106,8 +108,9 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
     stats, report = outcome.stats, outcome.report
     s = report["settings"]
     if report["protocol"] == "convergence":
-        what = (f"{s['trials']} starts within +-{s['rot_deg']} deg / +-{s['trans_m'] * 100:g} cm of the "
-                f"{outcome.reference_source.label}")
+        axes = "roll/pitch/yaw" if s["start_axes"] == StartAxes.RPY.value else "the LiDAR's x/y/z"
+        what = (f"{s['trials']} starts within +-{s['rot_deg']} deg (about {axes}) / +-{s['trans_m'] * 100:g} cm "
+                f"of the {outcome.reference_source.label}")
     else:
         what = f"{s['subsets']} random subsets of size {s['size']}, started at the {Source(s['start']).label}"
     times = report["summary"]["calibration_time_s"]
@@ -183,7 +186,8 @@ def run_drift_command(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     settings = evaluation_settings(args, evaluation_trust(args))
     if args.protocol == "convergence":
-        outcome = run_convergence(ConvergenceRequest(settings, args.trials, args.rot_deg, args.trans_m))
+        outcome = run_convergence(ConvergenceRequest(settings, args.trials, args.rot_deg, args.trans_m,
+                                                     StartAxes(args.start_axes)))
     else:
         outcome = run_precision(PrecisionRequest(settings, args.subsets, args.size))
     print("\n".join(summary_lines(outcome)))

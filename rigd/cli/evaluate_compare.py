@@ -6,7 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from rigd.cli.args import non_negative_float, positive_int
+from calib.evaluate import StartAxes
+from rigd.cli.args import add_start_axes_option, non_negative_float, positive_int
 from rigd.evaluate.compare import CompareRequest, parse_methods, run_compare
 
 
@@ -28,6 +29,7 @@ def register_compare(protocols: Any) -> None:
     p.add_argument("--trials", type=positive_int, default=10, help="convergence starts (default 10)")
     p.add_argument("--rot-deg", type=non_negative_float, default=5.0, help="start range, deg (default 5)")
     p.add_argument("--trans-m", type=non_negative_float, default=0.1, help="start range, m (default 0.1)")
+    add_start_axes_option(p)
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--workers", type=positive_int, default=2, help="parallel processes (default 2)")
     p.add_argument("--out", default=None, help="output directory (default DATASET/evaluation)")
@@ -37,7 +39,7 @@ def register_compare(protocols: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     request = CompareRequest(Path(args.dataset), parse_methods(args.methods), args.subsets, args.size, args.trials,
                              args.rot_deg, args.trans_m, args.seed, args.workers,
-                             Path(args.out) if args.out else None)
+                             Path(args.out) if args.out else None, start_axes=StartAxes(args.start_axes))
     outcome = run_compare(request)
     rep = outcome.report
     s = rep["settings"]

@@ -27,7 +27,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from calib.errors import CalibError
-from calib.evaluate import OutlierRule, RunStats, pose_error, random_starts, random_subsets, run_stats
+from calib.evaluate import OutlierRule, RunStats, StartAxes, pose_error, random_starts, random_subsets, run_stats
 from calib.geometry import Transform
 from calib.gmm import PairFeatures
 from calib.methods import Method, calibrate_method, gmm_params, photo_params
@@ -55,6 +55,7 @@ class CompareRequest:
     seed: int = 0
     workers: int = 2
     out_dir: Path | None = None
+    start_axes: StartAxes = StartAxes.AUTO  # about which axes the starts are turned (calib.evaluate.StartAxes)
     progress: bool = True
     target_rot_deg: float = 0.5  # a run is "near the reference" within these (issue 10's real-data target)
     target_trans_cm: float = 5.0
@@ -299,14 +300,15 @@ def run_compare(req: CompareRequest) -> CompareOutcome:
         else "initial_guess"
     all_pairs = tuple(range(len(dataset)))
     subsets = random_subsets(len(dataset), req.size, req.subsets, req.seed) if len(dataset) > req.size else ()
-    starts = random_starts(reference, req.trials, req.rot_deg, req.trans_m, req.seed)
+    axes = req.start_axes.resolve(reference)
+    starts = random_starts(reference, req.trials, req.rot_deg, req.trans_m, req.seed, axes)
     out = Path(req.out_dir) if req.out_dir is not None else dataset.root / "evaluation"
     out.mkdir(parents=True, exist_ok=True)
     header = {"protocol": "compare", "dataset": str(dataset.root), "pairs_in_dataset": len(dataset),
               "reference": {"source": source, "T_camera_lidar": transform_to_yaml(reference)},
               "settings": {"methods": [m.value for m in req.methods], "subsets": len(subsets), "size": req.size,
-                           "trials": req.trials, "rot_deg": req.rot_deg, "trans_m": req.trans_m, "seed": req.seed,
-                           "workers": req.workers}}
+                           "trials": req.trials, "rot_deg": req.rot_deg, "trans_m": req.trans_m,
+                           "start_axes": axes.value, "seed": req.seed, "workers": req.workers}}
     rows: list[MethodRows] = []
     report: dict[str, Any] = {}
     for method in req.methods:

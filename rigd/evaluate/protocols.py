@@ -20,6 +20,7 @@ from calib.evaluate import (
     Coverage,
     Params6,
     RunStats,
+    StartAxes,
     coverage,
     parameter_values,
     random_starts,
@@ -64,6 +65,7 @@ class ConvergenceRequest:
     trials: int = 200
     rot_deg: float = 5.0
     trans_m: float = 0.1
+    start_axes: StartAxes = StartAxes.AUTO  # about which axes the starts are turned (calib.evaluate.StartAxes)
 
 
 @dataclass(frozen=True)
@@ -133,10 +135,12 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
             if first.result is None:
                 raise RigdError(f"{dataset.root}: the reference calibration failed: {first.error}")
             reference, source = first.result, Source.CALIBRATION
-        starts = random_starts(reference, request.trials, request.rot_deg, request.trans_m, s.seed)
+        axes = request.start_axes.resolve(reference)
+        starts = random_starts(reference, request.trials, request.rot_deg, request.trans_m, s.seed, axes)
         runs = _run_all(workers, [Task(i, t, pairs) for i, t in enumerate(starts)], "convergence", s.progress)
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
-    setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m, **where}
+    setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m,
+             "start_axes": axes.value, **where}
     return _finish(Protocol.CONVERGENCE, s, method, dataset, params, setup, runs, stats, reference, source, started)
 
 

@@ -5,9 +5,17 @@ import math
 import numpy as np
 import pytest
 
-from calib.evaluate import EvaluationError, OutlierRule, coverage, random_starts, random_subsets, run_stats
+from calib.evaluate import (
+    EvaluationError,
+    OutlierRule,
+    StartAxes,
+    coverage,
+    random_starts,
+    random_subsets,
+    run_stats,
+)
 from calib.geometry import Transform, rotation_angle_deg
-from calib.uncertainty import TO_DISPLAY, tau_at
+from calib.uncertainty import TO_DISPLAY, tau_at, xi_of
 
 REF_RPY = np.array([1.0, 2.0, 30.0])
 REF_XYZ = np.array([0.1, 0.2, 0.3])
@@ -115,6 +123,22 @@ def test_random_starts_are_uniform_within_the_box():
     assert not np.allclose(other[0].matrix, starts[0].matrix)
 
 
+def test_a_pinhole_reference_is_turned_about_the_lidars_axes():
+    reference = _pinhole_reference()
+    local = np.array([np.degrees(xi_of(reference.tau, s.tau)[:3]) for s in random_starts(reference, 3000, 2.0,
+                                                                                             0.05, seed=7)])
+    assert np.abs(local).max() <= 2.0 + 1e-9
+    assert local.std(axis=0) == pytest.approx([2.0 / math.sqrt(3)] * 3, rel=0.05)
+    # Roll/pitch/yaw draws at pitch -88.6 deg barely turn about the LiDAR's z axis (the image's pan).
+    rpy = np.array([np.degrees(xi_of(reference.tau, s.tau)[:3])
+                    for s in random_starts(reference, 3000, 2.0, 0.05, seed=7, axes=StartAxes.RPY)])
+    assert rpy[:, 2].std() < 0.1 and rpy[:, 0].std() > 1.3
+    # A panorama keeps the paper's draws: AUTO is RPY there, start for start.
+    same = zip(random_starts(REFERENCE, 5, 5.0, 0.1, seed=7),
+               random_starts(REFERENCE, 5, 5.0, 0.1, seed=7, axes=StartAxes.RPY), strict=True)
+    assert all(np.array_equal(a.matrix, b.matrix) for a, b in same)
+
+
 def test_zero_ranges_start_at_the_reference_and_bad_ranges_are_refused():
     (start,) = random_starts(REFERENCE, 1, 0.0, 0.0, seed=0)
     assert np.allclose(start.matrix, REFERENCE.matrix)
@@ -171,14 +195,20 @@ def test_coverage_against_an_uncertain_reference_weighs_both_sigmas() -> None:
     assert coverage(reference, [far], [sigma], ["trusted"], tol, ref_sigma).trusted_but_wrong == 1
 
 
-def test_a_pinhole_reference_at_pitch_minus_90_keeps_close_runs_close():
+def _pinhole_reference():
     # A forward pinhole camera under a ROS LiDAR: optical z = LiDAR x, so pitch is -88.6 deg, where roll and
-    # yaw turn about nearly one axis. Runs 0.1 deg away about the LiDAR's axes swing roll and yaw by degrees.
+    # yaw turn about nearly one axis.
     optical = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
     tilt = Transform.from_rpy_xyz(np.array([0.0, 1.44, 0.0]), np.zeros(3)).rotation
     reference = Transform.from_tau(np.concatenate([
         Transform(optical @ tilt, np.zeros(3)).tau[:3], [-0.03, -0.35, -0.1]]))
     assert reference.rpy_deg[1] == pytest.approx(-88.56, abs=0.01)
+    return reference
+
+
+def test_a_pinhole_reference_at_pitch_minus_90_keeps_close_runs_close():
+    # Runs 0.1 deg away about the LiDAR's axes swing roll and yaw by degrees.
+    reference = _pinhole_reference()
     rng = np.random.default_rng(3)
     turns = rng.normal(size=(8, 3))
     turns *= np.radians(0.1) / np.linalg.norm(turns, axis=1, keepdims=True)

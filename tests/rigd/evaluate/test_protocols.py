@@ -44,7 +44,8 @@ def test_convergence_report_plot_and_worker_independence(small_dataset, tmp_path
     assert set(one["summary"]["error_vs_ground_truth"]) == {"solution", "run_median"}
     assert len(one["runs"]) == 2 and all(r["result"] is not None for r in one["runs"])
     assert (tmp_path / "w1" / "convergence.png").read_bytes().startswith(PNG_MAGIC)
-    # The starts are calib.evaluate's draws around the ground truth for the seed.
+    # The starts are calib.evaluate's draws around the ground truth for the seed (a panorama: roll, pitch, yaw).
+    assert one["settings"]["start_axes"] == "rpy"
     truth = open_dataset(small_dataset).ground_truth
     expected = random_starts(truth, 2, 5.0, 0.1, seed=4)
     for run, start in zip(one["runs"], expected, strict=True):
