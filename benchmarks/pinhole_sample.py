@@ -7,7 +7,8 @@ and ground_truth.yaml (the sample's reference calibration), the frames under pai
 ``--kitti-cut`` also OUT/pin3k and OUT/pin123k: every frame cut to KITTI's aspect (the 580 rows around the
 principal point) and scaled to 1224x370, K adjusted with pixel centres at integer coordinates, a stand-in for
 the narrow street frames of issue 10 that this machine does not have. docs/results.md measures them with
-``rigd evaluate convergence OUT/pin3 --trials 10 --rot-deg 2 --trans-m 0.05``.
+``rigd evaluate convergence OUT/pin3 --trials 10 --rot-deg 2 --trans-m 0.05`` (its GMM rows with
+``--method rigd --start-axes rpy``).
 """
 
 from __future__ import annotations
