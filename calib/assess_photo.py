@@ -25,6 +25,7 @@ is formed once per pose and "without the cluster" is a subtraction.
 from __future__ import annotations
 
 from collections.abc import Callable
+from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -43,6 +44,7 @@ from calib.assess import (
 )
 from calib.errors import CalibError
 from calib.gmm import transform_points
+from calib.handed import collect, hand
 from calib.optimize import LevelTrace, OptimResult
 from calib.photometric import (
     LevelPair,
@@ -317,22 +319,30 @@ def _finest_cost(pairs: list[PhotoPair], at: F64, params: PhotoParams) -> Callab
                                                      params.n_bins)[0] for lp in lps], None)
 
 
+def _restart(pairs: list[PhotoPair], start: F64, tail: PhotoParams, fixed_translation: bool,
+             anchor: F64) -> PhotoResult:
+    """One restart's solve (module level: a pool's worker runs it; deterministic, so wherever it runs)."""
+    return optimise_photometric(pairs, start, tail, fixed_translation, subset_tau=anchor)
+
+
 def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, trust: TrustOptions,
                        fixed_translation: bool = False, starts: tuple[F64, ...] = (),
-                       opts: PhotoTrustOptions | None = None) -> Assessment:
+                       opts: PhotoTrustOptions | None = None, executor: Executor | None = None) -> Assessment:
     """Restarts, uncertainty and verdict of the NID solution ``result`` (module docstring). ``starts``: the
     poses (6,) tau the solve started from (the rotation and translation moved from the nearest are reported,
-    and beyond ``trust.max_move_deg`` / ``max_move_m`` fail the result, as the GMM's)."""
+    and beyond ``trust.max_move_deg`` / ``max_move_m`` fail the result, as the GMM's). ``executor``: the
+    application's pool, whose workers take restarts beside this process (calib.handed: the same result)."""
     anchor = np.asarray(result.tau, dtype=np.float64)
-    cost = _finest_cost(pairs, anchor, params)
     rng = np.random.default_rng(trust.seed)
     tail = _tail(params, trust.restart_levels)
-    runs: list[tuple[PhotoResult, float]] = [(result, cost(anchor))]
+    handed = []
     for _ in range(trust.restarts):
         offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
                                  np.zeros(3) if fixed_translation else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
-        run = optimise_photometric(pairs, tau_at(anchor, offset), tail, fixed_translation, subset_tau=anchor)
-        runs.append((run, cost(run.tau)))
+        handed.append(hand(executor, _restart, pairs, tau_at(anchor, offset), tail, fixed_translation, anchor))
+    cost = _finest_cost(pairs, anchor, params)
+    runs: list[tuple[PhotoResult, float]] = [(result, cost(anchor))]
+    runs.extend((run, cost(run.tau)) for run in collect(handed))
     best, best_cost = min(runs, key=lambda r: r[1])
     unc = photo_uncertainty(pairs, best.tau, params, trust, fixed_translation, opts)
     offsets = np.array([xi_of(best.tau, r.tau) * TO_DISPLAY for r, _ in runs])

@@ -144,7 +144,7 @@ def calibrate_method(
         start = Transform(start.rotation, prior.xyz_m)
     solved = optimise_photometric(photo, start.tau, photo_opts, fixed_translation=fixed)
     if method is Method.NID_ASSESSED and trust is not None:
-        a = assess_photometric(photo, solved, photo_opts, trust, fixed, starts=(start.tau,))
+        a = assess_photometric(photo, solved, photo_opts, trust, fixed, starts=(start.tau,), executor=executor)
         stats = tuple(PairStats(0, int(len(p.points_lidar))) for p in photo)
         return CalibResult(Transform.from_tau(a.tau), a.optim, stats, a)
     optim = as_optim(solved)

@@ -1,5 +1,6 @@
 """calib.assess_photo: the NID solution's restarts, per-axis sigma and verdict (docs/trust.md)."""
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -76,3 +77,16 @@ def test_nid_assessed_method_has_a_verdict_and_the_baseline_none():
     assert calibrate_method(Method.NID, None, [pair], start, trust=trust).assessment is None
     result = calibrate_method(Method.NID_ASSESSED, None, [pair], start, trust=trust)
     assert result.assessment is not None and result.assessment.verdict.status is not Status.NOT_ASSESSED
+
+
+def test_restarts_in_a_pool_give_the_same_assessment():
+    pair = ideal_pair(2)
+    start = tau_at(TRUTH.tau, np.array([np.radians(0.3), 0.0, np.radians(-0.2), 0.01, 0.0, -0.01]))
+    solved = optimise_photometric([pair], start, SMALL)
+    trust = replace(TrustOptions(), restarts=3)
+    alone = assess_photometric([pair], solved, SMALL, trust, starts=(start,))
+    with ThreadPoolExecutor(1) as pool:
+        pooled = assess_photometric([pair], solved, SMALL, trust, starts=(start,), executor=pool)
+    assert np.array_equal(alone.tau, pooled.tau)
+    assert [r.offset.tolist() for r in alone.restarts] == [r.offset.tolist() for r in pooled.restarts]
+    assert alone.verdict == pooled.verdict
