@@ -15,6 +15,7 @@ from rigd.calibration.service import dataset_photo_pairs
 from rigd.cli import main
 from rigd.dataset import open_dataset, write_pair
 from rigd.dataset.pcd import Cloud
+from rigd.dataset.thin import ThinOptions, thin_dataset
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.evaluate.protocols import std_not_failed
 from rigd.evaluate.trials import Run
@@ -124,14 +125,16 @@ def test_the_runs_use_the_rig_file_prior_as_calibrate_does(small_dataset, tmp_pa
 
 
 def test_a_method_is_evaluated_as_calibrate_runs_it(small_dataset, tmp_path, capsys):
+    sparse = tmp_path / "sparse"  # every third ring, every other point: NID's solves on a quarter of the points
+    thin_dataset(small_dataset, sparse, ThinOptions(ring_spacing_deg=6.0, azimuth_step_deg=0.3))
     out = tmp_path / "nid"
-    code = main(["evaluate", "convergence", str(small_dataset), "--trials", "1", "--seed", "2", "--workers", "1",
+    code = main(["evaluate", "convergence", str(sparse), "--trials", "1", "--seed", "2", "--workers", "1",
                  "--rot-deg", "1", "--trans-m", "0.02", "--out", str(out), "--method", "nid-assessed"])
     assert code == 0, capsys.readouterr().err
     report = yaml.safe_load((out / "convergence.yaml").read_text())
     assert report["settings"]["method"] == "nid-assessed" and "sigmas_deg" not in report["settings"]
     assert "uncertainty_check" in report["summary"]  # the method is assessed: its sigmas are checked
-    dataset = open_dataset(small_dataset, WORKING_WIDTH_PX)
+    dataset = open_dataset(sparse, WORKING_WIDTH_PX)
     (start,) = random_starts(dataset.ground_truth, 1, 1.0, 0.02, seed=2)
     photo = dataset_photo_pairs(dataset, photo_params(Method.NID_ASSESSED), None)
     direct = calibrate_method(Method.NID_ASSESSED, None, photo, start, trust=TrustOptions())
