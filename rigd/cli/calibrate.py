@@ -166,7 +166,9 @@ def print_reference(ref: ReferenceAgreement) -> None:
 
 
 def print_trust(u: Uncertainty, v: Verdict) -> None:
-    print(f"sigma roll, pitch, yaw: {_fmt(u['rpy_deg'])} deg; x, y, z: {_fmt(u['xyz_cm'])} cm")
+    # About the LiDAR's own axes (docs/conventions.md): at a pinhole's gimbal lock not the Euler angles' own.
+    print(f"sigma about the LiDAR's x, y, z (roll, pitch, yaw): {_fmt(u['rpy_deg'])} deg; "
+          f"x, y, z: {_fmt(u['xyz_cm'])} cm")
     print(f"weakest: {u['weakest']}")
     axes = f" ({', '.join(v['weak_axes'])})" if v["weak_axes"] else ""
     print(f"verdict: {v['status'].upper()}{axes}")
