@@ -81,7 +81,6 @@ def test_a_calibration_in_the_pool_ends_exactly_where_the_serial_one_does(pairs,
     assert serial.assessment.verdict == pooled.assessment.verdict
 
 
-
 def test_the_search_in_the_pool_finds_what_the_serial_one_does(pairs, pool, tmp_path):
     coarse = SearchOptions(yaw_step_deg=30.0, tilt_step_deg=30.0)
     serial = search_initial(pairs, np.zeros(3), coarse)
@@ -101,6 +100,7 @@ def test_the_search_in_the_pool_finds_what_the_serial_one_does(pairs, pool, tmp_
         assert [c.cost for c in found.candidates] == [c.cost for c in serial.candidates]
         for a, b in zip(serial.candidates, found.candidates, strict=True):
             assert np.array_equal(a.tau, b.tau)
+
 
 PARENT = """
 import json, time

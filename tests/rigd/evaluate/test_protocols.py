@@ -123,7 +123,6 @@ def test_the_runs_use_the_rig_file_prior_as_calibrate_does(small_dataset, tmp_pa
         assert np.linalg.norm(np.array(run["result"]["xyz_m"]) - lever_arm) < 0.005
 
 
-
 def test_a_method_is_evaluated_as_calibrate_runs_it(small_dataset, tmp_path, capsys):
     sparse = tmp_path / "sparse"  # every third ring, every other point: NID's solves on a quarter of the points
     thin_dataset(small_dataset, sparse, ThinOptions(ring_spacing_deg=6.0, azimuth_step_deg=0.3))
@@ -142,6 +141,7 @@ def test_a_method_is_evaluated_as_calibrate_runs_it(small_dataset, tmp_path, cap
     assert direct.assessment is not None and run["verdict"] == direct.assessment.verdict.status.value
     assert np.allclose(run["result"]["rpy_deg"], direct.T_camera_lidar.rpy_deg, atol=1e-9)
     assert np.allclose(run["result"]["xyz_m"], direct.T_camera_lidar.translation_m, atol=1e-12)
+
 
 def test_the_spread_of_the_results_a_user_is_given_leaves_out_failed_runs():
     """Five-place subsets of a real head: the runs rigd fails (not to be used) carry most of the spread, so the
