@@ -18,7 +18,9 @@ is formed once per pose and "without the cluster" is a subtraction.
    of each pair, as the GMM's), ``kappa`` the cost's NLL scale (median ``B_kk / H_kk``), the sandwich
    ``H^-1 B H^-1`` with the information floored over +- the reach (the schedule's widest blur), and a
    delete-a-group jackknife (each pair left out, or with fewer than 4 pairs 8 random groups of cells), each
-   left-out solve one bounded Newton step of the left-out cost with its own Hessian and gradient.
+   left-out solve one bounded Newton step of the left-out cost with its own Hessian and gradient, and the
+   GMM's jackknife over rings the same way (each ring left out in every pair: each laser has its own
+   reflectivity response and elevation, shared by every place, so leaving out places cannot see them).
 3. **Verdict**: :func:`calib.assess.verdict_of`, the GMM's rules unchanged.
 """
 
@@ -53,11 +55,11 @@ from calib.photometric import (
     PhotoParams,
     PhotoResult,
     level_pairs,
-    nid,
     optimise_photometric,
     point_subsets,
     project_level,
     sample,
+    subset_rings,
 )
 from calib.uncertainty import (
     TO_DISPLAY,
@@ -90,17 +92,15 @@ class PhotoTrustOptions:
 @dataclass(frozen=True)
 class _Stencil:
     """The cost around a pose: ``offsets`` (S,6) local coordinates, and at each, ``full`` (S,) the cost,
-    ``groups`` (S,G) the cost with each jackknife group left out, ``clusters`` (S,C) with each cluster left
-    out (only at the first 13 offsets: the centre and +-h per axis, the gradient's)."""
+    ``groups`` (S,G) the cost with each jackknife group left out, ``rings`` (S,R) with each ring left out in
+    every pair, ``clusters`` (S,C) with each cluster left out (only at the first 13 offsets: the centre and +-h
+    per axis, the gradient's)."""
 
     offsets: F64
     full: F64
     groups: F64
+    rings: F64
     clusters: F64
-
-
-def _nid_or_one(joint: F64) -> float:
-    return nid(joint) if joint.sum() > 1e-9 else 1.0
 
 
 def _offsets(h: F64) -> F64:
@@ -139,44 +139,81 @@ def _cluster_hists(lp: LevelPair, tau: F64, labels: I64, n_clusters: int, bins: 
     return np.asarray(counts, dtype=np.float64).reshape(n_clusters, bins, bins)
 
 
+def _entropies(p: F64) -> F64:
+    """Entropy (nats) of each distribution of ``p`` (..., n), its last axis."""
+    return np.asarray(-np.sum(np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0), axis=-1), dtype=np.float64)
+
+
+def _nids(joints: F64) -> F64:
+    """:func:`calib.photometric.nid` of each histogram of ``joints`` (..., bins, bins) at once; 1 for an empty
+    one (the stencil evaluates some 10^5 of them)."""
+    total = joints.sum(axis=(-2, -1))
+    filled = total > 1e-9
+    p = joints / np.where(filled, total, 1.0)[..., None, None]
+    hx, hy = _entropies(p.sum(axis=-1)), _entropies(p.sum(axis=-2))
+    hxy = _entropies(p.reshape(*p.shape[:-2], -1))
+    value = np.where(hxy > 0, (hxy - (hx + hy - hxy)) / np.where(hxy > 0, hxy, 1.0), 0.0)
+    return np.where(filled, value, 1.0)
+
+
+def _means_without(hists: F64, drops: F64) -> F64:
+    """(G,) the NID cost (the mean over pairs) with ``drops[g, i]`` removed from pair i's histogram
+    ``hists[i]`` (``hists`` (P,bins,bins), ``drops`` (G,P,bins,bins)); a pair left empty leaves the mean."""
+    rest = hists[None] - drops
+    filled = rest.sum(axis=(-2, -1)) > 1e-9
+    count = filled.sum(axis=1)
+    total = np.where(filled, _nids(rest), 0.0).sum(axis=1)
+    return np.asarray(np.where(count > 0, total / np.maximum(count, 1), 1.0), dtype=np.float64)
+
+
 def _mean_without(hists: list[F64], drop: list[F64] | None) -> float:
     """The NID cost (mean over pairs) with ``drop[i]`` (bins,bins) removed from pair i's histogram ``hists[i]``;
     a pair left empty leaves the mean."""
-    terms = []
-    for i, h in enumerate(hists):
-        rest = h if drop is None else h - drop[i]
-        if rest.sum() > 1e-9:
-            terms.append(_nid_or_one(rest))
-    return float(np.mean(terms)) if terms else 1.0
+    stack = np.stack(hists)
+    return float(_means_without(stack, np.zeros_like(stack)[None] if drop is None else np.stack(drop)[None])[0])
+
+
+def _without_each_cluster(hists: F64, per: list[F64], cluster_pair: I64) -> F64:
+    """(C,) the cost with each cluster left out (``per[i]`` (C,bins,bins) pair i's clusters' histograms): only
+    the cluster's own pair changes, so the mean's sum and count adjust."""
+    filled = hists.sum(axis=(-2, -1)) > 1e-9
+    base = np.where(filled, _nids(hists), 0.0)
+    out = np.ones(len(cluster_pair))
+    for i in range(len(hists)):
+        mine = np.flatnonzero(cluster_pair == i)
+        rest = hists[i][None] - per[i][mine]
+        kept = rest.sum(axis=(-2, -1)) > 1e-9
+        total = float(base.sum() - base[i]) + np.where(kept, _nids(rest), 0.0)
+        count = int(filled.sum()) - int(filled[i]) + kept
+        out[mine] = np.where(count > 0, total / np.maximum(count, 1), 1.0)
+    return out
 
 
 def _stencil(lps: list[LevelPair], tau: F64, labels: list[I64], cluster_pair: I64, group_of: I64, n_groups: int,
-             offsets: F64, bins: int) -> _Stencil:
-    """The cost at ``tau`` + each of ``offsets``, in full, without each jackknife group, and (first 13 offsets)
-    without each cluster (``cluster_pair`` (C,) the pair of each cluster; ``group_of`` (C,) its group)."""
+             offsets: F64, bins: int, rings: tuple[list[I64], int] | None = None) -> _Stencil:
+    """The cost at ``tau`` + each of ``offsets``, in full, without each jackknife group, without each ring
+    (``rings``: each point's ring index (M,) per pair, and the number of rings), and (first 13 offsets) without
+    each cluster (``cluster_pair`` (C,) the pair of each cluster; ``group_of`` (C,) its group)."""
     n_c = len(cluster_pair)
+    n_r = 0 if rings is None else rings[1]
+    member = (group_of[None, :] == np.arange(n_groups)[:, None]).astype(np.float64)  # (G, C)
     full = np.zeros(len(offsets))
     groups = np.zeros((len(offsets), n_groups))
+    by_ring = np.zeros((len(offsets), n_r))
     clusters = np.zeros((13, n_c))
     for s, xi in enumerate(offsets):
         at = tau_at(tau, xi)
         per = [_cluster_hists(lp, at, lab, n_c, bins) for lp, lab in zip(lps, labels, strict=True)]
-        hists = [p.sum(axis=0) for p in per]
-        full[s] = _mean_without(hists, None)
-        for g in range(n_groups):
-            mine = group_of == g
-            groups[s, g] = _mean_without(hists, [p[mine].sum(axis=0) for p in per])
+        hists = np.stack([p.sum(axis=0) for p in per])
+        full[s] = _means_without(hists, np.zeros_like(hists)[None])[0]
+        drops = np.stack([(member @ p.reshape(n_c, -1)).reshape(n_groups, bins, bins) for p in per], axis=1)
+        groups[s] = _means_without(hists, drops)
+        if rings is not None:
+            per_ring = [_cluster_hists(lp, at, lab, n_r, bins) for lp, lab in zip(lps, rings[0], strict=True)]
+            by_ring[s] = _means_without(hists, np.stack(per_ring, axis=1))
         if s < 13:
-            filled = np.array([h.sum() > 1e-9 for h in hists])
-            base = np.array([_nid_or_one(h) if f else 0.0 for h, f in zip(hists, filled, strict=True)])
-            for c in range(n_c):  # only the cluster's own pair changes: the mean's sum and count adjust
-                i = int(cluster_pair[c])
-                rest = hists[i] - per[i][c]
-                total, count = float(base.sum() - base[i]), int(filled.sum()) - int(filled[i])
-                if rest.sum() > 1e-9:
-                    total, count = total + _nid_or_one(rest), count + 1
-                clusters[s, c] = total / count if count else 1.0
-    return _Stencil(offsets, full, groups, clusters)
+            clusters[s] = _without_each_cluster(hists, per, cluster_pair)
+    return _Stencil(offsets, full, groups, by_ring, clusters)
 
 
 def _gradient(values: F64, h: F64) -> F64:
@@ -249,7 +286,8 @@ def photo_uncertainty(pairs: list[PhotoPair], tau: F64, params: PhotoParams, tru
     ppr = float(np.median([lp.camera.pixels_per_radian for lp in lps]))
     r_typ = typical_range(lps, tau)
     h = np.array([opts.step_px / ppr] * 3 + [opts.step_px / ppr * r_typ] * 3)
-    st = _stencil(lps, tau, labels, cluster_pair, groups, n_groups, _offsets(h), params.n_bins)
+    rings = _ring_labels(subset_rings(pairs, tau, params), labels, trust)
+    st = _stencil(lps, tau, labels, cluster_pair, groups, n_groups, _offsets(h), params.n_bins, rings)
     free = np.array([True] * 3 + [not fixed_translation] * 3)
     hess = symmetric(_hessian(st.full, h))[np.ix_(free, free)]
     grad = _gradient(st.full[:13], h)[free]
@@ -264,32 +302,53 @@ def photo_uncertainty(pairs: list[PhotoPair], tau: F64, params: PhotoParams, tru
     cov_l = np.zeros((6, 6))
     cov_l[np.ix_(free, free)] = sandwich(hess, b, np.zeros_like(hess), radius / scale[free]) if known \
         else np.diag(np.full(int(free.sum()), np.inf))
-    steps, left_out = [], []
-    for g in range(n_groups):
-        if not np.any(groups == g):
-            continue
-        h_rest = symmetric(_hessian(st.groups[:, g], h))[np.ix_(free, free)]
-        g_rest = _gradient(st.groups[:13, g], h)[free]
-        step = np.zeros(6)
-        step[free] = trust_region_step(h_rest, g_rest, scale[free], radius)
-        steps.append(step)
-        left_out.append(g)
+    present = [g for g in range(n_groups) if np.any(groups == g)]
+    steps = _left_out_steps(st.groups[:, present], h, free, scale, radius)
     jack = held = None
     if len(steps) >= 3:
-        xs = np.array(steps)
-        centred = xs - xs.mean(axis=0)
-        k = len(steps)
-        jack = sigmas_display((k - 1.0) / k * centred.T @ centred)
-        held = holding_groups(xs, left_out, scale, radius) if by_pair else ()
+        jack = _jackknife_sigma(steps)
+        held = holding_groups(steps, present, scale, radius) if by_pair else ()
+    ring_sigma = None if rings is None else _jackknife_sigma(_left_out_steps(st.rings, h, free, scale, radius))
     laplace = sigmas_display(cov_l)
-    sigma = laplace if jack is None else np.maximum(laplace, jack)
+    sigma = np.maximum.reduce([s for s in (laplace, jack, ring_sigma) if s is not None])
     if not is_min:
         sigma = np.where(free, np.inf, 0.0)
     cov = combine_covariance(cov_l, sigma)
     weakest = weakest_direction(cov, trust.tolerance_display) if np.all(np.isfinite(cov)) else \
         "the solution is not a minimum of the cost: no axis is known"
     return Uncertainty(cov, sigma, laplace, jack, n_groups if jack is not None else 0, weakest, is_min, kappa,
-                       _in_view_share(lps, tau), held or ())
+                       _in_view_share(lps, tau), held or (), ring_sigma, 0 if rings is None else rings[1])
+
+
+def _ring_labels(rings: list[I64] | None, labels: list[I64], trust: TrustOptions) -> tuple[list[I64], int] | None:
+    """Each evaluated point's ring as an index into the rings in view at the solution (-1 for points out of
+    view, as their ``labels``), and the number of those rings; None without rings or with fewer than
+    ``trust.jackknife_min_rings``: the GMM's jackknife over rings (calib.assess), on the NID cost."""
+    if rings is None:
+        return None
+    seen = np.unique(np.concatenate([r[lab >= 0] for r, lab in zip(rings, labels, strict=True)]))
+    if len(seen) < trust.jackknife_min_rings:
+        return None
+    index = [np.where(lab >= 0, np.searchsorted(seen, r), -1).astype(np.int64) for r, lab in zip(rings, labels,
+                                                                                                 strict=True)]
+    return index, len(seen)
+
+
+def _left_out_steps(values: F64, h: F64, free: NDArray[np.bool_], scale: F64, radius: float) -> F64:
+    """(G,6) the bounded Newton step of each left-out cost (``values`` (73,G): the stencil without each group)
+    from the solution: the delete-a-group solves of the jackknife."""
+    steps = np.zeros((values.shape[1], 6))
+    for g in range(values.shape[1]):
+        h_rest = symmetric(_hessian(values[:, g], h))[np.ix_(free, free)]
+        steps[g, free] = trust_region_step(h_rest, _gradient(values[:13, g], h)[free], scale[free], radius)
+    return steps
+
+
+def _jackknife_sigma(steps: F64) -> F64:
+    """Per-axis delete-a-group jackknife sigma (6,) deg/cm of the left-out solves ``steps`` (G,6)."""
+    centred = steps - steps.mean(axis=0)
+    k = len(steps)
+    return sigmas_display((k - 1.0) / k * centred.T @ centred)
 
 
 def _in_view_share(lps: list[LevelPair], tau: F64) -> float:

@@ -78,7 +78,7 @@ class ScanlineEdgeParams:
     use_folds: bool = True
 
 
-def _rings_from_elevation(points: F64) -> I64:
+def rings_from_elevation(points: F64) -> I64:
     """Ring ids when the cloud carries none: elevation rounded to the nearest 0.5 deg bin."""
     elev = np.degrees(np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1])))
     return np.asarray(np.round(elev * 2.0), dtype=np.int64)
@@ -195,7 +195,7 @@ def scanline_edge_points(points_lidar: F64, ring: NDArray[np.integer] | None, pa
     rng_all = np.linalg.norm(pts_all, axis=1)
     keep = rng_all > params.min_range_m
     pts_all, rng_all = pts_all[keep], rng_all[keep]
-    rings = _rings_from_elevation(pts_all) if ring is None else np.asarray(ring, dtype=np.int64)[keep]
+    rings = rings_from_elevation(pts_all) if ring is None else np.asarray(ring, dtype=np.int64)[keep]
     order, starts = _ring_order(pts_all, rings)
     ends = np.r_[starts[1:], len(order)]
     chunks: list[tuple[F64, F64, NDArray[np.int8], I64]] = []
@@ -242,7 +242,7 @@ def paper_edge_points(points_lidar: F64, ring: NDArray[np.integer] | None, param
     score = paper_edge_scores(pts, params)
     score = score / max(float(score.max(initial=0.0)), 1e-12)
     keep = score > params.threshold
-    rings = _rings_from_elevation(pts) if ring is None else np.asarray(ring, dtype=np.int64)
+    rings = rings_from_elevation(pts) if ring is None else np.asarray(ring, dtype=np.int64)
     if params.drop_extreme_rings:
         keep &= (rings != rings.min()) & (rings != rings.max())
     return EdgePoints(pts[keep], score[keep], np.full(int(keep.sum()), PAPER, np.int8), rings[keep])

@@ -54,6 +54,7 @@ from scipy.spatial import cKDTree
 
 from calib.camera import CameraModel, Equirectangular
 from calib.edges_image import to_grey
+from calib.edges_points import rings_from_elevation
 from calib.errors import CalibError, FeaturelessError
 from calib.gmm import in_image, transform_points
 from calib.uncertainty import tau_at, xi_of
@@ -111,13 +112,15 @@ class PhotoParams:
 class PhotoPair:
     """One pair for the photometric costs: ``grey`` (H,W) float32 in [0, 1] (equalised), ``points_lidar``
     (N,3) float64 m, ``reflectivity`` (N,) float64 in [0, 1] (rank-normalised), ``mask`` (H,W) bool, True where
-    the image shows the scene (None: everywhere; points landing elsewhere are not compared)."""
+    the image shows the scene (None: everywhere; points landing elsewhere are not compared), ``ring`` (N,) int64
+    the ring of each point (the cloud's laser index, else its half-degree elevation bin; None: not known)."""
 
     camera: CameraModel
     grey: F32
     points_lidar: F64
     reflectivity: F64
     mask: NDArray[np.bool_] | None = None
+    ring: NDArray[np.int64] | None = None
 
 
 @dataclass(frozen=True)
@@ -182,7 +185,9 @@ def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[n
     grey = (cv2.equalizeHist(grey_u8).astype(np.float32) / np.float32(255.0))
     groups = ring if params.per_ring else None
     refl = rank_normalise(np.asarray(intensity, dtype=np.float64), groups)
-    return PhotoPair(camera, grey, np.asarray(points_lidar, dtype=np.float64), refl, mask)
+    points = np.asarray(points_lidar, dtype=np.float64)
+    rings = rings_from_elevation(points) if ring is None else np.asarray(ring, dtype=np.int64)
+    return PhotoPair(camera, grey, points, refl, mask, rings)
 
 
 def soft_joint_histogram(a: F64, b: F64, bins: int) -> F64:
@@ -359,8 +364,8 @@ def level_cost(pairs: list[LevelPair], tau: F64, params: PhotoParams) -> float:
     return -mutual_information(kde_smooth(joint, float(joint.sum())))
 
 
-def _in_view(pair: PhotoPair, tau0: F64, params: PhotoParams, cap: int) -> tuple[F64, F64]:
-    """The points that project into the image (with a 10 % margin) at ``tau0``, at most ``cap``."""
+def _in_view(pair: PhotoPair, tau0: F64, params: PhotoParams, cap: int) -> NDArray[np.int64]:
+    """Indices of the points that project into the image (with a 10 % margin) at ``tau0``, at most ``cap``."""
     cam = pair.camera
     uv, valid = cam.project(transform_points(tau0, pair.points_lidar)[0])
     mw, mh = 0.1 * cam.width, 0.1 * cam.height
@@ -368,7 +373,7 @@ def _in_view(pair: PhotoPair, tau0: F64, params: PhotoParams, cap: int) -> tuple
     idx = np.flatnonzero(keep)
     if idx.size > cap:
         idx = np.sort(np.random.default_rng(params.seed).choice(idx, cap, replace=False))
-    return pair.points_lidar[idx], pair.reflectivity[idx]
+    return idx
 
 
 def level_pairs(pairs: list[PhotoPair], tau: F64, params: PhotoParams, level: int,
@@ -406,6 +411,19 @@ def _nelder_mead(f: Callable[[F64], float], tau0: F64, step: F64, max_evals: int
 def point_subsets(pairs: list[PhotoPair], tau: F64, params: PhotoParams) -> list[tuple[F64, F64]]:
     """The points each evaluation uses: per pair those in view at ``tau`` (10 % margin), an equal share of
     ``params.max_points`` (at least ``params.min_points_per_pair``), and their reflectivity."""
+    return [(p.points_lidar[idx], p.reflectivity[idx]) for p, idx in zip(pairs, _subset_indices(pairs, tau, params),
+                                                                          strict=True)]
+
+
+def subset_rings(pairs: list[PhotoPair], tau: F64, params: PhotoParams) -> list[NDArray[np.int64]] | None:
+    """The ring (M,) of each point of :func:`point_subsets`, per pair; None when a pair's rings are not known."""
+    if any(p.ring is None for p in pairs):
+        return None
+    return [np.asarray(p.ring, dtype=np.int64)[idx] for p, idx in zip(pairs, _subset_indices(pairs, tau, params),
+                                                                     strict=True)]
+
+
+def _subset_indices(pairs: list[PhotoPair], tau: F64, params: PhotoParams) -> list[NDArray[np.int64]]:
     cap = max(params.max_points // max(len(pairs), 1), params.min_points_per_pair)
     return [_in_view(p, tau, params, cap) for p in pairs]
 
