@@ -54,6 +54,7 @@ from calib.photometric import (
     PhotoPair,
     PhotoParams,
     PhotoResult,
+    labelled_histograms,
     level_pairs,
     optimise_photometric,
     point_subsets,
@@ -125,18 +126,8 @@ def _cluster_hists(lp: LevelPair, tau: F64, labels: I64, n_clusters: int, bins: 
     cluster's samples at ``tau`` (``labels`` (M,) cluster of each point, -1: none)."""
     uv, inside = project_level(lp, tau)
     keep = inside & (labels >= 0)
-    a = np.clip(lp.reflectivity[keep], 0.0, 1.0) * (bins - 1)
-    b = np.clip(sample(lp.grey, lp.camera, uv[keep]), 0.0, 1.0) * (bins - 1)
-    lab = labels[keep]
-    ia = np.minimum(np.floor(a).astype(np.int64), bins - 2)
-    ib = np.minimum(np.floor(b).astype(np.int64), bins - 2)
-    fa, fb = a - ia, b - ib
-    base = lab * bins * bins
-    idx = np.concatenate([base + ia * bins + ib, base + (ia + 1) * bins + ib, base + ia * bins + ib + 1,
-                          base + (ia + 1) * bins + ib + 1])
-    w = np.concatenate([(1 - fa) * (1 - fb), fa * (1 - fb), (1 - fa) * fb, fa * fb])
-    counts = np.bincount(idx, weights=w, minlength=n_clusters * bins * bins)
-    return np.asarray(counts, dtype=np.float64).reshape(n_clusters, bins, bins)
+    return labelled_histograms(lp.reflectivity[keep], sample(lp.grey, lp.camera, uv[keep]), labels[keep],
+                               n_clusters, bins)
 
 
 def _entropies(p: F64) -> F64:

@@ -193,14 +193,22 @@ def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[n
 def soft_joint_histogram(a: F64, b: F64, bins: int) -> F64:
     """Joint histogram (bins, bins) of ``a``, ``b`` (N,) in [0, 1], each sample split linearly between its
     two nearest bin centres in each variable (triangular Parzen window), so the counts move continuously."""
+    return np.asarray(labelled_histograms(a, b, np.zeros(len(a), np.int64), 1, bins)[0], dtype=np.float64)
+
+
+def labelled_histograms(a: F64, b: F64, labels: NDArray[np.int64], n: int, bins: int) -> F64:
+    """(n, bins, bins): the :func:`soft_joint_histogram` of each label's samples (``labels`` (N,) in [0, n)), in
+    one count; each histogram's samples are added in their order, so the sums are those of each alone."""
     pa = np.clip(a, 0.0, 1.0) * (bins - 1)
     pb = np.clip(b, 0.0, 1.0) * (bins - 1)
     ia = np.minimum(np.floor(pa).astype(np.int64), bins - 2)
     ib = np.minimum(np.floor(pb).astype(np.int64), bins - 2)
     fa, fb = pa - ia, pb - ib
-    idx = np.concatenate([ia * bins + ib, (ia + 1) * bins + ib, ia * bins + ib + 1, (ia + 1) * bins + ib + 1])
+    base = labels * (bins * bins)
+    idx = np.concatenate([base + ia * bins + ib, base + (ia + 1) * bins + ib, base + ia * bins + ib + 1,
+                          base + (ia + 1) * bins + ib + 1])
     w = np.concatenate([(1 - fa) * (1 - fb), fa * (1 - fb), (1 - fa) * fb, fa * fb])
-    return np.asarray(np.bincount(idx, weights=w, minlength=bins * bins), dtype=np.float64).reshape(bins, bins)
+    return np.asarray(np.bincount(idx, weights=w, minlength=n * bins * bins), dtype=np.float64).reshape(n, bins, bins)
 
 
 def _entropy(p: F64) -> float:
@@ -317,6 +325,26 @@ def project_level(lp: LevelPair, tau: F64) -> tuple[F64, NDArray[np.bool_]]:
     return uv, inside
 
 
+def project_pairs(pairs: list[LevelPair], tau: F64) -> list[tuple[F64, NDArray[np.bool_]]]:
+    """:func:`project_level` of each pair; pairs that share one camera and mask (the views of one camera) are
+    projected as one array, the same numbers with a tenth of the calls."""
+    first = pairs[0] if pairs else None
+    if first is None or len(pairs) == 1 or any(lp.camera is not first.camera or lp.mask is not first.mask
+                                               for lp in pairs):
+        return [project_level(lp, tau) for lp in pairs]
+    merged = replace(first, points_lidar=np.concatenate([lp.points_lidar for lp in pairs]))
+    uv, inside = project_level(merged, tau)
+    cuts = np.cumsum([len(lp.points_lidar) for lp in pairs])[:-1]
+    return list(zip(np.split(uv, cuts), np.split(inside, cuts), strict=True))
+
+
+def joint_histograms(a: list[F64], b: list[F64], bins: int) -> F64:
+    """(P, bins, bins): :func:`soft_joint_histogram` of each of P pairs of samples ``a[i]``, ``b[i]`` (N_i,)."""
+    labels = np.repeat(np.arange(len(a), dtype=np.int64), [len(x) for x in a])
+    return labelled_histograms(np.concatenate(a) if a else np.zeros(0), np.concatenate(b) if b else np.zeros(0),
+                               labels, len(a), bins)
+
+
 def gradient_fit(uv: F64, neighbours: int) -> GradientFit | None:
     """The plane fit at each of the projected points ``uv`` (M,2) px through its ``neighbours`` nearest
     projected neighbours, ridge-regularised by 1 px^2 so points whose neighbours lie on one scan line get no
@@ -352,10 +380,11 @@ def level_cost(pairs: list[LevelPair], tau: F64, params: PhotoParams) -> float:
             agree, mag = gom_terms(g_img[inside], lp.lidar_grad[inside])
             num, den = num + float(agree.sum()), den + float(mag.sum())
         return -num / den if den > 0 else 0.0
-    joints = []
-    for lp in pairs:
-        uv, inside = project_level(lp, tau)
-        joints.append(soft_joint_histogram(lp.reflectivity[inside], sample(lp.grey, lp.camera, uv[inside]), bins))
+    refl, grey = [], []
+    for lp, (uv, inside) in zip(pairs, project_pairs(pairs, tau), strict=True):
+        refl.append(lp.reflectivity[inside])
+        grey.append(sample(lp.grey, lp.camera, uv[inside]))
+    joints = list(joint_histograms(refl, grey, bins))
     if params.cost is PhotoCost.NID:
         return float(np.mean([nid(j) if j.sum() > 0 else 1.0 for j in joints]))
     joint = np.sum(joints, axis=0)
