@@ -21,7 +21,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import numpy as np
@@ -94,6 +94,10 @@ class TrustOptions:
     # A translation that ends this far from its start was pulled there by a lever arm that is not this rig's (a
     # prior typed in cm where metres are meant): a rig's lever arm is known to decimetres before any calibration.
     max_move_m: float = 1.0
+    # A single camera's principal point known to so many rad about the camera's x and y axes (rig.yaml's
+    # principal_point_sigma_px over fy and fx): it turns the image as a tilt of the LiDAR would, which one camera
+    # cannot tell apart, so it is part of the rotation's sigma (docs/trust.md). 0: K taken as exact.
+    intrinsics_sigma_rad: tuple[float, float] = (0.0, 0.0)
     seed: int = 0
 
     @property
@@ -131,6 +135,25 @@ class Uncertainty:
     # it enters the sigma (calib.assess_photo: Nelder-Mead on a cost rough below a pixel stops wherever its
     # simplex shrinks); None for the GMM, whose restarts are judged by the rules of the verdict instead.
     restart_spread: F64 | None = None
+    # The camera model's part of the sigma (6,) deg/cm: the principal point's uncertainty as a rotation (None:
+    # K taken as exact; :func:`with_intrinsics`).
+    intrinsics: F64 | None = None
+
+
+def with_intrinsics(unc: Uncertainty, tau: F64, trust: TrustOptions) -> Uncertainty:
+    """``unc`` with the principal point's uncertainty (``trust.intrinsics_sigma_rad``, rotations delta about the
+    camera's x and y axes) added: in local coordinates xi = R^T delta (the solution's R: camera from LiDAR).
+    Independent of the data's, it adds in quadrature."""
+    sx, sy = trust.intrinsics_sigma_rad
+    if (sx <= 0.0 and sy <= 0.0) or not unc.is_minimum:
+        return unc
+    r = so3_exp(np.asarray(tau[:3], dtype=np.float64))
+    extra = np.zeros((6, 6))
+    extra[:3, :3] = r.T @ np.diag([sx**2, sy**2, 0.0]) @ r
+    cov = unc.covariance + extra
+    sigma = np.sqrt(np.square(unc.sigma) + np.square(sigmas_display(extra)))
+    return replace(unc, covariance=cov, sigma=sigma, intrinsics=sigmas_display(extra),
+                   weakest=weakest_direction(cov, trust.tolerance_display))
 
 
 UNHELD_SHARE = 0.999  # a left-out solve this close to the kernel's width ran to it (trust_region_step's bound)
@@ -534,5 +557,6 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
         for r, origin in solves if r is not best
     )
     moved, moved_m = moved_from(starts, best.tau)
+    unc = with_intrinsics(unc, best.tau, trust)
     return Assessment(best.tau, best, unc, restarts, verdict_of(unc, list(restarts), trust, moved, moved_m), moved,
                       moved_m)

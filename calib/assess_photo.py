@@ -43,6 +43,7 @@ from calib.assess import (
     moved_from,
     trust_region_step,
     verdict_of,
+    with_intrinsics,
 )
 from calib.errors import CalibError
 from calib.gmm import transform_points
@@ -407,5 +408,6 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
                              "solution" if r is result else "restart")
                      for r, c in runs if r is not best)
     moved, moved_m = moved_from(starts, best.tau)
+    unc = with_intrinsics(unc, best.tau, trust)
     verdict = verdict_of(unc, list(restarts), trust, moved, moved_m)
     return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m)

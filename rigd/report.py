@@ -131,6 +131,7 @@ class Uncertainty(Sigmas):
     jackknife: NotRequired[Jackknife | None]
     jackknife_rings: NotRequired[Jackknife | None]  # each ring of the LiDAR left out in turn (groups: rings)
     restart_spread: NotRequired[Sigmas | None]  # RMS of the restarts' offsets (nid-assessed; docs/trust.md)
+    camera_model: NotRequired[Sigmas | None]  # the declared principal-point sigma as rotations (docs/trust.md)
     matched_share: NotRequired[float | None]
     restarts: NotRequired[list[Restart]]
 

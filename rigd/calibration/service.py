@@ -125,6 +125,15 @@ def default_method(dataset: Dataset, initial: Transform | None, prior: Prior | N
     return Method.NID_ASSESSED if intensity is not None and np.ptp(intensity) > 0 else Method.RIGD
 
 
+def with_camera_model(trust: TrustOptions, dataset: Dataset) -> TrustOptions:
+    """``trust`` with a single camera's declared principal-point sigma as rotations (rig.yaml, at the size on
+    disk); a head's and a panorama's stay K-exact."""
+    camera = dataset.source_camera
+    if not isinstance(camera, CameraConfig):
+        return trust
+    return dataclasses.replace(trust, intrinsics_sigma_rad=camera.intrinsics_sigma_rad())
+
+
 def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> InitialSearch:
     """The ``initial_search`` section of a report: which grid mount won and where the runners-up ended."""
     best = Transform.from_tau(found.best.tau)
@@ -311,6 +320,8 @@ def _uncertainty_yaml(a: Assessment) -> Uncertainty:
             "groups": u.ring_groups},
         "restart_spread": None if u.restart_spread is None else {
             "rpy_deg": _finite(u.restart_spread[:3]), "xyz_cm": _finite(u.restart_spread[3:])},
+        "camera_model": None if u.intrinsics is None else {
+            "rpy_deg": _finite(u.intrinsics[:3]), "xyz_cm": _finite(u.intrinsics[3:])},
         "matched_share": u.matched_share,
         "restarts": restarts,
     }
@@ -506,7 +517,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     params = gmm_params(method) or CalibParams()
     if request.sigmas_deg is not None:
         params = params_with_sigmas(params, request.sigmas_deg)
-    trust = request.tolerance or dataset.rig.tolerance or TrustOptions()
+    trust = with_camera_model(request.tolerance or dataset.rig.tolerance or TrustOptions(), dataset)
     photo = photo_params(method)
     search = dataset.rig.search or default_search(dataset.rig.camera.models()[0])
 

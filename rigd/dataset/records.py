@@ -40,6 +40,9 @@ class CameraConfig:
     K: NDArray[np.float64] | None = None
     D: NDArray[np.float64] | None = None
     mask: str | None = None
+    # How well the principal point is known, px (1 sigma, each axis; a calibration tool reports it): one camera
+    # cannot tell its error from a tilt of the LiDAR, so it enters the rotation's sigma (docs/trust.md).
+    principal_point_sigma_px: float | None = None
 
     def model(self) -> CameraModel:
         if self.kind is CameraKind.EQUIRECTANGULAR:
@@ -68,7 +71,17 @@ class CameraConfig:
             out["D"] = np.asarray(self.D if self.D is not None else []).tolist()
         if self.mask is not None:
             out["mask"] = self.mask
+        if self.principal_point_sigma_px is not None:
+            out["principal_point_sigma_px"] = self.principal_point_sigma_px
         return out
+
+    def intrinsics_sigma_rad(self) -> tuple[float, float]:
+        """The principal point's sigma as rotations about the camera's x and y axes (rad): sigma / fy, sigma / fx;
+        zero when it is not declared or the camera has no K."""
+        if not self.principal_point_sigma_px or self.K is None:
+            return (0.0, 0.0)
+        sigma = self.principal_point_sigma_px
+        return (sigma / float(self.K[1, 1]), sigma / float(self.K[0, 0]))
 
     @classmethod
     def from_yaml(cls, data: Any, where: str) -> CameraConfig:
@@ -78,13 +91,17 @@ class CameraConfig:
             k = np.asarray(data["K"], dtype=np.float64) if "K" in data else None
             d = np.asarray(data.get("D", []), dtype=np.float64) if k is not None else None
             mask = None if data.get("mask") is None else str(data["mask"])
+            pp_sigma = None if data.get("principal_point_sigma_px") is None \
+                else float(data["principal_point_sigma_px"])
         except (KeyError, TypeError, ValueError) as exc:
             raise DatasetError(f"{where}: bad camera section ({exc!r})") from exc
+        if pp_sigma is not None and not (np.isfinite(pp_sigma) and 0.0 <= pp_sigma <= 100.0):
+            raise DatasetError(f"{where}: principal_point_sigma_px must be 0 .. 100 px, got {pp_sigma:g}")
         if kind in (CameraKind.PINHOLE, CameraKind.FISHEYE) and k is None:
             raise DatasetError(f"{where}: a {kind.value} camera needs K")
         if kind is CameraKind.HEAD:
             raise DatasetError(f"{where}: a head's sensors are listed under camera.sensors")
-        config = cls(kind, width, height, k, d, mask)
+        config = cls(kind, width, height, k, d, mask, pp_sigma)
         try:
             config.model()
         except CalibError as exc:

@@ -22,7 +22,13 @@ from calib.methods import Method, gmm_params, photo_params
 from calib.photometric import PhotoPair
 from calib.pipeline import CalibParams
 from calib.prior import Prior
-from rigd.calibration.service import dataset_features, dataset_photo_pairs, default_method, params_with_sigmas
+from rigd.calibration.service import (
+    dataset_features,
+    dataset_photo_pairs,
+    default_method,
+    params_with_sigmas,
+    with_camera_model,
+)
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
@@ -104,6 +110,7 @@ def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None,
     cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
     try:
         dataset = open_dataset(root, WORKING_WIDTH_PX)
+        trust = None if trust is None else with_camera_model(trust, dataset)  # as rigd calibrate judges its result
         feats = tuple(dataset_features(dataset, params, None)) if method.uses_gmm else ()
         photo_opts = photo_params(method)
         photo = () if photo_opts is None else tuple(dataset_photo_pairs(dataset, photo_opts, None))

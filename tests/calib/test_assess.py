@@ -19,6 +19,7 @@ from calib.assess import (
     assess,
     trust_region_step,
     verdict_of,
+    with_intrinsics,
 )
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
@@ -166,6 +167,25 @@ def test_verdict_trusted_weak_and_failed():
     assert five.status is Status.WEAK and "yaw" not in five.weak_axes
     loose = TrustOptions(tolerance_trans_cm=10.0)  # the rig file's tolerance decides
     assert verdict_of(_unc([0.05, 0.05, 0.05, 0.5, 0.5, 3.0]), [], loose).status is Status.TRUSTED
+
+
+def test_a_principal_point_known_to_a_pixel_is_a_tilt_one_camera_cannot_rule_out():
+    """K's principal point shifts the image as a tilt of the LiDAR would: sigma / f rad about the camera's x (rows)
+    and y (columns) axes, none about the optical axis (docs/trust.md)."""
+    # A forward camera under a ROS LiDAR: camera x = -LiDAR y, camera y = -LiDAR z, optical axis = LiDAR x.
+    forward = Transform(np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]), np.zeros(3)).tau
+    fx, fy, sigma_px = 1000.0, 500.0, 1.0
+    trust = TrustOptions(intrinsics_sigma_rad=(sigma_px / fy, sigma_px / fx))
+    data = _unc([0.03] * 3 + [0.5] * 3)
+    added = with_intrinsics(data, forward, trust)
+    assert added.intrinsics is not None
+    # about LiDAR x (the optical axis) nothing; about LiDAR y (camera x) the rows' 1/fy; about z the columns' 1/fx
+    assert added.intrinsics[:3] == pytest.approx([0.0, np.degrees(1 / fy), np.degrees(1 / fx)], abs=1e-9)
+    assert added.sigma[:3] == pytest.approx(np.hypot(0.03, added.intrinsics[:3]))
+    assert verdict_of(data, [], trust).status is Status.TRUSTED
+    tilted = verdict_of(added, [], trust)
+    assert tilted.status is Status.WEAK and tilted.weak_axes == ("pitch",)  # 2.5 * 0.118 deg > 0.2; yaw 0.16 < 0.2
+    assert with_intrinsics(data, forward, TrustOptions()) is data  # K taken as exact
 
 
 def test_a_solution_far_from_every_start_fails_however_well_determined_it_looks():

@@ -1,12 +1,16 @@
-"""rig.yaml's prior and tolerance sections: read, written back, and refused with the file named."""
+"""rig.yaml's prior, tolerance and principal-point sections: read, written back, used, refused by name."""
 
 import numpy as np
 import pytest
 import yaml
 
+from calib.assess import TrustOptions
+from calib.pipeline import CalibParams
+from rigd.calibration.service import with_camera_model
 from rigd.dataset import open_dataset, write_rig
 from rigd.dataset.records import RigConfig
 from rigd.errors import DatasetError
+from rigd.evaluate.trials import extract_state
 
 CAMERA = {"model": "equirectangular", "width": 64, "height": 32}
 
@@ -73,3 +77,31 @@ def test_tolerance_bounds_are_accepted():
     for rot, trans in ((0.001, 0.01), (10.0, 100.0)):
         rig = RigConfig.from_yaml({"camera": CAMERA, "tolerance": {"rotation_deg": rot, "translation_cm": trans}}, "r")
         assert (rig.tolerance.tolerance_rot_deg, rig.tolerance.tolerance_trans_cm) == (rot, trans)
+
+
+def test_a_declared_principal_point_sigma_is_read_written_back_and_bounded(tmp_path):
+    camera = {"model": "pinhole", "width": 640, "height": 480, "K": [[500.0, 0, 320], [0, 250.0, 240], [0, 0, 1]],
+              "D": [], "principal_point_sigma_px": 1.5}
+    rig = RigConfig.from_yaml({"camera": camera}, "rig.yaml")
+    assert rig.camera.intrinsics_sigma_rad() == pytest.approx((1.5 / 250.0, 1.5 / 500.0))  # about x: rows, y: columns
+    (tmp_path / "pairs").mkdir()
+    write_rig(tmp_path, rig)
+    assert open_dataset(tmp_path).rig.camera.principal_point_sigma_px == 1.5
+    assert RigConfig.from_yaml({"camera": {**camera, "principal_point_sigma_px": None}}, "rig.yaml") \
+        .camera.intrinsics_sigma_rad() == (0.0, 0.0)
+    with pytest.raises(DatasetError, match="principal_point_sigma_px must be 0 .. 100 px"):
+        RigConfig.from_yaml({"camera": {**camera, "principal_point_sigma_px": -1}}, "rig.yaml")
+
+
+def test_the_calibration_and_its_evaluation_judge_a_single_camera_with_its_principal_point(tmp_path):
+    """rigd calibrate and rigd evaluate both carry rig.yaml's principal-point sigma into the verdict's options; a
+    panorama (no K) stays K-exact."""
+    camera = {"model": "pinhole", "width": 640, "height": 480, "K": [[500.0, 0, 320], [0, 250.0, 240], [0, 0, 1]],
+              "D": [], "principal_point_sigma_px": 2.0}
+    for name, cam, expected in (("pin", camera, (2.0 / 250.0, 2.0 / 500.0)), ("pano", CAMERA, (0.0, 0.0))):
+        root = tmp_path / name
+        (root / "pairs").mkdir(parents=True)
+        write_rig(root, RigConfig.from_yaml({"camera": cam}, "rig.yaml"))
+        trust = with_camera_model(TrustOptions(), open_dataset(root))
+        assert trust.intrinsics_sigma_rad == pytest.approx(expected)
+        assert extract_state(root, CalibParams(), TrustOptions()).trust == trust

@@ -13,7 +13,7 @@ from rigd.dataset import open_dataset
 from rigd.dataset.records import HeadConfig
 from rigd.dataset.reference import agreement
 from rigd.errors import DatasetError
-from rigd.importers.ford import import_ford
+from rigd.importers.ford import PRINCIPAL_POINT_SIGMA_PX, import_ford
 from rigd.importers.scan_order import rings_from_scan_order
 from tests.rigd.importers.ford_tree import LASER_ELEVATIONS_DEG, laser_by_laser_cloud, write_ford_tree
 
@@ -50,6 +50,7 @@ def test_one_camera_is_a_pinhole_dataset_whose_reference_is_the_heads(tmp_path: 
     import_ford(src, tmp_path / "cam1", camera="cam1", scans=[2])
     head, cam = open_dataset(tmp_path / "head"), open_dataset(tmp_path / "cam1")
     assert cam.views == ("image",) and len(cam) == 1 and cam.masks[0] is not None
+    assert cam.source_camera.principal_point_sigma_px == PRINCIPAL_POINT_SIGMA_PX  # the release's K: 1 px
     assert cam.reference is not None and head.reference is not None
     # the camera's reference, read back in the head's form, is the head's reference
     np.testing.assert_allclose(agreement(cam.reference, cam.reference.T_camera_lidar).z, 0.0, atol=1e-9)
