@@ -122,13 +122,19 @@ def _offsets(h: F64) -> F64:
     return np.array(rows)
 
 
+def _samples(lp: LevelPair, tau: F64, labels: I64) -> tuple[NDArray[np.bool_], F64, F64]:
+    """Which points are in view at ``tau`` and labelled (``labels`` (M,), -1: none), and their reflectivity and
+    grey level (K,): what every histogram of the stencil at ``tau`` counts."""
+    uv, inside = project_level(lp, tau)
+    keep = inside & (labels >= 0)
+    return keep, lp.reflectivity[keep], sample(lp.grey, lp.camera, uv[keep])
+
+
 def _cluster_hists(lp: LevelPair, tau: F64, labels: I64, n_clusters: int, bins: int) -> F64:
     """(n_clusters, bins, bins) soft joint histograms (calib.photometric.soft_joint_histogram) of each
     cluster's samples at ``tau`` (``labels`` (M,) cluster of each point, -1: none)."""
-    uv, inside = project_level(lp, tau)
-    keep = inside & (labels >= 0)
-    return labelled_histograms(lp.reflectivity[keep], sample(lp.grey, lp.camera, uv[keep]), labels[keep],
-                               n_clusters, bins)
+    keep, refl, grey = _samples(lp, tau, labels)
+    return labelled_histograms(refl, grey, labels[keep], n_clusters, bins)
 
 
 def _entropies(p: F64) -> F64:
@@ -158,11 +164,9 @@ def _means_without(hists: F64, drops: F64) -> F64:
     return np.asarray(np.where(count > 0, total / np.maximum(count, 1), 1.0), dtype=np.float64)
 
 
-def _mean_without(hists: list[F64], drop: list[F64] | None) -> float:
-    """The NID cost (mean over pairs) with ``drop[i]`` (bins,bins) removed from pair i's histogram ``hists[i]``;
-    a pair left empty leaves the mean."""
-    stack = np.stack(hists)
-    return float(_means_without(stack, np.zeros_like(stack)[None] if drop is None else np.stack(drop)[None])[0])
+def _mean_nid(hists: F64) -> float:
+    """The NID cost of pairs' histograms ``hists`` (P,bins,bins): the mean over the pairs not empty."""
+    return float(_means_without(hists, np.zeros_like(hists)[None])[0])
 
 
 def _without_each_cluster(hists: F64, per: list[F64], cluster_pair: I64) -> F64:
@@ -195,13 +199,15 @@ def _stencil(lps: list[LevelPair], tau: F64, labels: list[I64], cluster_pair: I6
     clusters = np.zeros((13, n_c))
     for s, xi in enumerate(offsets):
         at = tau_at(tau, xi)
-        per = [_cluster_hists(lp, at, lab, n_c, bins) for lp, lab in zip(lps, labels, strict=True)]
+        seen = [_samples(lp, at, lab) for lp, lab in zip(lps, labels, strict=True)]
+        per = [labelled_histograms(a, b, lab[keep], n_c, bins) for (keep, a, b), lab in zip(seen, labels, strict=True)]
         hists = np.stack([p.sum(axis=0) for p in per])
-        full[s] = _means_without(hists, np.zeros_like(hists)[None])[0]
+        full[s] = _mean_nid(hists)
         drops = np.stack([(member @ p.reshape(n_c, -1)).reshape(n_groups, bins, bins) for p in per], axis=1)
         groups[s] = _means_without(hists, drops)
-        if rings is not None:
-            per_ring = [_cluster_hists(lp, at, lab, n_r, bins) for lp, lab in zip(lps, rings[0], strict=True)]
+        if rings is not None:  # the same samples, counted by ring (a ring label is -1 where its cluster's is)
+            per_ring = [labelled_histograms(a, b, lab[keep], n_r, bins)
+                        for (keep, a, b), lab in zip(seen, rings[0], strict=True)]
             by_ring[s] = _means_without(hists, np.stack(per_ring, axis=1))
         if s < 13:
             clusters[s] = _without_each_cluster(hists, per, cluster_pair)
@@ -366,8 +372,8 @@ def _tail(params: PhotoParams, levels: int) -> PhotoParams:
 def _finest_cost(pairs: list[PhotoPair], at: F64, params: PhotoParams) -> Callable[[F64], float]:
     """The finest level's cost on the points in view at ``at`` (the restarts' common ground)."""
     lps = level_pairs(pairs, at, params, len(params.blur_deg) - 1, point_subsets(pairs, at, params))
-    return lambda tau: _mean_without([_cluster_hists(lp, tau, np.zeros(len(lp.points_lidar), np.int64), 1,
-                                                     params.n_bins)[0] for lp in lps], None)
+    return lambda tau: _mean_nid(np.stack([_cluster_hists(lp, tau, np.zeros(len(lp.points_lidar), np.int64), 1,
+                                                          params.n_bins)[0] for lp in lps]))
 
 
 def _restart(pairs: list[PhotoPair], start: F64, tail: PhotoParams, fixed_translation: bool,
