@@ -98,6 +98,12 @@ class TrustOptions:
     # principal_point_sigma_px over fy and fx): it turns the image as a tilt of the LiDAR would, which one camera
     # cannot tell apart, so it is part of the rotation's sigma (docs/trust.md). 0: K taken as exact.
     intrinsics_sigma_rad: tuple[float, float] = (0.0, 0.0)
+    # The LiDAR's elevation offset known to so many deg (rig.yaml's elevation_offset_sigma_deg; 0: exact): the
+    # calibration turns it into the pose's change below (calib.elevation.elevation_slope).
+    elevation_sigma_deg: float = 0.0
+    # The pose's change (6,) in local coordinates (rad, m) for one sigma of the LiDAR's elevation offset, fitted
+    # or declared (calib.elevation); () when neither.
+    elevation_sigma_pose: tuple[float, ...] = ()
     seed: int = 0
 
     @property
@@ -138,6 +144,8 @@ class Uncertainty:
     # The camera model's part of the sigma (6,) deg/cm: the principal point's uncertainty as a rotation (None:
     # K taken as exact; :func:`with_intrinsics`).
     intrinsics: F64 | None = None
+    # The LiDAR elevation offset's part of the sigma (6,) deg/cm (None: exact; :func:`with_elevation`).
+    elevation: F64 | None = None
 
 
 def with_intrinsics(unc: Uncertainty, tau: F64, trust: TrustOptions) -> Uncertainty:
@@ -153,6 +161,20 @@ def with_intrinsics(unc: Uncertainty, tau: F64, trust: TrustOptions) -> Uncertai
     cov = unc.covariance + extra
     sigma = np.sqrt(np.square(unc.sigma) + np.square(sigmas_display(extra)))
     return replace(unc, covariance=cov, sigma=sigma, intrinsics=sigmas_display(extra),
+                   weakest=weakest_direction(cov, trust.tolerance_display))
+
+
+def with_elevation(unc: Uncertainty, trust: TrustOptions) -> Uncertainty:
+    """``unc`` with the elevation offset's uncertainty (``trust.elevation_sigma_pose``, fitted or declared) added:
+    the pose moves along the slope as the offset does (calib.elevation). Independent of the data's jackknife,
+    which holds the offset, it adds in quadrature."""
+    if not trust.elevation_sigma_pose or not unc.is_minimum:
+        return unc
+    part = np.asarray(trust.elevation_sigma_pose, dtype=np.float64)
+    extra = np.outer(part, part)
+    cov = unc.covariance + extra
+    sigma = np.sqrt(np.square(unc.sigma) + np.square(sigmas_display(extra)))
+    return replace(unc, covariance=cov, sigma=sigma, elevation=sigmas_display(extra),
                    weakest=weakest_direction(cov, trust.tolerance_display))
 
 
@@ -557,6 +579,6 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
         for r, origin in solves if r is not best
     )
     moved, moved_m = moved_from(starts, best.tau)
-    unc = with_intrinsics(unc, best.tau, trust)
+    unc = with_elevation(with_intrinsics(unc, best.tau, trust), trust)
     return Assessment(best.tau, best, unc, restarts, verdict_of(unc, list(restarts), trust, moved, moved_m), moved,
                       moved_m)

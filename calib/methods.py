@@ -113,6 +113,7 @@ def calibrate_method(
     on_search: Callable[[int, int], None] | None = None,
     executor: Executor | None = None,
     search_photo: list[PhotoPair] | None = None,
+    fit_elevation: bool = False,
 ) -> CalibResult:
     """Calibrate with ``method`` from ``initial``. ``feats``: the GMM features (GMM methods), ``photo``: the
     photometric pairs (MI, NID, GOM, rigd+nid). ``params`` overrides :func:`gmm_params` (GMM methods only).
@@ -120,15 +121,18 @@ def calibrate_method(
     the global search of :mod:`calib.initial` (it scores the GMM's edge fields, so the photometric-only methods
     need a guess).
     ``executor``: the GMM's independent solves side by side (:func:`calib.pipeline.calibrate`).
-    ``search_photo``: the pairs' images and reflectivity for the global search's score (calib.search_mi)."""
+    ``search_photo``: the pairs' images and reflectivity for the global search's score (calib.search_mi).
+    ``fit_elevation``: the LiDAR's elevation offset fitted with the pose (calib.elevation; GMM-only methods)."""
     gmm = (params if params is not None else gmm_params(method)) if method.uses_gmm else None
     photo_opts = photo_params(method)
     result: CalibResult | None = None
+    if fit_elevation and (gmm is None or photo_opts is not None):
+        raise CalibError(f"method {method.value} cannot fit the LiDAR's elevation offset: only the GMM methods can")
     if gmm is not None:
         if feats is None:
             raise CalibError(f"method {method.value} needs the GMM edge features")
         result = calibrate(feats, initial, gmm, on_iter, prior, None if photo_opts is not None else trust,
-                           search, on_search, executor, search_photo)
+                           search, on_search, executor, search_photo, fit_elevation)
     if photo_opts is None:
         assert result is not None
         return result

@@ -21,6 +21,8 @@ from calib.edges_points import (
     paper_edge_points,
     scanline_edge_points,
 )
+from calib.elevation import GRID_DEG as ELEVATION_GRID_DEG
+from calib.elevation import ElevationFit, check_places, elevation_slope, fit_elevation_offset, offset_features
 from calib.errors import FeaturelessError, InitialGuessError
 from calib.fields import EdgeFields
 from calib.geometry import Transform
@@ -61,6 +63,7 @@ class CalibParams:
     # A multi-camera head's coarse-to-fine ladder (docs/method.md item 17); None: ``optim.sigmas_deg`` for every
     # camera (a ladder the user gives applies to a head as given).
     head_sigmas_deg: tuple[float, ...] | None = (10.5, 5.27, 1.76, 0.88)
+    elevation_grid_deg: tuple[float, ...] = ELEVATION_GRID_DEG  # the offsets the elevation fit profiles
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,7 @@ class CalibResult:
     assessment: Assessment | None = None
     search: SearchResult | None = None  # the global search, when no initial guess was given
     guess_sigma_m: float | None = None  # the guess's lever arm entered the solve as a prior of this sigma
+    elevation: ElevationFit | None = None  # the LiDAR's elevation offset, when it was fitted with the pose
 
 
 def paper_params() -> CalibParams:
@@ -242,6 +246,13 @@ def _alternatives(feats: list[PairFeatures], starts: list[F64], optim: OptimOpti
     return lambda: collect(handed)
 
 
+def _elevation_sigma(trust: TrustOptions | None, slope: F64, sigma_deg: float) -> TrustOptions | None:
+    """``trust`` with the pose's change for one sigma of the LiDAR's elevation offset (calib.assess.with_elevation)."""
+    if trust is None:
+        return None
+    return replace(trust, elevation_sigma_pose=tuple(float(v) for v in slope * sigma_deg))
+
+
 def calibrate(
     feats: list[PairFeatures],
     initial: Transform | None,
@@ -253,6 +264,7 @@ def calibrate(
     on_search: Callable[[int, int], None] | None = None,
     executor: Executor | None = None,
     search_photo: list[PhotoPair] | None = None,
+    fit_elevation: bool = False,
 ) -> CalibResult:
     """Algorithm 1 from ``initial`` (with the prior's MAP term if given), then, with ``trust``, the restarts,
     per-axis uncertainty and verdict of :mod:`calib.assess` (a restart that ends lower is the solution).
@@ -266,7 +278,11 @@ def calibrate(
 
     ``executor`` (the application's process pool): the independent full solves (the alternative schedule, the
     search's runners-up) run there while this process runs the main one, and half the restarts while this
-    process runs the other half, to the same result."""
+    process runs the other half, to the same result.
+
+    ``fit_elevation``: the LiDAR's common elevation offset is fitted around a first solve
+    (:mod:`calib.elevation`), and the pose solved and assessed again with the edge points raised by it; the
+    offset's sigma enters the pose's."""
     found = None
     if initial is None:
         lever_arm = prior.xyz_m if prior is not None and prior.xyz_m is not None else np.zeros(3)
@@ -285,11 +301,23 @@ def calibrate(
     runner_starts = [] if found is None else [c.tau for c in found.candidates[1:1 + runners_up]]
     solving = solve_prior(prior, initial, params.guess_sigma_m)
     guess_sigma = params.guess_sigma_m if solving is not prior else None
+    elevation = None
+    if fit_elevation:
+        check_places(feats)
+        first = optimise(feats, tau0, optim, params.gmm, on_iter, solving, executor)
+        elevation = fit_elevation_offset(feats, first, optim, params.gmm, solving, executor, params.elevation_grid_deg)
+        feats = offset_features(feats, elevation.offset_deg)
+        trust = _elevation_sigma(trust, elevation.slope, elevation.sigma_deg)
     others = _alternatives(feats, runner_starts, optim, params.gmm, solving, executor)
     result = optimise(feats, tau0, optim, params.gmm, on_iter, solving, executor)
+    if trust is not None and trust.elevation_sigma_deg > 0 and elevation is None:  # a declared offset's sigma
+        slope = elevation_slope(feats, result, optim, params.gmm, solving, executor)
+        trust = _elevation_sigma(trust, slope, trust.elevation_sigma_deg)
     stats = tuple(PairStats(len(f.pixels.uv), len(f.points)) for f in feats)
     if trust is None:
-        return CalibResult(Transform.from_tau(result.tau), result, stats, search=found, guess_sigma_m=guess_sigma)
+        return CalibResult(Transform.from_tau(result.tau), result, stats, search=found, guess_sigma_m=guess_sigma,
+                           elevation=elevation)
     assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()), solving, executor,
                         (tau0, *runner_starts))
-    return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found, guess_sigma)
+    return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found, guess_sigma,
+                       elevation)

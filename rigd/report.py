@@ -132,6 +132,7 @@ class Uncertainty(Sigmas):
     jackknife_rings: NotRequired[Jackknife | None]  # each ring of the LiDAR left out in turn (groups: rings)
     restart_spread: NotRequired[Sigmas | None]  # RMS of the restarts' offsets (nid-assessed; docs/trust.md)
     camera_model: NotRequired[Sigmas | None]  # the declared principal-point sigma as rotations (docs/trust.md)
+    lidar_elevation: NotRequired[Sigmas | None]  # the fitted elevation offset's sigma, as the pose moves with it
     matched_share: NotRequired[float | None]
     restarts: NotRequired[list[Restart]]
 
@@ -216,6 +217,18 @@ class Tolerance(TypedDict):
     translation_cm: float
 
 
+class ElevationOffset(TypedDict):
+    """The LiDAR's common elevation offset fitted with the pose (calib.elevation): the profile of the finest
+    level's cost over the grid, its vertex and jackknife sigma."""
+
+    offset_deg: float  # as rig.yaml's lidar.elevation_offset_deg would declare it
+    declared_deg: float  # rig.yaml's, which the clouds were loaded with (the grid lies around it)
+    sigma_deg: float
+    at_bound: bool
+    grid_deg: list[float]
+    cost: list[float]
+
+
 class CalibrationReport(TypedDict):
     """``extrinsics.yaml``, ``rigd calibrate --json`` and the worker's result, section by section."""
 
@@ -228,6 +241,7 @@ class CalibrationReport(TypedDict):
     uncertainty: Uncertainty
     verdict: Verdict
     initial_search: NotRequired[InitialSearch]  # started by the global search
+    lidar_elevation_offset: NotRequired[ElevationOffset]  # fitted with the pose (--fit-elevation-offset)
     method: MethodSettings
     prior: NotRequired[PriorYaml]
     tolerance: Tolerance

@@ -172,6 +172,8 @@ class CalibrateIn(Request):
     fix_translation: bool = Field(False, description="hold the translation at the prior's lever arm (or the start's)")
     tolerance: ToleranceIn | None = Field(None, description="field tolerance of the verdict; absent: the dataset's "
                                           "rig.yaml tolerance, else 0.2 deg / 2 cm")
+    fit_elevation_offset: bool = Field(False, description="also fit the LiDAR's common elevation offset, for "
+                                       "cameras that look all round (a panorama or a head); about twice the time")
 
 
 class ThresholdIn(Request):

@@ -106,13 +106,14 @@ class CalibrationPlan:
     prior: dict[str, Any] | None = None  # rig.yaml's prior form; None: the dataset's rig.yaml prior
     fix_translation: bool = False
     tolerance: dict[str, float] | None = None  # rig.yaml's tolerance form; None: the dataset's or the default
+    fit_elevation_offset: bool = False
 
     def params(self) -> dict[str, Any]:
         return {"dataset": self.dataset_id, "init": self.init.value, "init_version": self.init_version,
                 "initial": transform_to_yaml(self.initial) if self.initial is not None else None,
                 "sigmas_deg": list(self.sigmas_deg) if self.sigmas_deg is not None else None,
                 "auto_activate": self.auto_activate, "prior": self.prior, "fix_translation": self.fix_translation,
-                "tolerance": self.tolerance}
+                "tolerance": self.tolerance, "fit_elevation_offset": self.fit_elevation_offset}
 
 
 @dataclass(frozen=True)
@@ -298,7 +299,8 @@ class JobRunner:
                 "initial_matrix": params["initial"]["matrix"] if params["initial"] else None,
                 "sigmas_deg": params["sigmas_deg"],
                 "prior": params.get("prior"), "fix_translation": params.get("fix_translation", False),
-                "tolerance": params.get("tolerance"), "workers": self.workers, "init": params.get("init")}
+                "tolerance": params.get("tolerance"), "workers": self.workers, "init": params.get("init"),
+                "fit_elevation_offset": params.get("fit_elevation_offset", False)}
 
     def _run_in_worker(self, job: Job) -> None:
         payload = self._payload(job)

@@ -157,6 +157,7 @@ def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
         fix_translation=bool(job.get("fix_translation", False)),
         tolerance=tolerance_from_yaml(job["tolerance"], "request tolerance") if job.get("tolerance") else None,
         workers=int(job.get("workers", 2)),
+        fit_elevation=bool(job.get("fit_elevation_offset", False)),
         **schedule,
     )
     outcome = run_calibration(request, reporter.progress, reporter.iteration)

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from calib.assess import Assessment, Status, TrustOptions
 from calib.camera import CameraModel
+from calib.elevation import ElevationFit, raise_elevation
 from calib.errors import CalibError, FeaturelessError
 from calib.geometry import Transform, rotation_angle_deg
 from calib.gmm import PairFeatures
@@ -60,6 +61,7 @@ from rigd.errors import RigdError
 from rigd.report import (
     Assessed,
     CalibrationReport,
+    ElevationOffset,
     GroundTruthError,
     InitialSearch,
     Level,
@@ -92,6 +94,7 @@ class CalibrationRequest:
     search: bool = False  # True: the global search even if a guess exists (it runs anyway without one)
     workers: int = 2  # processes for the pairs' edges and the independent solves (the rig computer's 2+ cores)
     max_width: int | None = WORKING_WIDTH_PX  # px: wider images are halved on load (rigd.dataset.working); None: as is
+    fit_elevation: bool = False  # also fit the LiDAR's common elevation offset (calib.elevation)
 
 
 @dataclass(frozen=True)
@@ -126,8 +129,10 @@ def default_method(dataset: Dataset, initial: Transform | None, prior: Prior | N
 
 
 def with_camera_model(trust: TrustOptions, dataset: Dataset) -> TrustOptions:
-    """``trust`` with a single camera's declared principal-point sigma as rotations (rig.yaml, at the size on
-    disk); a head's and a panorama's stay K-exact."""
+    """``trust`` with rig.yaml's declared sensor uncertainties: the LiDAR's elevation offset sigma, and a single
+    camera's principal-point sigma as rotations (at the size on disk; a head's and a panorama's stay K-exact)."""
+    if dataset.rig.lidar_elevation_sigma_deg:
+        trust = dataclasses.replace(trust, elevation_sigma_deg=dataset.rig.lidar_elevation_sigma_deg)
     camera = dataset.source_camera
     if not isinstance(camera, CameraConfig):
         return trust
@@ -322,6 +327,8 @@ def _uncertainty_yaml(a: Assessment) -> Uncertainty:
             "rpy_deg": _finite(u.restart_spread[:3]), "xyz_cm": _finite(u.restart_spread[3:])},
         "camera_model": None if u.intrinsics is None else {
             "rpy_deg": _finite(u.intrinsics[:3]), "xyz_cm": _finite(u.intrinsics[3:])},
+        "lidar_elevation": None if u.elevation is None else {
+            "rpy_deg": _finite(u.elevation[:3]), "xyz_cm": _finite(u.elevation[3:])},
         "matched_share": u.matched_share,
         "restarts": restarts,
     }
@@ -432,8 +439,23 @@ def _report(result: CalibResult, initial: Transform, dataset: Dataset, wall_s: f
         **_compared(dataset, T),
         **assessed,
         **searched,
+        **_elevation_yaml(result.elevation, dataset.rig.lidar_elevation_offset_deg),
         **settings,
     }
+
+
+class _Elevation(TypedDict, total=False):
+    lidar_elevation_offset: ElevationOffset
+
+
+def _elevation_yaml(fit: ElevationFit | None, declared_deg: float) -> _Elevation:
+    """The fitted offset as rig.yaml would declare it (the clouds were loaded raised by ``declared_deg``)."""
+    if fit is None:
+        return {}
+    return {"lidar_elevation_offset": {"offset_deg": declared_deg + fit.offset_deg, "declared_deg": declared_deg,
+                                       "sigma_deg": fit.sigma_deg,
+                                       "at_bound": fit.at_bound, "grid_deg": list(fit.grid_deg),
+                                       "cost": list(fit.costs)}}
 
 
 def overlay_stem(dataset: Dataset, pair: int, view: int) -> str:
@@ -442,36 +464,39 @@ def overlay_stem(dataset: Dataset, pair: int, view: int) -> str:
 
 
 def _write_pair_visuals(dataset: Dataset, i: int, edge_points: list[NDArray[np.float64]] | None, initial: Transform,
-                        T: Transform, out: Path) -> None:
+                        T: Transform, out: Path, elevation_deg: float = 0.0) -> None:
     """Pair ``i``'s pictures: per view, the edge points (N,3) m, LiDAR frame, of ``edge_points[view]`` (None:
     the GMM's own edge points of the cloud, for a photometric method) over the image with the initial guess and
     with the solution, the close-up of where they moved most (overlays/NNNN[_SENSOR]_{before,after,closeup}.png);
     and the cloud coloured from the pair's images with the solution (clouds/NNNN.ply, and from above:
-    overlays/NNNN_cloud.png)."""
+    overlays/NNNN_cloud.png). ``elevation_deg``: the LiDAR's fitted elevation offset, every point raised by it."""
     cameras = dataset.rig.camera.models()
     pair = dataset.load_pair(i)
     if edge_points is None:
         points = edge_points_of(pair.cloud.points_lidar, pair.cloud.ring, CalibParams()).points_lidar
         edge_points = [points] * len(cameras)
+    edge_points = [raise_elevation(p, elevation_deg) for p in edge_points]
+    cloud_lidar = raise_elevation(pair.cloud.points_lidar, elevation_deg)
     for v, (image, camera, mask) in enumerate(zip(pair.images, cameras, dataset.masks, strict=True)):
         views = edge_views(image, camera, initial, T, edge_points[v], mask)
         for name in OVERLAY_STAGES:
             cv2.imwrite(str(out / "overlays" / f"{overlay_stem(dataset, i, v)}_{name}.png"), getattr(views, name))
     seen = list(zip(pair.images, cameras, dataset.masks, strict=True))
-    coloured = colour_points(seen, T, pair.cloud.points_lidar)
-    write_coloured_ply(out / "clouds" / f"{i:04d}.ply", seen, T, pair.cloud.points_lidar, coloured=coloured)
-    top = cloud_top_view(seen, T, pair.cloud.points_lidar, coloured=coloured)
+    coloured = colour_points(seen, T, cloud_lidar)
+    write_coloured_ply(out / "clouds" / f"{i:04d}.ply", seen, T, cloud_lidar, coloured=coloured)
+    top = cloud_top_view(seen, T, cloud_lidar, coloured=coloured)
     cv2.imwrite(str(out / "overlays" / f"{i:04d}_{CLOUD_STAGE}.png"), top)
 
 
 def _write_visuals(dataset: Dataset, feats: list[PairFeatures] | None, initial: Transform, T: Transform, out: Path,
-                   executor: Executor | None = None) -> None:
+                   executor: Executor | None = None, elevation_deg: float = 0.0) -> None:
     """:func:`_write_pair_visuals` of every pair, side by side in ``executor`` if given."""
     (out / "overlays").mkdir(parents=True, exist_ok=True)
     (out / "clouds").mkdir(parents=True, exist_ok=True)
     views = range(len(dataset.views))
     tasks = [(dataset, i, None if feats is None else [feature_at(feats, dataset, i, v).points.points_lidar
-                                                       for v in views], initial, T, out) for i in range(len(dataset))]
+                                                       for v in views], initial, T, out, elevation_deg)
+             for i in range(len(dataset))]
     if executor is None:
         for task in tasks:
             _write_pair_visuals(*task)
@@ -538,7 +563,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             if progress:
                 progress("optimising" if initial is not None else f"{why}global search", 0.5)
             result = calibrate_method(method, feats, pairs, initial, params, on_iter, prior, trust, search,
-                                      on_search, pool, search_photo)
+                                      on_search, pool, search_photo, request.fit_elevation)
         except CalibError as exc:
             raise RigdError(f"{dataset.root}: {exc}") from exc
         if result.search is not None:
@@ -559,5 +584,6 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             if progress:
                 progress("writing overlays", 0.95)
             with edge_threads(request.workers, len(dataset)) as threads:
-                _write_visuals(dataset, feats, initial, result.T_camera_lidar, out, threads)
+                _write_visuals(dataset, feats, initial, result.T_camera_lidar, out, threads,
+                               0.0 if result.elevation is None else result.elevation.offset_deg)
     return CalibrationOutcome(result.T_camera_lidar, initial, report, out)

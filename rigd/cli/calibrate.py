@@ -18,7 +18,7 @@ from rigd.cli.args import parse_init, parse_prior, parse_sigmas, parse_tolerance
 from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Calibrate
 from rigd.dataset.working import WORKING_WIDTH_PX
-from rigd.report import InitialSearch, ReferenceAgreement, Uncertainty, Verdict
+from rigd.report import ElevationOffset, InitialSearch, ReferenceAgreement, Uncertainty, Verdict
 
 
 def register(subparsers: Any) -> None:
@@ -64,6 +64,10 @@ def register(subparsers: Any) -> None:
                         help="Gaussian prior on the rotation (deg) with its sigma in deg")
     parser.add_argument("--fix", choices=["translation"], default=None,
                         help="hold the translation at the prior's lever arm (or the initial guess's)")
+    parser.add_argument("--fit-elevation-offset", action="store_true",
+                        help="also fit the LiDAR's common elevation offset (or the cameras' common principal-point "
+                        "error along the vertical), for cameras that look all round: a panorama or a head; about "
+                        "twice the time (docs/method.md item 18)")
     parser.add_argument("--tolerance", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
                         help="field tolerance of the verdict (default: rig.yaml tolerance, else 0.2,2)")
     parser.add_argument("--max-width", type=_max_width, default=WORKING_WIDTH_PX, metavar="PX",
@@ -120,6 +124,7 @@ def _calibrate(args: argparse.Namespace, data: DatasetInput) -> int:
         search=args.search,
         workers=args.workers,
         max_width=args.max_width or None,
+        fit_elevation=args.fit_elevation_offset,
     )
     outcome = run_calibration(request, _progress, _on_iter)
     data.record_bag(outcome.out_dir)
@@ -132,6 +137,8 @@ def _calibrate(args: argparse.Namespace, data: DatasetInput) -> int:
         print(f"written: {outcome.out_dir / 'extrinsics.yaml'}")
         if "initial_search" in report:
             print_search(report["initial_search"])
+        if "lidar_elevation_offset" in report:
+            print_elevation(report["lidar_elevation_offset"])
         print_trust(report["uncertainty"], report["verdict"])
         if "error_vs_ground_truth" in report:
             err = report["error_vs_ground_truth"]
@@ -143,6 +150,14 @@ def _calibrate(args: argparse.Namespace, data: DatasetInput) -> int:
 
 def _fmt(values: list[float | None]) -> str:
     return ", ".join("unknown" if v is None else (">1000" if v > 1e3 else f"{v:.3g}") for v in values)
+
+
+def print_elevation(fit: ElevationOffset) -> None:
+    bound = " (at the end of the searched range: check the LiDAR's calibration)" if fit["at_bound"] else ""
+    print(f"LiDAR elevation offset: {fit['offset_deg']:+.3f} deg (sigma {fit['sigma_deg']:.3f} deg){bound}; the "
+          "LiDAR's points raised by it fit the images best. Where the rings are too sparse to fit it, declare it: "
+          f"rig.yaml lidar: {{elevation_offset_deg: {fit['offset_deg']:.3f}, elevation_offset_sigma_deg: "
+          f"{fit['sigma_deg']:.3f}}}")
 
 
 def print_search(section: InitialSearch) -> None:

@@ -342,9 +342,17 @@ class RigConfig:
     prior: Prior | None = None
     tolerance: TrustOptions | None = None
     search: SearchOptions | None = None
+    # deg: every cloud point is raised by this in elevation when a pair is loaded (the LiDAR's common elevation
+    # offset, e.g. from rigd calibrate --fit-elevation-offset on a well-structured set; calib.elevation)
+    lidar_elevation_offset_deg: float = 0.0
+    lidar_elevation_sigma_deg: float = 0.0  # deg, how well that offset is known (1 sigma; 0: exact)
 
     def to_yaml(self) -> dict[str, Any]:
         out: dict[str, Any] = {"camera": self.camera.to_yaml(), "lidar": {"model": self.lidar_model}}
+        if self.lidar_elevation_offset_deg:
+            out["lidar"]["elevation_offset_deg"] = self.lidar_elevation_offset_deg
+        if self.lidar_elevation_sigma_deg:
+            out["lidar"]["elevation_offset_sigma_deg"] = self.lidar_elevation_sigma_deg
         if self.initial_guess is not None:
             out["initial_guess"] = {
                 "rpy_deg": self.initial_guess.rpy_deg.tolist(),
@@ -373,4 +381,20 @@ class RigConfig:
         tolerance = (tolerance_from_yaml(data["tolerance"], where, bounded=True)
                      if data.get("tolerance") is not None else None)
         search = search_from_yaml(data["search"], where) if data.get("search") is not None else None
-        return cls(camera, str(lidar.get("model", "VLP-16")), initial, prior, tolerance, search)
+        return cls(camera, str(lidar.get("model", "VLP-16")), initial, prior, tolerance, search,
+                   _elevation_offset(lidar.get("elevation_offset_deg", 0.0), "elevation_offset_deg", where),
+                   abs(_elevation_offset(lidar.get("elevation_offset_sigma_deg", 0.0), "elevation_offset_sigma_deg",
+                                         where)))
+
+
+MAX_ELEVATION_OFFSET_DEG = 2.0  # a LiDAR's elevation table is good to tenths of a degree
+
+
+def _elevation_offset(value: Any, key: str, where: str) -> float:
+    try:
+        offset = float(value)
+    except (TypeError, ValueError) as exc:
+        raise DatasetError(f"{where}: lidar {key} must be a number of degrees, got {value!r}") from exc
+    if not np.isfinite(offset) or abs(offset) > MAX_ELEVATION_OFFSET_DEG:
+        raise DatasetError(f"{where}: lidar {key} must be within +-{MAX_ELEVATION_OFFSET_DEG:g} deg, got {offset:g}")
+    return offset

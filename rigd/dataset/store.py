@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from calib.elevation import raise_elevation
 from calib.geometry import Transform
 from rigd.dataset.lock import writing
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
@@ -156,6 +157,9 @@ class Dataset:
                                    f"{expected[1]}x{expected[0]}")
             images.append(working_image(image, self.source_camera, self.halvings))
         cloud = read_pcd(folder / "cloud.pcd")
+        if self.rig.lidar_elevation_offset_deg:
+            cloud = dataclasses.replace(cloud, points_lidar=raise_elevation(cloud.points_lidar,
+                                                                            self.rig.lidar_elevation_offset_deg))
         meta_path = folder / "meta.yaml"
         meta = read_yaml_mapping(meta_path) if meta_path.is_file() else {}
         return Pair(int(folder.name), tuple(images), cloud, meta)

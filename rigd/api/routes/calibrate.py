@@ -42,7 +42,7 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
     prior = body.prior.model_dump(exclude_none=True) if body.prior is not None else None
     tolerance = body.tolerance.model_dump() if body.tolerance is not None else None
     return CalibrationPlan(body.dataset, initial, start, init_version, sigmas, body.auto_activate, prior,
-                           body.fix_translation, tolerance)
+                           body.fix_translation, tolerance, body.fit_elevation_offset)
 
 
 @router.post("/calibrate", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, dependencies=[Authorized],

@@ -38,3 +38,18 @@ def test_prior_and_fixed_translation_reach_the_calibration(tmp_path):
             assert version["status"] == ("active" if version["verdict"]["status"] == "trusted" else "candidate")
     finally:
         server.stop()
+
+
+def test_an_elevation_fit_reaches_the_worker_and_two_places_are_refused_by_name(tmp_path):
+    data = tmp_path / "data"
+    dataset = simulated_dataset(data, "ds", pairs=2)
+    server = App(data).start()
+    try:
+        with server.client() as client:
+            body = {"dataset": "ds", "init": perturbed_truth(dataset), "fit_elevation_offset": True}
+            job = wait_job(client, client.post("/calibrate", json=body).json()["id"])
+            assert job["status"] == "failed", job
+            assert "elevation offset needs 3 or more places, got 2" in job["error"]
+            assert job["params"]["fit_elevation_offset"] is True
+    finally:
+        server.stop()

@@ -7,7 +7,7 @@ import yaml
 from calib.assess import TrustOptions
 from calib.pipeline import CalibParams
 from rigd.calibration.service import with_camera_model
-from rigd.dataset import open_dataset, write_rig
+from rigd.dataset import Cloud, open_dataset, write_pair, write_rig
 from rigd.dataset.records import RigConfig
 from rigd.errors import DatasetError
 from rigd.evaluate.trials import extract_state
@@ -105,3 +105,20 @@ def test_the_calibration_and_its_evaluation_judge_a_single_camera_with_its_princ
         trust = with_camera_model(TrustOptions(), open_dataset(root))
         assert trust.intrinsics_sigma_rad == pytest.approx(expected)
         assert extract_state(root, CalibParams(), TrustOptions()).trust == trust
+
+
+def test_a_declared_lidar_elevation_offset_raises_every_loaded_point_and_is_bounded(tmp_path):
+    lidar = {"model": "VLP-16", "elevation_offset_deg": 0.3, "elevation_offset_sigma_deg": 0.05}
+    write_rig(tmp_path, RigConfig.from_yaml({"camera": CAMERA, "lidar": lidar}, "rig.yaml"))
+    points = np.array([[10.0, 0.0, 0.0], [0.0, 5.0, -1.0]])
+    write_pair(tmp_path, 0, np.zeros((32, 64, 3), np.uint8), Cloud(points), {})
+    dataset = open_dataset(tmp_path)
+    assert dataset.rig.lidar_elevation_offset_deg == 0.3 and dataset.rig.lidar_elevation_sigma_deg == 0.05
+    assert with_camera_model(TrustOptions(), dataset).elevation_sigma_deg == 0.05  # the verdict's, as calibrate runs
+    assert extract_state(tmp_path, CalibParams(), TrustOptions()).trust.elevation_sigma_deg == 0.05  # and evaluate
+    loaded = dataset.load_pair(0).cloud.points_lidar
+    elevation = np.degrees(np.arctan2(loaded[:, 2], np.hypot(loaded[:, 0], loaded[:, 1])))
+    assert elevation == pytest.approx(np.degrees(np.arctan2([0.0, -1.0], [10.0, 5.0])) + 0.3)
+    assert "elevation_offset_deg" not in RigConfig.from_yaml({"camera": CAMERA}, "rig.yaml").to_yaml()["lidar"]
+    with pytest.raises(DatasetError, match=r"elevation_offset_deg must be within \+-2 deg, got 5"):
+        RigConfig.from_yaml({"camera": CAMERA, "lidar": {"elevation_offset_deg": 5}}, "rig.yaml")
