@@ -124,8 +124,8 @@ def test_the_runs_use_the_rig_file_prior_as_calibrate_does(small_dataset, tmp_pa
 
 
 def test_a_method_is_evaluated_as_calibrate_runs_it(small_dataset, tmp_path, capsys):
-    sparse = tmp_path / "sparse"  # every third ring, every other point: NID's solves on a quarter of the points
-    thin_dataset(small_dataset, sparse, ThinOptions(ring_spacing_deg=6.0, azimuth_step_deg=0.3))
+    sparse = tmp_path / "sparse"  # every fifth ring, a point per 0.6 deg: NID's solves on a tenth of the points
+    thin_dataset(small_dataset, sparse, ThinOptions(ring_spacing_deg=10.0, azimuth_step_deg=0.6))
     out = tmp_path / "nid"
     code = main(["evaluate", "convergence", str(sparse), "--trials", "1", "--seed", "2", "--workers", "1",
                  "--rot-deg", "1", "--trans-m", "0.02", "--out", str(out), "--method", "nid-assessed"])
