@@ -9,7 +9,8 @@ how much depends on which rings cross which edges (docs/method.md item 18, docs/
 
 The fit profiles the finest level's cost (paper eq. 8) over a grid of offsets, each a refinement of the pose
 from the solution without an offset, and takes the vertex of a parabola through the lowest points. Its sigma
-is the spread of that vertex with each place left out in turn (the poses held at the profile's: first order).
+is the spread of that vertex with each place, and each ring, left out in turn (the poses held at the profile's:
+first order), the larger of the two: where the rings fall on the edges biases the offset as it does the pose.
 The pose's covariance then gains ``slope slope^T sigma^2``, ``slope`` the pose's change per degree of offset
 along the profile.
 """
@@ -39,7 +40,8 @@ MIN_PLACES = 3  # the sigma is a jackknife over places
 @dataclass(frozen=True)
 class ElevationFit:
     """``offset_deg`` the LiDAR's elevation offset (its points raised by it fit best) and ``sigma_deg`` its
-    jackknife sigma; ``slope`` (6,) the pose's change in local coordinates (rad, rad, rad, m, m, m) per degree
+    sigma, the larger of the jackknives over places and over rings (``sigma_places_deg``, ``sigma_rings_deg``);
+    ``slope`` (6,) the pose's change in local coordinates (rad, rad, rad, m, m, m) per degree
     of offset; ``grid_deg`` and ``costs`` the profile; ``at_bound``: the lowest cost lies at the grid's end."""
 
     offset_deg: float
@@ -48,6 +50,8 @@ class ElevationFit:
     grid_deg: tuple[float, ...]
     costs: tuple[float, ...]
     at_bound: bool
+    sigma_places_deg: float = 0.0
+    sigma_rings_deg: float = 0.0
 
 
 def raise_elevation(points_lidar: F64, offset_deg: float) -> F64:
@@ -75,14 +79,37 @@ def _refine(feats: list[PairFeatures], offset_deg: float, tau: F64, finest: Opti
     return optimise(offset_features(feats, offset_deg), tau, finest, gmm, None, prior, None, (kappa,))
 
 
-def _place_costs(feats: list[PairFeatures], finest: OptimOptions, gmm: GmmOptions, tau: F64) -> F64:
-    """(P,) the finest level's cost of each place at ``tau`` (its GMM part, eq. 8)."""
+def _ring_labels(feats: list[PairFeatures]) -> list[NDArray[np.int64]] | None:
+    """Per pair, (N_i,) the ring of each edge point numbered 0.. over all pairs (the same laser, the same
+    number); None when a pair's rings are not known."""
+    rings = [f.points.ring for f in feats]
+    if any(r is None for r in rings):
+        return None
+    known = np.unique(np.concatenate([r for r in rings if r is not None]))
+    return [np.searchsorted(known, r).astype(np.int64) for r in rings if r is not None]
+
+
+def _group_costs(feats: list[PairFeatures], finest: OptimOptions, gmm: GmmOptions, tau: F64,
+                 rings: list[NDArray[np.int64]] | None, n_rings: int) -> tuple[F64, F64]:
+    """(P,) the finest level's cost (its GMM part, eq. 8) of each place at ``tau``, and (R,) of each ring."""
     model = level_model(feats, finest, gmm, 0)
     terms = pair_terms(list(model.feats), model.freeze(tau), tau, list(model.sigma_in_px), model.gmm)
     place = places(feats)
-    out = np.zeros(int(place.max()) + 1)
-    np.add.at(out, place, [-float(t.value.sum()) for t in terms])
-    return out
+    by_place = np.zeros(int(place.max()) + 1)
+    np.add.at(by_place, place, [-float(t.value.sum()) for t in terms])
+    by_ring = np.zeros(n_rings)
+    for t, labels in zip(terms, rings or [], strict=False):
+        np.add.at(by_ring, labels[t.index], -t.value)
+    return by_place, by_ring
+
+
+def _jackknife(grid: F64, costs: F64, parts: F64) -> float:
+    """The jackknife sigma of the profile's vertex, each group's cost (G, K) left out in turn (poses held)."""
+    k = parts.shape[1]
+    if k < MIN_PLACES:
+        return 0.0
+    left_out = np.array([_vertex(grid, costs - parts[:, j]) for j in range(k)])
+    return float(np.sqrt((k - 1) / k * np.sum((left_out - left_out.mean()) ** 2)))
 
 
 def _vertex(grid: F64, costs: F64) -> float:
@@ -115,19 +142,23 @@ def fit_elevation_offset(
 ) -> ElevationFit:
     """The elevation offset that fits ``feats`` best, around ``solution`` (a solve of ``opts`` without one);
     the refinements run side by side in ``executor`` if given."""
-    n_places = check_places(feats)
+    check_places(feats)
     finest = tail_options(opts, 1)
     kappa = solution.levels[-1].kappa
     solves = collect([hand(executor, _refine, feats, d, solution.tau, finest, gmm, prior, kappa) for d in grid_deg])
     grid = np.asarray(grid_deg, dtype=np.float64)
     costs = np.array([s.final_cost for s in solves])
-    per_place = np.array([_place_costs(offset_features(feats, d), finest, gmm, s.tau)
-                          for d, s in zip(grid_deg, solves, strict=True)])  # (G, P)
+    rings = _ring_labels(feats)
+    n_rings = 0 if rings is None else int(max((int(r.max()) + 1 for r in rings if r.size), default=0))
+    parts = [_group_costs(offset_features(feats, d), finest, gmm, s.tau, rings, n_rings)
+             for d, s in zip(grid_deg, solves, strict=True)]
+    by_place = np.array([p for p, _ in parts])  # (G, P)
+    by_ring = np.array([r for _, r in parts])  # (G, R)
     offset = _vertex(grid, costs)
-    left_out = np.array([_vertex(grid, costs - per_place[:, p]) for p in range(n_places)])
-    sigma = float(np.sqrt((n_places - 1) / n_places * np.sum((left_out - left_out.mean()) ** 2)))
-    return ElevationFit(offset, sigma, _slope(grid, [s.tau for s in solves], offset), tuple(grid_deg),
-                        tuple(float(c) for c in costs), bool(np.argmin(costs) in (0, len(grid) - 1)))
+    sigma_places, sigma_rings = _jackknife(grid, costs, by_place), _jackknife(grid, costs, by_ring)
+    return ElevationFit(offset, max(sigma_places, sigma_rings), _slope(grid, [s.tau for s in solves], offset),
+                        tuple(grid_deg), tuple(float(c) for c in costs), bool(np.argmin(costs) in (0, len(grid) - 1)),
+                        sigma_places, sigma_rings)
 
 
 def _slope(grid: F64, taus: list[F64], offset: float) -> F64:

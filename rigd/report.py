@@ -223,7 +223,9 @@ class ElevationOffset(TypedDict):
 
     offset_deg: float  # as rig.yaml's lidar.elevation_offset_deg would declare it
     declared_deg: float  # rig.yaml's, which the clouds were loaded with (the grid lies around it)
-    sigma_deg: float
+    sigma_deg: float  # the larger of the two jackknives'
+    sigma_places_deg: float
+    sigma_rings_deg: float
     at_bound: bool
     grid_deg: list[float]
     cost: list[float]

@@ -453,7 +453,8 @@ def _elevation_yaml(fit: ElevationFit | None, declared_deg: float) -> _Elevation
     if fit is None:
         return {}
     return {"lidar_elevation_offset": {"offset_deg": declared_deg + fit.offset_deg, "declared_deg": declared_deg,
-                                       "sigma_deg": fit.sigma_deg,
+                                       "sigma_deg": fit.sigma_deg, "sigma_places_deg": fit.sigma_places_deg,
+                                       "sigma_rings_deg": fit.sigma_rings_deg,
                                        "at_bound": fit.at_bound, "grid_deg": list(fit.grid_deg),
                                        "cost": list(fit.costs)}}
 

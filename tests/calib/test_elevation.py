@@ -12,7 +12,7 @@ from calib.elevation import fit_elevation_offset, offset_features, raise_elevati
 from calib.errors import CalibError
 from calib.geometry import rotation_angle_deg
 from calib.gmm import PairFeatures
-from calib.optimize import OptimResult
+from calib.optimize import OptimResult, optimise
 from calib.pipeline import CalibParams, calibrate, schedule
 from tests.calib.synthetic import TRUTH, head_sensors, make_head_place
 
@@ -66,3 +66,35 @@ def test_fitting_the_offset_needs_three_places():
     opts = schedule(feats, PARAMS, TRUTH.tau)
     with pytest.raises(CalibError, match="3 or more places"):
         fit_elevation_offset(feats, OptimResult(TRUTH.tau, (), True, 0.0), opts, PARAMS.gmm)
+
+
+def _rings(points_lidar: np.ndarray) -> np.ndarray:
+    """(N,) int64: 2 deg elevation bins as rings."""
+    elevation = np.degrees(np.arctan2(points_lidar[:, 2], np.hypot(points_lidar[:, 0], points_lidar[:, 1])))
+    return np.floor(elevation / 2.0).astype(np.int64)
+
+
+def _with_rings(feats: list[PairFeatures], biased_ring: int, extra_deg: float) -> list[PairFeatures]:
+    """``feats`` with rings (:func:`_rings`) and the points of one ring read ``extra_deg`` low besides."""
+    out = []
+    for f in feats:
+        points = f.points.points_lidar
+        ring = _rings(points)
+        on = ring == biased_ring
+        points = points.copy()
+        points[on] = raise_elevation(points[on], -extra_deg)
+        out.append(replace(f, points=replace(f.points, points_lidar=points, ring=ring)))
+    return out
+
+
+def test_one_ring_that_reads_low_in_every_place_is_seen_by_the_jackknife_over_rings():
+    feats = _head((0, 1, 2))
+    rings = np.concatenate([_rings(f.points.points_lidar) for f in feats])
+    busiest = int(np.bincount(rings - rings.min()).argmax() + rings.min())
+    biased = _with_rings(feats, busiest, 0.3)
+    opts = schedule(biased, PARAMS, TRUTH.tau)
+    fit = fit_elevation_offset(biased, optimise(biased, TRUTH.tau, opts, PARAMS.gmm), opts, PARAMS.gmm,
+                               grid_deg=(-0.5, -0.25, 0.0, 0.25, 0.5))
+    assert fit.sigma_rings_deg > 2 * fit.sigma_places_deg  # every place shares the ring: only rings see it
+    assert fit.sigma_deg == fit.sigma_rings_deg
+    assert abs(fit.offset_deg) < 2 * fit.sigma_deg  # the true offset is 0: the ring's pull is within the sigma
