@@ -173,7 +173,7 @@ class CalibrateIn(Request):
     tolerance: ToleranceIn | None = Field(None, description="field tolerance of the verdict; absent: the dataset's "
                                           "rig.yaml tolerance, else 0.2 deg / 2 cm")
     fit_elevation_offset: bool = Field(False, description="also fit the LiDAR's common elevation offset, for "
-                                       "cameras that look all round (a panorama or a head); about twice the time")
+                                       "cameras that look all round (a panorama or a head); about 1.5 times the time")
 
 
 class ThresholdIn(Request):

@@ -67,7 +67,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--fit-elevation-offset", action="store_true",
                         help="also fit the LiDAR's common elevation offset (or the cameras' common principal-point "
                         "error along the vertical), for cameras that look all round: a panorama or a head; about "
-                        "twice the time (docs/method.md item 18)")
+                        "1.5 times the time (docs/method.md item 18)")
     parser.add_argument("--tolerance", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
                         help="field tolerance of the verdict (default: rig.yaml tolerance, else 0.2,2)")
     parser.add_argument("--max-width", type=_max_width, default=WORKING_WIDTH_PX, metavar="PX",
