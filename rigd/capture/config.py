@@ -73,6 +73,8 @@ class RigSettings:
     prior: Prior | None = None  # the rig's drawing, carried into each dataset's rig.yaml (docs/trust.md)
     tolerance: TrustOptions | None = None
     search: SearchOptions | None = None
+    lidar_elevation_offset_deg: float = 0.0  # the LiDAR's declared elevation offset and its sigma, carried too
+    lidar_elevation_sigma_deg: float = 0.0
     sdk: SdkSettings = field(default_factory=SdkSettings)
     capture: CaptureDefaults = field(default_factory=CaptureDefaults)
 
@@ -120,6 +122,8 @@ def load_settings(path: Path | None) -> RigSettings:
         prior=rig.prior if rig else None,
         tolerance=rig.tolerance if rig else None,
         search=rig.search if rig else None,
+        lidar_elevation_offset_deg=rig.lidar_elevation_offset_deg if rig else 0.0,
+        lidar_elevation_sigma_deg=rig.lidar_elevation_sigma_deg if rig else 0.0,
         sdk=_sdk(_section(camera, "sdk", f"{where}: camera"), where),
         capture=_capture(_section(data, "capture", where), where),
     )

@@ -599,7 +599,9 @@ class _Capture:
             return
         try:
             write_rig(self.out, RigConfig(camera, self.settings.lidar_model, self.settings.initial_guess,
-                                          self.settings.prior, self.settings.tolerance, self.settings.search))
+                                          self.settings.prior, self.settings.tolerance, self.settings.search,
+                                          self.settings.lidar_elevation_offset_deg,
+                                          self.settings.lidar_elevation_sigma_deg))
             spec = self.sources.sim_spec
             if spec is not None and not (self.out / "ground_truth.yaml").is_file():
                 write_ground_truth(self.out, Transform.from_matrix(spec.T_camera_lidar.matrix))

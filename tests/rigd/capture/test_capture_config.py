@@ -188,3 +188,13 @@ def test_bad_sdk_settings_name_the_key(tmp_path: Path, sdk: dict, match: str) ->
     path.write_text(yaml.safe_dump({"camera": {**PANORAMA, "sdk": sdk}}))
     with pytest.raises(ConfigError, match=match):
         load_settings(path)
+
+
+def test_the_lidar_elevation_offset_of_the_rig_file_is_carried_into_the_datasets(tmp_path: Path) -> None:
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump({"camera": {"model": "equirectangular", "width": 64, "height": 32},
+                                    "lidar": {"model": "VLP-16", "elevation_offset_deg": -0.2,
+                                              "elevation_offset_sigma_deg": 0.05}}))
+    settings = load_settings(path)
+    assert (settings.lidar_elevation_offset_deg, settings.lidar_elevation_sigma_deg) == (-0.2, 0.05)
+    assert load_settings(None).lidar_elevation_offset_deg == 0.0
