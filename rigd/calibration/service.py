@@ -532,11 +532,21 @@ def _method_yaml(method: Method, params: CalibParams, photo: PhotoParams | None,
     return out
 
 
+def _check_elevation_fit(request: CalibrationRequest, dataset: Dataset) -> None:
+    """The elevation offset is fitted only where cameras look all round: one camera cannot tell it from a tilt."""
+    kind = dataset.rig.camera.kind
+    if request.fit_elevation and kind not in (CameraKind.EQUIRECTANGULAR, CameraKind.HEAD):
+        raise RigdError(f"{dataset.root}: fitting the LiDAR's elevation offset needs cameras that look all round (a "
+                        f"panorama or a head); one {kind.value} camera cannot tell it from a tilt: declare it in "
+                        "rig.yaml instead (lidar: {elevation_offset_deg: ..., elevation_offset_sigma_deg: ...})")
+
+
 def run_calibration(request: CalibrationRequest, progress: Progress | None = None,
                     on_iter: Callable[[int, int, float], None] | None = None) -> CalibrationOutcome:
     """Calibrate ``request.dataset``; writes ``extrinsics.yaml``, overlays/ and clouds/ into ``out_dir``."""
     started = time.monotonic()
     dataset = open_dataset(request.dataset, request.max_width)
+    _check_elevation_fit(request, dataset)
     initial = _initial(request, dataset)
     prior = _prior(request, dataset)
     method = request.method or default_method(dataset, initial, prior)

@@ -86,3 +86,10 @@ def test_calibrate_without_a_method_reports_the_one_it_chose(pinhole, tmp_path, 
     report = yaml.safe_load((out / "extrinsics.yaml").read_text())
     assert report["method"]["name"] == "nid-assessed"
     assert report["verdict"]["status"] != "not_assessed"
+
+
+def test_an_elevation_fit_on_one_pinhole_camera_is_refused_by_name(pinhole, tmp_path, capsys):
+    code = main(["calibrate", str(pinhole), "--fit-elevation-offset", "--no-visuals", "--out", str(tmp_path / "o")])
+    assert code == 2
+    assert "one pinhole camera cannot tell it from a tilt: declare it in rig.yaml" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()  # refused before any work
