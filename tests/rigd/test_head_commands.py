@@ -70,7 +70,7 @@ def test_the_photometric_baseline_runs_on_a_head(head_dataset: Path, tmp_path: P
     assert truth is not None
     init = np.r_[truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m]
     code = main(["calibrate", str(head_dataset), "--init", ",".join(map(str, init)), "--out", str(tmp_path / "n"),
-                 "--method", "nid", "--no-visuals"])
+                 "--method", "nid", "--no-visuals", "--max-width", "115"])
     assert code == 5  # a baseline: not assessed
     found = yaml.safe_load((tmp_path / "n" / "extrinsics.yaml").read_text())["T_camera_lidar"]
     assert rotation_angle_deg(np.array(found["matrix"])[:3, :3], truth.rotation) < 3.0
