@@ -43,6 +43,7 @@ from calib.pipeline import edge_points as edge_points_of
 from calib.prior import Prior
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.advice import SceneFacts, next_steps
+from rigd.calibration.elevation_plot import plot_elevation_profile
 from rigd.calibration.pool import FeaturePool, preload
 from rigd.calibration.visuals import (
     CLOUD_STAGE,
@@ -597,4 +598,7 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             with edge_threads(request.workers, len(dataset)) as threads:
                 _write_visuals(dataset, feats, initial, result.T_camera_lidar, out, threads,
                                0.0 if result.elevation is None else result.elevation.offset_deg)
+            if result.elevation is not None:
+                plot_elevation_profile(out / "overlays" / "elevation_profile.png", result.elevation,
+                                       dataset.rig.lidar_elevation_offset_deg)
     return CalibrationOutcome(result.T_camera_lidar, initial, report, out)
