@@ -4,7 +4,8 @@ Each step follows from something the verdict measured: translation is seen only 
 edges far away hold it loosely; per-axis sigma shrinks roughly as 1/sqrt(pairs) when pairs are independent,
 but not where it comes from which of a sparse LiDAR's rings cross the edges (every place samples its scene
 at the same elevations); a restart that ends elsewhere as low means the scenes cannot tell two poses apart;
-most restarts ending at other minima mean the edges do not agree in one clear way.
+most restarts ending at other minima mean the edges do not agree in one clear way; where the LiDAR's
+elevation offset's own sigma sets an axis's, more pairs of the same kind do not narrow it.
 """
 
 from __future__ import annotations
@@ -105,6 +106,28 @@ def _rings(axes: list[str], a: Assessment) -> str | None:
             "the lever arm from the rig's drawing")
 
 
+def elevation_set(axes: list[str], a: Assessment) -> list[str]:
+    """The ``axes`` whose sigma the LiDAR's elevation offset (fitted or declared) sets: its part is the larger."""
+    u = a.uncertainty
+    if u.elevation is None:
+        return []
+    data = np.sqrt(np.maximum(np.square(u.sigma) - np.square(u.elevation), 0.0))
+    return [ax for ax in axes if u.elevation[AXES.index(ax)] > data[AXES.index(ax)]]
+
+
+def _elevation(axes: list[str], a: Assessment) -> str | None:
+    part = a.uncertainty.elevation
+    if not axes or part is None:
+        return None
+    worst = max(axes, key=lambda ax: part[AXES.index(ax)] / (1.0 if ax in ROTATION else 10.0))
+    unit = "deg" if worst in ROTATION else "cm"
+    return (f"{', '.join(axes)}: the LiDAR's elevation offset is not known well enough (its sigma alone moves "
+            f"{worst} by {part[AXES.index(worst)]:.2g} {unit} at 1 sigma), and more pairs like "
+            "these do not narrow it; fit the offset where rings cross edges at many heights (rigd calibrate "
+            "--fit-elevation-offset on a denser LiDAR's set, or on places with near slopes and edges' ends) and "
+            "declare it in rig.yaml (lidar: {elevation_offset_deg, elevation_offset_sigma_deg})")
+
+
 def _translation(axes: list[str], facts: SceneFacts) -> str | None:
     if not axes or facts.translation_prior:
         return None
@@ -150,6 +173,9 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[s
                      "check the camera model (K, D) and that the rig stood still, and capture scenes with "
                      "buildings, poles or doorways")
     counted = weak_r + ([] if facts.translation_prior else weak_t)
+    by_elevation = elevation_set(counted, a)
+    steps.append(_elevation(by_elevation, a))
+    counted = [ax for ax in counted if ax not in by_elevation]
     by_rings = ring_set(counted, a)
     steps.append(_rings(by_rings, a))
     steps.append(_more_pairs([ax for ax in counted if ax not in by_rings], a, facts, trust))

@@ -1,5 +1,7 @@
 """rigd.calibration.advice: next steps follow the assessment's numbers."""
 
+from dataclasses import replace
+
 import numpy as np
 
 from calib.assess import Assessment, Restart, Status, TrustOptions, Uncertainty, Verdict
@@ -115,3 +117,20 @@ def test_a_translation_that_ran_metres_points_at_the_lever_arms_unit():
     steps = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.FAILED, (), moved_m=19.1), FAR, TRUST)
     assert steps[0].startswith("the translation ran 19.1 m from its start") and "in metres" in steps[0]
     assert "rig.yaml prior" in steps[0] and "in cm on the page" in steps[0]
+
+
+def test_an_axis_the_elevation_offset_sets_asks_for_a_better_known_offset_not_more_pairs():
+    def with_elevation(z_part_cm):
+        a = assessment([0.03, 0.03, 0.02, 0.3, 0.6, 1.2], Status.WEAK, ("z",))
+        part = np.array([0.01, 0.01, 0.0, 0.03, 0.01, z_part_cm])
+        return next_steps(replace(a, uncertainty=replace(a.uncertainty, elevation=part)),
+                          FAR._replace(typical_range_m=4.0), TRUST)
+
+    steps = with_elevation(1.1)  # of z's 1.2 cm, the offset's 1.1
+    said = [s for s in steps if "elevation offset" in s]
+    assert len(said) == 1 and said[0].startswith("z: the LiDAR's elevation offset is not known well enough")
+    assert "moves z by 1.1 cm" in said[0] and "--fit-elevation-offset" in said[0]
+    assert not any(s.startswith("z: capture more pairs") for s in steps)
+    data_set = with_elevation(0.3)  # the data's own sigma sets z: more pairs, as before
+    assert not any("elevation offset" in s for s in data_set)
+    assert any(s.startswith("z: capture more pairs") for s in data_set)
