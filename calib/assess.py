@@ -158,10 +158,14 @@ def with_intrinsics(unc: Uncertainty, tau: F64, trust: TrustOptions) -> Uncertai
     r = so3_exp(np.asarray(tau[:3], dtype=np.float64))
     extra = np.zeros((6, 6))
     extra[:3, :3] = r.T @ np.diag([sx**2, sy**2, 0.0]) @ r
+    return replace(_with_part(unc, extra, trust), intrinsics=sigmas_display(extra))
+
+
+def _with_part(unc: Uncertainty, extra: F64, trust: TrustOptions) -> Uncertainty:
+    """``unc`` with an independent source's covariance ``extra`` (6,6) added in quadrature."""
     cov = unc.covariance + extra
     sigma = np.sqrt(np.square(unc.sigma) + np.square(sigmas_display(extra)))
-    return replace(unc, covariance=cov, sigma=sigma, intrinsics=sigmas_display(extra),
-                   weakest=weakest_direction(cov, trust.tolerance_display))
+    return replace(unc, covariance=cov, sigma=sigma, weakest=weakest_direction(cov, trust.tolerance_display))
 
 
 def with_elevation(unc: Uncertainty, trust: TrustOptions) -> Uncertainty:
@@ -172,10 +176,7 @@ def with_elevation(unc: Uncertainty, trust: TrustOptions) -> Uncertainty:
         return unc
     part = np.asarray(trust.elevation_sigma_pose, dtype=np.float64)
     extra = np.outer(part, part)
-    cov = unc.covariance + extra
-    sigma = np.sqrt(np.square(unc.sigma) + np.square(sigmas_display(extra)))
-    return replace(unc, covariance=cov, sigma=sigma, elevation=sigmas_display(extra),
-                   weakest=weakest_direction(cov, trust.tolerance_display))
+    return replace(_with_part(unc, extra, trust), elevation=sigmas_display(extra))
 
 
 UNHELD_SHARE = 0.999  # a left-out solve this close to the kernel's width ran to it (trust_region_step's bound)

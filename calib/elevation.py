@@ -79,6 +79,15 @@ def _refine(feats: list[PairFeatures], offset_deg: float, tau: F64, finest: Opti
     return optimise(offset_features(feats, offset_deg), tau, finest, gmm, None, prior, None, (kappa,))
 
 
+def _refinements(feats: list[PairFeatures], solution: OptimResult, opts: OptimOptions, gmm: GmmOptions,
+                 prior: Prior | None, executor: Executor | None, offsets_deg: tuple[float, ...]) -> list[OptimResult]:
+    """The finest level of ``opts`` from ``solution`` with the points raised by each offset (its prior weight
+    held at the solution's, so the costs compare), side by side in ``executor`` if given."""
+    finest = tail_options(opts, 1)
+    kappa = solution.levels[-1].kappa
+    return collect([hand(executor, _refine, feats, d, solution.tau, finest, gmm, prior, kappa) for d in offsets_deg])
+
+
 def _ring_labels(feats: list[PairFeatures]) -> list[NDArray[np.int64]] | None:
     """Per pair, (N_i,) the ring of each edge point numbered 0.. over all pairs (the same laser, the same
     number); None when a pair's rings are not known."""
@@ -123,12 +132,11 @@ def _vertex(grid: F64, costs: F64) -> float:
     return float(np.clip(-b / (2 * a), grid[0], grid[-1]))
 
 
-def check_places(feats: list[PairFeatures]) -> int:
-    """The number of places, if enough to fit the offset (CalibError otherwise)."""
+def check_places(feats: list[PairFeatures]) -> None:
+    """CalibError unless there are enough places to fit the offset."""
     n_places = int(places(feats).max()) + 1
     if n_places < MIN_PLACES:
         raise CalibError(f"fitting the LiDAR's elevation offset needs {MIN_PLACES} or more places, got {n_places}")
-    return n_places
 
 
 def fit_elevation_offset(
@@ -143,9 +151,8 @@ def fit_elevation_offset(
     """The elevation offset that fits ``feats`` best, around ``solution`` (a solve of ``opts`` without one);
     the refinements run side by side in ``executor`` if given."""
     check_places(feats)
+    solves = _refinements(feats, solution, opts, gmm, prior, executor, grid_deg)
     finest = tail_options(opts, 1)
-    kappa = solution.levels[-1].kappa
-    solves = collect([hand(executor, _refine, feats, d, solution.tau, finest, gmm, prior, kappa) for d in grid_deg])
     grid = np.asarray(grid_deg, dtype=np.float64)
     costs = np.array([s.final_cost for s in solves])
     rings = _ring_labels(feats)
@@ -180,9 +187,6 @@ def elevation_slope(feats: list[PairFeatures], solution: OptimResult, opts: Opti
     """(6,) the pose's change in local coordinates per degree of elevation offset around ``solution``, from
     refinements of the finest level with the points raised and lowered by SLOPE_STEP_DEG: how a declared
     offset's uncertainty moves the pose."""
-    finest = tail_options(opts, 1)
-    kappa = solution.levels[-1].kappa
-    steps = (-SLOPE_STEP_DEG, SLOPE_STEP_DEG)
-    low, high = collect([hand(executor, _refine, feats, d, solution.tau, finest, gmm, prior, kappa) for d in steps])
+    low, high = _refinements(feats, solution, opts, gmm, prior, executor, (-SLOPE_STEP_DEG, SLOPE_STEP_DEG))
     return np.asarray((xi_of(solution.tau, high.tau) - xi_of(solution.tau, low.tau)) / (2 * SLOPE_STEP_DEG),
                       dtype=np.float64)
