@@ -22,7 +22,7 @@ from calib.evaluate import pose_error
 from calib.geometry import Transform
 from drivers.sim.motion import MotionRigSpec
 from drivers.sim.stream import TURN_S
-from rigd.calibration import CalibrationRequest, run_calibration
+from rigd.calibration import CalibrationRequest, Start, TransformIn, run_calibration
 from rigd.importers.bag.stills import StillOptions
 from tests.rigd.importers.bag.sim_drive import captured_pairs, comparison_lines, imported_pairs, record_drive
 
@@ -34,8 +34,8 @@ START_OFFSET = (np.array([1.0, -0.6, 0.8]), np.array([0.02, -0.015, 0.01]))  # d
 def calibrated(dataset: Path, start: Transform) -> tuple[Transform, float]:
     """``dataset`` calibrated from ``start`` (no overlays or clouds written), and the seconds it took."""
     began = time.perf_counter()
-    outcome = run_calibration(CalibrationRequest(dataset=dataset, out_dir=dataset / "calibration", initial=start,
-                                                 write_visuals=False))
+    outcome = run_calibration(CalibrationRequest(dataset=dataset, out_dir=dataset / "calibration", start=Start.GIVEN,
+                                                 initial=TransformIn.of(start), write_visuals=False))
     return outcome.T_camera_lidar, time.perf_counter() - began
 
 

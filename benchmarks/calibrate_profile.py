@@ -39,9 +39,9 @@ import calib.fields
 import calib.gmm
 import calib.optimize
 import calib.pipeline
-import rigd.calibration.service
+import rigd.calibration.features
 from calib.geometry import Transform
-from rigd.calibration import CalibrationRequest, run_calibration
+from rigd.calibration import CalibrationRequest, Start, TransformIn, run_calibration
 from rigd.dataset import open_dataset
 from rigd.simulate import write_simulated_dataset
 
@@ -180,7 +180,7 @@ def run(dataset: Path, init: str, serial: bool, profile: str | None) -> dict[str
     """One calibration as the CLI runs it, with the stage timers installed."""
     install()
     hwm: dict[str, int] = {}
-    original_features = rigd.calibration.service.dataset_features
+    original_features = rigd.calibration.features.dataset_features
 
     def features(*args: Any, **kwargs: Any) -> Any:
         with stage("features: total (load + edges + fields + trees)"):
@@ -190,12 +190,12 @@ def run(dataset: Path, init: str, serial: bool, profile: str | None) -> dict[str
         hwm["reset_ok"] = int(_reset_hwm())
         return feats
 
-    rigd.calibration.service.dataset_features = features
+    rigd.calibration.features.dataset_features = features
     parts = [float(v) for v in init.split(",")]
+    start = Transform.from_rpy_xyz(np.array(parts[:3]), np.array(parts[3:]))
     request = CalibrationRequest(dataset=dataset, out_dir=Path(tempfile.mkdtemp(prefix="rigd-prof-")),
-                                 initial=Transform.from_rpy_xyz(np.array(parts[:3]), np.array(parts[3:])),
-                                 write_visuals=False,
-                                 **({"workers": 1} if serial and hasattr(CalibrationRequest, "workers") else {}))
+                                 start=Start.GIVEN, initial=TransformIn.of(start), write_visuals=False,
+                                 workers=1 if serial else 2)
     profiler = cProfile.Profile() if profile else None
     start_w, start_c = time.perf_counter(), time.process_time()
     if profiler:

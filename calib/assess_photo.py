@@ -43,8 +43,10 @@ from calib.assess import (
     moved_from,
     trust_region_step,
     verdict_of,
+    with_elevation,
     with_intrinsics,
 )
+from calib.elevation import SLOPE_STEP_DEG, raise_elevation
 from calib.errors import CalibError
 from calib.gmm import transform_points
 from calib.handed import collect, hand
@@ -382,6 +384,22 @@ def _restart(pairs: list[PhotoPair], start: F64, tail: PhotoParams, fixed_transl
     return optimise_photometric(pairs, start, tail, fixed_translation, subset_tau=anchor)
 
 
+def _raised(pairs: list[PhotoPair], offset_deg: float) -> list[PhotoPair]:
+    return [replace(p, points_lidar=raise_elevation(p.points_lidar, offset_deg)) for p in pairs]
+
+
+def photo_elevation_slope(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, fixed_translation: bool,
+                          executor: Executor | None = None) -> F64:
+    """(6,) the pose's change in local coordinates per degree of the LiDAR's elevation offset around the NID
+    solution ``result``: the finest level refined from it with the points raised and lowered by SLOPE_STEP_DEG,
+    as calib.elevation.elevation_slope does for the GMM, so a declared offset's sigma enters NID's as the GMM's."""
+    anchor = np.asarray(result.tau, dtype=np.float64)
+    finest = _tail(params, 1)
+    low, high = collect([hand(executor, _restart, _raised(pairs, d), anchor, finest, fixed_translation, anchor)
+                         for d in (-SLOPE_STEP_DEG, SLOPE_STEP_DEG)])
+    return np.asarray((xi_of(anchor, high.tau) - xi_of(anchor, low.tau)) / (2 * SLOPE_STEP_DEG), dtype=np.float64)
+
+
 def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, trust: TrustOptions,
                        fixed_translation: bool = False, starts: tuple[F64, ...] = (),
                        opts: PhotoTrustOptions | None = None, executor: Executor | None = None) -> Assessment:
@@ -414,6 +432,6 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
                              "solution" if r is result else "restart")
                      for r, c in runs if r is not best)
     moved, moved_m = moved_from(starts, best.tau)
-    unc = with_intrinsics(unc, best.tau, trust)
+    unc = with_elevation(with_intrinsics(unc, best.tau, trust), trust)
     verdict = verdict_of(unc, list(restarts), trust, moved, moved_m)
     return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m)

@@ -257,6 +257,7 @@ def calibrate(
     feats: list[PairFeatures],
     initial: Transform | None,
     params: CalibParams,
+    *,
     on_iter: Callable[[int, int, float], None] | None = None,
     prior: Prior | None = None,
     trust: TrustOptions | None = None,

@@ -1,6 +1,6 @@
 """The calibration report as typed records: one TypedDict per section of ``extrinsics.yaml``.
 
-Built in one place (rigd/calibration/service.py), read everywhere (the CLI's printers, the demo, the store,
+Built in one place (rigd/calibration/sections.py), read everywhere (the CLI's printers, the demo, the store,
 the API's models and the operator page). TypedDicts, as rosbags types its YAML metadata, because the report
 *is* its YAML and JSON: the records are the very dicts that are written, sent by the worker and stored, so the
 file's and the API's shape cannot drift from the types, and pydantic turns the same records into the API's
@@ -138,13 +138,24 @@ class Uncertainty(Sigmas):
 
 
 @with_config(_OPEN)
+class NextStep(TypedDict):
+    """One thing to do next (rigd.calibration.advice.Step): its words, the actions it asks for
+    (rigd.calibration.advice.Action's values), the axes it is about, and for a capture the pairs to have in all."""
+
+    text: str
+    actions: list[str]
+    axes: list[str]
+    pairs: int | None
+
+
+@with_config(_OPEN)
 class Verdict(TypedDict):
     """trusted | weak | failed (| not_assessed) with the weak axes, the reasons and what to do next."""
 
     status: StatusName
     weak_axes: list[str]
     reasons: list[str]
-    next_steps: NotRequired[list[str]]  # rigd.calibration.advice
+    next_steps: NotRequired[list[NextStep | str]]  # rigd.calibration.advice (words alone in older reports)
     moved_from_start_deg: NotRequired[float | None]
 
 
@@ -196,8 +207,19 @@ class PhotometricSettings(TypedDict):
 @with_config(_OPEN)
 class MethodSettings(TypedDict):
     name: str  # calib.methods.Method's value
+    why: NotRequired[str]  # why this method (asked for, or the dataset's default and its reason)
     sigmas_deg: NotRequired[list[float]]  # the GMM's schedule
     photometric: NotRequired[PhotometricSettings]
+
+
+@with_config(_OPEN)
+class StartYaml(TypedDict):
+    """Where the solve started (rigd.calibration.request.Start's value) and why."""
+
+    source: str
+    choice: str
+    why: str
+    version: NotRequired[int]  # started from this active extrinsics version
 
 
 @with_config(_OPEN)
@@ -245,6 +267,7 @@ class CalibrationReport(TypedDict):
     initial_search: NotRequired[InitialSearch]  # started by the global search
     lidar_elevation_offset: NotRequired[ElevationOffset]  # fitted with the pose (--fit-elevation-offset)
     method: MethodSettings
+    start: NotRequired[StartYaml]
     prior: NotRequired[PriorYaml]
     tolerance: Tolerance
 
@@ -266,6 +289,8 @@ class StoredQuality(Quality):
     uncertainty: NotRequired[Uncertainty]
     verdict: NotRequired[Verdict]
     initial_search: NotRequired[InitialSearch]
+    method: NotRequired[MethodSettings]
+    start: NotRequired[StartYaml]
 
 
 @with_config(ConfigDict(extra="forbid"))
@@ -280,6 +305,8 @@ class _Shown(TypedDict, total=False):
     uncertainty: Uncertainty
     verdict: Verdict
     initial_search: InitialSearch
+    method: MethodSettings
+    start: StartYaml
 
 
 def stored_quality(report: CalibrationReport, pairs_used: int) -> StoredQuality:
@@ -290,6 +317,9 @@ def stored_quality(report: CalibrationReport, pairs_used: int) -> StoredQuality:
         shown = {"error_vs_ground_truth": report["error_vs_ground_truth"], **shown}
     if "initial_search" in report:
         shown["initial_search"] = report["initial_search"]
+    shown["method"] = report["method"]
+    if "start" in report:
+        shown["start"] = report["start"]
     return {**report["quality"], "pairs_used": pairs_used, **shown}
 
 

@@ -20,10 +20,10 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from calib.errors import CalibError
 from drivers.errors import DriverError
 from rigd.api.errors import QueueFullError
-from rigd.api.models import MAX_NESTING
 from rigd.api.routes import calibrate, capture, check, datasets, extrinsics, jobs
 from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
+from rigd.calibration.request import MAX_NESTING
 from rigd.errors import DatasetError, RigdError
 from rigd.store import ConflictError, NotFoundError, StoreError, StoreUnavailableError
 from rigd.store.jsonsafe import json_safe

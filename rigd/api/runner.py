@@ -20,7 +20,6 @@ import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
-from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +28,7 @@ import numpy as np
 from calib.geometry import Transform
 from drivers.errors import DriverError
 from rigd.api.errors import QueueFullError
+from rigd.calibration.request import CalibrationRequest
 from rigd.dataset.records import transform_to_yaml
 from rigd.errors import RigdError
 from rigd.report import CalibrationReport, StoredQuality, stored_quality, verdict_of
@@ -46,7 +46,6 @@ from rigd.store import (
 )
 from rigd.store.datasets import DatasetCatalog
 
-CALIBRATION_METHOD = "kang-doh-2020-gmm-edge-alignment"  # a version's method when the GMM (rigd) solved it
 # What a refused client is told to wait: a small dataset calibrates in tens of seconds, a large one in minutes.
 QUEUE_RETRY_AFTER_S = 30
 PROGRESS_INTERVAL_S = 0.5  # progress is written at most this often (plus every change of stage)
@@ -84,36 +83,18 @@ class ActivationBounds:
         return reasons
 
 
-class Start(Enum):
-    """Where a planned calibration starts: ``init`` of its job's parameters."""
-
-    ACTIVE = "active"  # the active version
-    RIG = "rig"  # the rig file's guess
-    SEARCH = "search"  # the global search (asked for, or no rig file has a guess)
-    EXPLICIT = "explicit"  # a transform in the request
-
-
 @dataclass(frozen=True)
 class CalibrationPlan:
-    """A validated calibration request: the dataset and the resolved initial guess."""
+    """A validated calibration job: the dataset's id, the request as the worker runs it (its dataset the catalog's
+    folder; the runner gives it the job's output folder and its workers) and whether to activate the result."""
 
     dataset_id: str
-    initial: Transform | None  # None: the global search for a start (init "search")
-    init: Start
-    init_version: int | None
-    sigmas_deg: tuple[float, ...] | None  # None: the calibration's default schedule
+    request: CalibrationRequest
     auto_activate: bool
-    prior: dict[str, Any] | None = None  # rig.yaml's prior form; None: the dataset's rig.yaml prior
-    fix_translation: bool = False
-    tolerance: dict[str, float] | None = None  # rig.yaml's tolerance form; None: the dataset's or the default
-    fit_elevation_offset: bool = False
 
     def params(self) -> dict[str, Any]:
-        return {"dataset": self.dataset_id, "init": self.init.value, "init_version": self.init_version,
-                "initial": transform_to_yaml(self.initial) if self.initial is not None else None,
-                "sigmas_deg": list(self.sigmas_deg) if self.sigmas_deg is not None else None,
-                "auto_activate": self.auto_activate, "prior": self.prior, "fix_translation": self.fix_translation,
-                "tolerance": self.tolerance, "fit_elevation_offset": self.fit_elevation_offset}
+        return {"dataset": self.dataset_id, "auto_activate": self.auto_activate,
+                "request": self.request.model_dump(mode="json")}
 
 
 @dataclass(frozen=True)
@@ -237,8 +218,9 @@ class JobRunner:
     def submit_calibration(self, plan: CalibrationPlan) -> tuple[Job, bool]:
         """The job calibrating ``plan`` and whether it is new: the job of an identical calibration that is queued
         or running is returned rather than queuing it twice. QueueFullError when ``max_queued`` jobs wait."""
+        start = plan.request.start
         return self._submit(JobKind.CALIBRATE, plan.dataset_id, plan.params(),
-                            f"queued: calibrate dataset {plan.dataset_id} from {plan.init.value} guess")
+                            f"queued: calibrate dataset {plan.dataset_id} from {start.value} start")
 
     def submit_check(self, plan: CheckPlan) -> tuple[Job, bool]:
         """Like :meth:`submit_calibration`, for a check (same queue, bound and de-duplication)."""
@@ -294,13 +276,9 @@ class JobRunner:
         if job.kind is JobKind.CHECK:
             return {"kind": "check", "dataset": dataset, "checked_matrix": params["checked"]["matrix"],
                     "threshold": params["threshold"]}
-        out_dir = self.jobs.job_dir(job.id) / "calibration"
-        return {"dataset": dataset, "out_dir": str(out_dir),
-                "initial_matrix": params["initial"]["matrix"] if params["initial"] else None,
-                "sigmas_deg": params["sigmas_deg"],
-                "prior": params.get("prior"), "fix_translation": params.get("fix_translation", False),
-                "tolerance": params.get("tolerance"), "workers": self.workers, "init": params.get("init"),
-                "fit_elevation_offset": params.get("fit_elevation_offset", False)}
+        # the request as stored (the worker validates it), with the job's folder and the service's workers
+        out_dir = str(self.jobs.job_dir(job.id) / "calibration")
+        return {"kind": "calibrate", "request": {**params["request"], "out_dir": out_dir, "workers": self.workers}}
 
     def _run_in_worker(self, job: Job) -> None:
         payload = self._payload(job)
@@ -420,7 +398,7 @@ class JobRunner:
         new = NewVersion(
             T_camera_lidar=Transform.from_matrix(np.asarray(result["matrix"])),
             quality=quality,
-            method=CALIBRATION_METHOD if report["method"]["name"] == "rigd" else report["method"]["name"],
+            method=report["method"]["name"],
             parameters={**params, "pair_numbers": pairs, "change_from_initial": report["change_from_initial"]},
             code_version=self.code_version,
             dataset_id=params["dataset"],

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import sys
 import threading
 import traceback
@@ -34,12 +33,12 @@ import numpy as np
 from calib.check import DriftOptions
 from calib.errors import CalibError
 from calib.geometry import Transform
-from calib.pipeline import CalibParams
+from calib.pipeline import sigmas_for
 from drivers.errors import DriverError
 from rigd.calibration import CalibrationRequest, run_calibration
 from rigd.calibration.check import run_check
-from rigd.dataset import open_dataset
-from rigd.dataset.records import prior_from_yaml, tolerance_from_yaml
+from rigd.calibration.job import prepare
+from rigd.calibration.progress import Stage
 from rigd.errors import RigdError
 from rigd.lifetime import leave
 from rigd.store.datasets import content_hash
@@ -48,43 +47,25 @@ from rigd.store.jsonsafe import json_safe
 EXIT_PARENT_GONE = 3
 
 
-# The calibration's stages in order, by the words its progress reports begin with, and the share of the job's bar
-# each takes (with a global search, and without). run_calibration reports each stage on its own scale (the
-# edges 0..1 of the pairs, the search 0.5..0.7, the optimisation 0.5 at its start): placed in its band, and never
-# below what was shown, the bar only moves forward (it went from 70 % in the search back to 50 % at "optimising
-# level 1/4").
-STAGES = (("hashing", "hashing"), ("edges of", "edges"), ("reflectivity", "reflectivity"),
-          ("optimising", "optimising"), ("writing overlays", "overlays"), ("searching around", "around"))
-BANDS = {"hashing": (0.0, 0.02), "edges": (0.02, 0.5), "reflectivity": (0.5, 0.5), "search": (0.5, 0.5),
-         "optimising": (0.5, 0.95), "overlays": (0.95, 1.0)}
-BANDS_SEARCHING = {**BANDS, "edges": (0.02, 0.25), "reflectivity": (0.25, 0.3), "search": (0.3, 0.5)}
-CHECK_BANDS = {"edges": (0.0, 0.6), "around": (0.6, 1.0)}  # a check: the edges, then the search around the pose
-PER_PAIR = ("hashing", "edges", "reflectivity")  # stages whose own fraction is 0..1 of the stage
-PAIR_OF = re.compile(r"pair (\d+)/(\d+)")
-# The search's reports say "no initial guess" (rigd calibrate without --init); a service job says why it searches.
-NO_GUESS = "no initial guess: "
-SEARCH_WORDS = {"search": "", "rig": "no initial guess in the rig file: "}
-
-
-def stage_kind(stage: str) -> str | None:
-    """Which of the calibration's stages a progress report belongs to; None: not one of them (a check's)."""
-    if "global search" in stage:
-        return "search"
-    return next((kind for words, kind in STAGES if stage.startswith(words)), None)
+# The share of the job's bar each stage takes (a calibration with a global search, one without, a check). A stage
+# reports how far it is (done of total); placed in its band, and never below what was shown, the bar only moves
+# forward.
+BANDS = {Stage.HASHING: (0.0, 0.02), Stage.EDGES: (0.02, 0.5), Stage.REFLECTIVITY: (0.5, 0.5),
+         Stage.SEARCH: (0.5, 0.5), Stage.OPTIMISING: (0.5, 0.95), Stage.OVERLAYS: (0.95, 1.0)}
+BANDS_SEARCHING = {**BANDS, Stage.EDGES: (0.02, 0.25), Stage.REFLECTIVITY: (0.25, 0.3), Stage.SEARCH: (0.3, 0.5)}
+CHECK_BANDS = {Stage.EDGES: (0.0, 0.6), Stage.AROUND: (0.6, 1.0)}
 
 
 class Reporter:
     """Writes protocol lines to the parent; levels' iterations go to the log, throttled by the parent.
-    ``bands``: the job's stages' shares of its bar (BANDS, BANDS_SEARCHING when the calibration starts with the
-    global search, CHECK_BANDS); ``init``: the request's start (active, rig, search, explicit), which words the
-    search's stage."""
+    ``bands``: the job's stages' shares of its bar; ``search_why``: why the job searches for its start, said
+    with the search's stage."""
 
-    def __init__(self, out: TextIO, bands: dict[str, tuple[float, float]] | None = None,
-                 init: str | None = None) -> None:
+    def __init__(self, out: TextIO, bands: dict[Stage, tuple[float, float]], search_why: str = "") -> None:
         self.out = out
         self.levels = 1
-        self.bands = BANDS if bands is None else bands
-        self.init = init
+        self.bands = bands
+        self.search_why = search_why
         self.shown = 0.0
 
     def send(self, message: dict[str, Any]) -> None:
@@ -94,43 +75,25 @@ class Reporter:
         except BrokenPipeError:  # the parent is gone
             leave(EXIT_PARENT_GONE)
 
-    def _forward(self, kind: str | None, within: float, given: float) -> float:
-        """The job's fraction for ``within`` (0..1) of stage ``kind`` (``given`` as it is for another job's
-        stages), never below the last one sent."""
-        if kind in self.bands:
-            low, high = self.bands[kind]
-            given = low + (high - low) * min(max(within, 0.0), 1.0)
-        self.shown = max(self.shown, given)
+    def _forward(self, stage: Stage, within: float) -> float:
+        """The job's fraction for ``within`` (0..1) of ``stage``, never below the last one sent."""
+        low, high = self.bands.get(stage, (self.shown, self.shown))
+        self.shown = max(self.shown, low + (high - low) * min(max(within, 0.0), 1.0))
         return self.shown
 
-    def _words(self, stage: str) -> str:
-        if stage.startswith(NO_GUESS) and self.init in SEARCH_WORDS:
-            return SEARCH_WORDS[self.init] + stage.removeprefix(NO_GUESS)
-        return stage
-
-    def progress(self, stage: str, fraction: float) -> None:
-        kind = stage_kind(stage)
-        pair = PAIR_OF.search(stage)
-        # The per-pair stages report how far they are; the others report their start on the caller's scale
-        # (the search's "pair d/t" says how far it is).
-        within = fraction if kind in PER_PAIR else int(pair[1]) / max(int(pair[2]), 1) if pair else 0.0
-        stage = self._words(stage)
-        self.send({"type": "progress", "stage": stage, "fraction": self._forward(kind, within, fraction)})
-        self.send({"type": "log", "line": stage})
+    def progress(self, stage: Stage, done: int, total: int) -> None:
+        words = stage.words + (f" ({self.search_why})" if stage is Stage.SEARCH and self.search_why else "")
+        if total > 1:
+            words += f", {done}/{total}"
+        self.send({"type": "progress", "stage": words, "fraction": self._forward(stage, done / max(total, 1))})
+        self.send({"type": "log", "line": words})
 
     def iteration(self, level: int, iteration: int, cost: float) -> None:
         # Within a level, iterations count towards max 100.
         within = (level + min(iteration / 100.0, 1.0)) / self.levels
         self.send({"type": "progress", "stage": f"optimising level {level + 1}/{self.levels}",
-                   "fraction": self._forward("optimising", within, within)})
+                   "fraction": self._forward(Stage.OPTIMISING, within)})
         self.send({"type": "log", "line": f"level {level + 1} iteration {iteration} cost {cost:.6f}"})
-
-
-def job_bands(job: dict[str, Any]) -> dict[str, tuple[float, float]]:
-    """The stages' shares of a job's bar: a check's, a calibration's with or without the global search."""
-    if job.get("kind") == "check":
-        return CHECK_BANDS
-    return BANDS_SEARCHING if job["initial_matrix"] is None else BANDS
 
 
 def _watch_parent(stdin: TextIO) -> None:
@@ -139,28 +102,18 @@ def _watch_parent(stdin: TextIO) -> None:
     leave(EXIT_PARENT_GONE)
 
 
-def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
-    dataset = open_dataset(Path(job["dataset"]))
-    sigmas = job["sigmas_deg"]
-    reporter.levels = len(sigmas if sigmas is not None else CalibParams().optim.sigmas_deg)
-    reporter.progress("hashing the dataset", 0.0)
+def run_job(job: dict[str, Any], out: TextIO) -> dict[str, Any]:
+    """A ``"kind": "calibrate"`` job: its request, run as `rigd calibrate` runs it; the result is its report with the
+    dataset's content hash and pair numbers (the version records them)."""
+    request = CalibrationRequest.model_validate(job["request"])
+    dataset, resolved = prepare(request)
+    searching = resolved.solve.initial is None
+    reporter = Reporter(out, BANDS_SEARCHING if searching else BANDS, resolved.start_why.why if searching else "")
+    gmm = resolved.solve.gmm
+    reporter.levels = len(sigmas_for(gmm, list(dataset.rig.camera.models()))) if gmm is not None else 1
+    reporter.progress(Stage.HASHING, 0, 1)
     digest = content_hash(dataset)
-    # Without sigmas the request keeps run_calibration's own default schedule.
-    schedule: dict[str, Any] = {"sigmas_deg": tuple(float(s) for s in sigmas)} if sigmas is not None else {}
-    request = CalibrationRequest(
-        dataset=dataset.root,
-        out_dir=Path(job["out_dir"]),
-        initial=Transform.from_matrix(np.asarray(job["initial_matrix"], dtype=np.float64))
-        if job["initial_matrix"] is not None else None,
-        search=job["initial_matrix"] is None,
-        prior=prior_from_yaml(job["prior"], "request prior") if job.get("prior") else None,
-        fix_translation=bool(job.get("fix_translation", False)),
-        tolerance=tolerance_from_yaml(job["tolerance"], "request tolerance") if job.get("tolerance") else None,
-        workers=int(job.get("workers", 2)),
-        fit_elevation=bool(job.get("fit_elevation_offset", False)),
-        **schedule,
-    )
-    outcome = run_calibration(request, reporter.progress, reporter.iteration)
+    outcome = run_calibration(request, reporter.progress, reporter.iteration, (dataset, resolved))
     return {
         "type": "result",
         "matrix": outcome.T_camera_lidar.matrix.tolist(),
@@ -170,7 +123,7 @@ def run_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
     }
 
 
-def run_check_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
+def run_check_job(job: dict[str, Any], out: TextIO) -> dict[str, Any]:
     """A ``"kind": "check"`` job: run_check of the job's extrinsics on the dataset; the result is its report."""
     threshold = job.get("threshold") or {}
     given: dict[str, Any] = {name: float(threshold[key]) for name, key in
@@ -178,7 +131,7 @@ def run_check_job(job: dict[str, Any], reporter: Reporter) -> dict[str, Any]:
                              if key in threshold}
     opts = DriftOptions(**given)
     checked = Transform.from_matrix(np.asarray(job["checked_matrix"], dtype=np.float64))
-    outcome = run_check(Path(job["dataset"]), checked, opts, reporter.progress)
+    outcome = run_check(Path(job["dataset"]), checked, opts, Reporter(out, CHECK_BANDS).progress)
     return {"type": "result", "report": json_safe(outcome.report)}
 
 
@@ -197,10 +150,10 @@ def _protocol_out() -> TextIO:
 def main() -> int:
     out = _protocol_out()
     job = json.loads(sys.stdin.readline())
-    reporter = Reporter(out, job_bands(job), job.get("init"))
+    reporter = Reporter(out, {})
     threading.Thread(target=_watch_parent, args=(sys.stdin,), daemon=True).start()
     try:
-        reporter.send(JOBS[job.get("kind", "calibrate")](job, reporter))
+        reporter.send(JOBS[job["kind"]](job, out))
     except (RigdError, DriverError, CalibError) as exc:
         reporter.send({"type": "error", "message": str(exc)})
         return 2

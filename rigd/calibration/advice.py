@@ -11,6 +11,8 @@ elevation offset's own sigma sets an axis's, more pairs of the same kind do not 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
@@ -23,6 +25,29 @@ ROTATION = ("roll", "pitch", "yaw")
 MEASURED_PAIRS = 12  # the paper's and docs/results.md's protocols
 MAX_USEFUL_PAIRS = 60  # beyond this, more of the same scenes is not the answer
 NEAR_M = 10.0  # edges beyond this typical range tie the translation loosely: ask for nearer structure
+
+
+class Action(Enum):
+    """What a step asks the operator to do; the CLI and the page each say how (an option, a button)."""
+
+    LEVER_ARM = "prior"  # give the lever arm from the rig's drawing
+    FIX_TRANSLATION = "fix"  # hold the translation at the lever arm
+    SEARCH = "search"  # start from the global search
+    CLOSER_START = "init"  # give a closer initial guess
+    CAPTURE = "capture"  # capture more pairs at new places (``Step.pairs`` in all)
+    FIT_ELEVATION = "fit-elevation"  # fit the LiDAR's elevation offset on a set that can tell it, then declare it
+    KEEP_ACTIVE = "keep-active"  # do not use this result
+
+
+@dataclass(frozen=True)
+class Step:
+    """One thing to do next: its words, the actions it asks for, the axes it is about, and for a capture the
+    pairs to have in all."""
+
+    text: str
+    actions: tuple[Action, ...] = ()
+    axes: tuple[str, ...] = ()
+    pairs: int | None = None
 
 
 class SceneFacts(NamedTuple):
@@ -58,15 +83,17 @@ def _pair_names(indices: tuple[int, ...], facts: SceneFacts) -> str:
     return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
-def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustOptions) -> str | None:
+def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustOptions) -> Step | None:
     if not axes:
         return None
     held_by = a.uncertainty.held_by
+    named = tuple(axes)
     if held_by:  # the jackknife's sigma is how far the pose slides without one place: no 1/sqrt(pairs) count
         either = "it" if len(held_by) == 1 else "any one of them"
-        return (f"{', '.join(axes)}: the pose rests on {_pair_names(held_by, facts)}: without {either} "
-                "the other pairs' edges do not hold it, and the sigma is how far it then slides, not noise that "
-                "averages away; capture more pairs at new places with structure like theirs (see their overlays)")
+        return Step(f"{', '.join(axes)}: the pose rests on {_pair_names(held_by, facts)}: without {either} "
+                    "the other pairs' edges do not hold it, and the sigma is how far it then slides, not noise that "
+                    "averages away; capture more pairs at new places with structure like theirs (see their overlays)",
+                    (Action.CAPTURE,), named, max(facts.pairs + len(held_by), MEASURED_PAIRS))
     idx = [AXES.index(ax) for ax in axes]
     sigma = a.uncertainty.sigma[idx]
     if not np.all(np.isfinite(sigma)):
@@ -74,14 +101,15 @@ def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustO
     needed = _pairs_needed(sigma, trust.tolerance_display[idx], trust.sigma_factor, facts.pairs)
     names = ", ".join(axes)
     if needed > MAX_USEFUL_PAIRS:
-        return (f"{names}: more pairs of scenes like these would not do it (about {needed} needed at the rate sigma "
-                "falls); capture in places with more distinct edges (buildings, poles, doorways) in several "
-                "directions")
+        return Step(f"{names}: more pairs of scenes like these would not do it (about {needed} needed at the rate "
+                    "sigma falls); capture in places with more distinct edges (buildings, poles, doorways) in several "
+                    "directions", (), named)
     # Never fewer than rigd is measured with: the estimate moves with each calibration's sigma (4 pairs asked for
     # 8, then those 8 for 11), and one target, the one the "only N pairs" step names too, is what a capture needs.
     target = max(needed, MEASURED_PAIRS)
-    return (f"{names}: capture more pairs at new places and headings, about {target} in all (sigma falls roughly "
-            f"as 1/sqrt(pairs); now {facts.pairs}), and keep the rig still during each capture")
+    return Step(f"{names}: capture more pairs at new places and headings, about {target} in all (sigma falls "
+                f"roughly as 1/sqrt(pairs); now {facts.pairs}), and keep the rig still during each capture",
+                (Action.CAPTURE,), named, target)
 
 
 def ring_set(axes: list[str], a: Assessment) -> list[str]:
@@ -93,17 +121,21 @@ def ring_set(axes: list[str], a: Assessment) -> list[str]:
     return [ax for ax in axes if u.jackknife_rings[AXES.index(ax)] > others[AXES.index(ax)]]
 
 
-def _rings(axes: list[str], a: Assessment) -> str | None:
+def _worst(axes: list[str], part: np.ndarray) -> tuple[str, str, float]:
+    """The axis of ``axes`` with the largest ``part`` (deg and cm weighed 1 : 10), its unit and value."""
+    worst = max(axes, key=lambda ax: part[AXES.index(ax)] / (1.0 if ax in ROTATION else 10.0))
+    return worst, "deg" if worst in ROTATION else "cm", float(part[AXES.index(worst)])
+
+
+def _rings(axes: list[str], a: Assessment) -> Step | None:
     if not axes:
         return None
-    worst = max(axes, key=lambda ax: a.uncertainty.sigma[AXES.index(ax)] / (1.0 if ax in ROTATION else 10.0))
-    k = AXES.index(worst)
-    unit = "deg" if worst in ROTATION else "cm"
-    return (f"{', '.join(axes)}: the result depends on which of the LiDAR's rings cross the scenes' edges (leaving "
-            f"out one ring moves {worst} by {a.uncertainty.sigma[k]:.2g} {unit} at 1 sigma): sparse rings sample "
-            "sloping and horizontal edges at few heights, and in every place alike; capture places whose edges "
-            "stand at other heights and distances from the rig (buildings, poles, doorways 2-10 m away), or give "
-            "the lever arm from the rig's drawing")
+    worst, unit, value = _worst(axes, a.uncertainty.sigma)
+    return Step(f"{', '.join(axes)}: the result depends on which of the LiDAR's rings cross the scenes' edges "
+                f"(leaving out one ring moves {worst} by {value:.2g} {unit} at 1 sigma): sparse rings sample sloping "
+                "and horizontal edges at few heights, and in every place alike; capture places whose edges stand at "
+                "other heights and distances from the rig (buildings, poles, doorways 2-10 m away), or give the "
+                "lever arm from the rig's drawing", (Action.CAPTURE, Action.LEVER_ARM), tuple(axes))
 
 
 def elevation_set(axes: list[str], a: Assessment) -> list[str]:
@@ -115,63 +147,77 @@ def elevation_set(axes: list[str], a: Assessment) -> list[str]:
     return [ax for ax in axes if u.elevation[AXES.index(ax)] > data[AXES.index(ax)]]
 
 
-def _elevation(axes: list[str], a: Assessment) -> str | None:
+def _elevation(axes: list[str], a: Assessment) -> Step | None:
     part = a.uncertainty.elevation
     if not axes or part is None:
         return None
-    worst = max(axes, key=lambda ax: part[AXES.index(ax)] / (1.0 if ax in ROTATION else 10.0))
-    unit = "deg" if worst in ROTATION else "cm"
-    return (f"{', '.join(axes)}: the LiDAR's elevation offset is not known well enough (its sigma alone moves "
-            f"{worst} by {part[AXES.index(worst)]:.2g} {unit} at 1 sigma), and more pairs like "
-            "these do not narrow it; fit the offset where rings cross edges at many heights (rigd calibrate "
-            "--fit-elevation-offset on a denser LiDAR's set, or on places with near slopes and edges' ends) and "
-            "declare it in rig.yaml (lidar: {elevation_offset_deg, elevation_offset_sigma_deg})")
+    worst, unit, value = _worst(axes, part)
+    return Step(f"{', '.join(axes)}: the LiDAR's elevation offset is not known well enough (its sigma alone moves "
+                f"{worst} by {value:.2g} {unit} at 1 sigma), and more pairs like these do not narrow it; fit the "
+                "offset where rings cross edges at many heights (a denser LiDAR's set, or places with near slopes "
+                "and edges' ends) and declare it", (Action.FIT_ELEVATION,), tuple(axes))
 
 
-def _translation(axes: list[str], facts: SceneFacts) -> str | None:
+def _translation(axes: list[str], facts: SceneFacts) -> Step | None:
     if not axes or facts.translation_prior:
         return None
     px_per_cm = facts.pixels_per_radian * 0.01 / max(facts.typical_range_m, 1e-3)
     seen = (f"{', '.join(axes)}: translation is seen only through parallax; at these scenes' typical edge range "
             f"({facts.typical_range_m:.0f} m) 1 cm moves an edge {px_per_cm:.2g} px")
-    drawing = ("the lever arm from the rig's drawing (rig.yaml prior: {xyz_m: [x, y, z], sigma_cm: 1.0}, "
-               "or --fix translation)")
+    actions = (Action.LEVER_ARM, Action.FIX_TRANSLATION)
     if facts.typical_range_m > NEAR_M:
-        return f"{seen}; capture pairs with structure 2-{NEAR_M:g} m from the rig, or give {drawing}"
-    return f"{seen}; give {drawing}"
+        return Step(f"{seen}; capture pairs with structure 2-{NEAR_M:g} m from the rig, or give the lever arm from "
+                    "the rig's drawing (or hold the translation at it)", (Action.CAPTURE, *actions), tuple(axes),
+                    MEASURED_PAIRS if facts.pairs < MEASURED_PAIRS else None)
+    return Step(f"{seen}; give the lever arm from the rig's drawing (or hold the translation at it)", actions,
+                tuple(axes))
 
 
-def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[str, ...]:
-    """What to do next, most useful first; empty for a trusted result."""
-    v = a.verdict
-    if v.status is Status.TRUSTED:
-        return ()
-    steps: list[str | None] = []
+def _start_steps(a: Assessment, trust: TrustOptions) -> list[Step]:
+    """What the solve's path says: no minimum, a run far from its start, a translation pulled far."""
+    steps = []
     if not a.uncertainty.is_minimum:
-        steps.append("the finest level did not end at a minimum: look at the 'before' overlays; if the edge dots "
-                     "are far from the image's edges, give a closer --init or let the global search find one "
-                     "(--search)")
+        steps.append(Step("the finest level did not end at a minimum: look at the 'before' overlays; if the edge "
+                          "dots are far from the image's edges, give a closer initial guess or let the global search "
+                          "find one", (Action.CLOSER_START, Action.SEARCH)))
     if a.moved_deg is not None and a.moved_deg > trust.max_move_deg:
-        steps.append(f"the solve ran {a.moved_deg:.0f} deg from its start: look at the 'before' overlays; if the edge "
-                     "dots already sat near the image's edges, the scenes hold another alignment as strong (add "
-                     "pairs with buildings, poles or doorways); if not, give a closer --init or use --search")
+        steps.append(Step(f"the solve ran {a.moved_deg:.0f} deg from its start: look at the 'before' overlays; if "
+                          "the edge dots already sat near the image's edges, the scenes hold another alignment as "
+                          "strong (add pairs with buildings, poles or doorways); if not, give a closer initial guess "
+                          "or use the global search", (Action.CLOSER_START, Action.SEARCH)))
     if a.moved_m is not None and a.moved_m > trust.max_move_m:
-        steps.append(f"the translation ran {a.moved_m:.1f} m from its start: check the lever arm given, in metres "
-                     "in the rig.yaml prior ({xyz_m: [x, y, z], sigma_cm: 1.0}) and --prior, in cm on the page")
-    weak_t = [ax for ax in TRANSLATION if ax in v.weak_axes]
-    weak_r = [ax for ax in ROTATION if ax in v.weak_axes]
-    steps.append(_translation(weak_t, facts))
+        steps.append(Step(f"the translation ran {a.moved_m:.1f} m from its start: check the lever arm given and its "
+                          "unit", (Action.LEVER_ARM,), TRANSLATION))
+    return steps
+
+
+def _fit_steps(a: Assessment, trust: TrustOptions) -> list[Step]:
+    """What the restarts say: another pose as good, or minima that do not agree."""
+    steps = []
     tol = trust.tolerance_display
     ties = [r for r in a.restarts if r.delta_nll < trust.ambiguity_nll and bool((np.abs(r.offset) > tol).any())]
     if ties:
         which = "the first solution" if ties[0].origin == "solution" else ties[0].origin
-        steps.append(f"another pose fits these pairs as well ({which}): the scenes' edges are too few or repeat; "
-                     "add pairs in other places")
+        steps.append(Step(f"another pose fits these pairs as well ({which}): the scenes' edges are too few or "
+                          "repeat; add pairs in other places", (Action.CAPTURE,)))
     if restarts_elsewhere(a.uncertainty, list(a.restarts), trust) is not None:
-        steps.append("restarts near the solution ended at other minima: the LiDAR edges do not line up with the "
-                     "image's in one clear way; look at the 'after' overlays for edges on foliage or texture, "
-                     "check the camera model (K, D) and that the rig stood still, and capture scenes with "
-                     "buildings, poles or doorways")
+        steps.append(Step("restarts near the solution ended at other minima: the LiDAR edges do not line up with "
+                          "the image's in one clear way; look at the 'after' overlays for edges on foliage or "
+                          "texture, check the camera model (K, D) and that the rig stood still, and capture scenes "
+                          "with buildings, poles or doorways", (Action.CAPTURE,)))
+    return steps
+
+
+def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[Step, ...]:
+    """What to do next, most useful first; empty for a trusted result."""
+    v = a.verdict
+    if v.status is Status.TRUSTED:
+        return ()
+    steps: list[Step | None] = [*_start_steps(a, trust)]
+    weak_t = [ax for ax in TRANSLATION if ax in v.weak_axes]
+    weak_r = [ax for ax in ROTATION if ax in v.weak_axes]
+    steps.append(_translation(weak_t, facts))
+    steps.extend(_fit_steps(a, trust))
     counted = weak_r + ([] if facts.translation_prior else weak_t)
     by_elevation = elevation_set(counted, a)
     steps.append(_elevation(by_elevation, a))
@@ -181,7 +227,9 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[s
     steps.append(_more_pairs([ax for ax in counted if ax not in by_rings], a, facts, trust))
     if facts.pairs < MEASURED_PAIRS:
         have = "1 pair" if facts.pairs == 1 else f"{facts.pairs} pairs"
-        steps.append(f"only {have}: rigd is measured with {MEASURED_PAIRS} (rigd capture --n {MEASURED_PAIRS})")
+        steps.append(Step(f"only {have}: rigd is measured with {MEASURED_PAIRS}", (Action.CAPTURE,),
+                          pairs=MEASURED_PAIRS))
     if v.status is Status.FAILED:
-        steps.append("do not use this result: keep the active calibration (the service does not activate it)")
+        steps.append(Step("do not use this result: keep the active calibration (the service does not activate it)",
+                          (Action.KEEP_ACTIVE,)))
     return tuple(s for s in steps if s is not None)

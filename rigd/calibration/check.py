@@ -11,7 +11,8 @@ from calib.check import DriftOptions, DriftResult, GroupChange, check_drift, per
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.pipeline import CalibParams
-from rigd.calibration.service import Progress, cores, dataset_features
+from rigd.calibration.features import cores, dataset_features
+from rigd.calibration.progress import Progress, Stage
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.records import transform_from_yaml, transform_to_yaml
 from rigd.dataset.store import read_yaml_mapping
@@ -97,7 +98,7 @@ def run_check(dataset_dir: Path, checked: Transform, opts: DriftOptions,
     with ThreadPoolExecutor(max(1, min(cores(), len(dataset)))) as threads:
         feats = dataset_features(dataset, params, progress, threads)
     if progress:
-        progress("searching around the checked extrinsics", 0.6)
+        progress(Stage.AROUND, 0, 1)
     try:
         result = check_drift(feats, checked, params, opts, dataset.rig.prior)
     except CalibError as exc:

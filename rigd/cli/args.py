@@ -6,19 +6,20 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
+from pydantic import BaseModel, ValidationError
 from tqdm import tqdm
 
 from calib.assess import TrustOptions
-from calib.errors import CalibError
 from calib.evaluate import OutlierRule, StartAxes
-from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.methods import Method
-from calib.prior import Prior
-from rigd.dataset.records import lever_arm_problem
+from rigd.calibration.progress import Stage
+from rigd.calibration.request import CalibrationRequest, Options, Start, ToleranceIn, TransformIn
 from rigd.errors import RigdError
 from rigd.evaluate.trials import EvaluationSettings
 
@@ -64,54 +65,65 @@ def progress_bar(desc: str, unit: str) -> tuple[tqdm, Callable[[int, int], None]
     return bar, progress
 
 
+def print_progress(stage: Stage, done: int, total: int) -> None:
+    """A calibration's or check's progress on stderr, one line a step."""
+    of = f" {done}/{total}" if total > 1 else ""
+    print(f"[{stage.words}{of}]", file=sys.stderr, flush=True)
+
+
 # Texts read after parsing: a refused one is a RigdError (rigd: error: ..., exit 2).
 
 
-def numbers(text: str, option: str, count: int) -> list[float]:
+def numbers(text: str, option: str, count: int | None) -> list[float]:
+    """``count`` (None: one or more) finite comma-separated numbers of ``option``."""
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError as exc:
-        raise RigdError(f"{option} must be {count} comma-separated numbers, got {text!r}") from exc
-    if len(values) != count or not np.all(np.isfinite(values)):
-        raise RigdError(f"{option} must be {count} finite comma-separated numbers, got {text!r}")
+        raise RigdError(f"{option} must be {count or 'one or more'} comma-separated numbers, got {text!r}") from exc
+    if (count is not None and len(values) != count) or not values or not np.all(np.isfinite(values)):
+        raise RigdError(f"{option} must be {count or 'one or more'} finite comma-separated numbers, got {text!r}")
     return values
 
 
-def parse_init(text: str) -> Transform:
-    """'roll,pitch,yaw,x,y,z' (degrees, metres) -> Transform."""
+def parse_init(text: str, option: str = "--init") -> TransformIn:
+    """'roll,pitch,yaw,x,y,z' (degrees, metres) -> the request's transform."""
+    values = numbers(text, f"{option} ROLL,PITCH,YAW,X,Y,Z (deg, m)", 6)
+    return validated(TransformIn, option, rpy_deg=values[:3], xyz_m=values[3:])
+
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def validated(model: type[M], option: str, **fields: Any) -> M:
+    """``model(**fields)``, its validation error as a RigdError naming ``option`` and each refused field (the
+    service refuses the same values, in the same words)."""
     try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError as exc:
-        raise RigdError(f"--init must be 6 comma-separated numbers 'r,p,y,x,y,z', got {text!r}") from exc
-    if len(values) != 6 or not np.all(np.isfinite(values)):
-        raise RigdError(f"--init must be 6 finite numbers 'r,p,y,x,y,z' (deg, m), got {text!r}")
-    return Transform.from_rpy_xyz(np.array(values[:3]), np.array(values[3:]))
+        return model(**fields)
+    except ValidationError as exc:
+        problems = "; ".join(f"{'.'.join(map(str, e['loc'])) or 'value'}: {e['msg']}" for e in exc.errors())
+        raise RigdError(f"{option}: {problems}") from None
 
 
-def parse_sigmas(text: str) -> tuple[float, ...]:
-    try:
-        return tuple(float(v) for v in text.split(","))
-    except ValueError as exc:
-        raise RigdError(f"--sigmas must be comma-separated numbers, got {text!r}") from exc
+class ExpertHelp(argparse.Action):
+    """``--help-expert``: the command's help with its expert options (:func:`expert`) shown too."""
+
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        for action in parser._actions:
+            shown = getattr(action, "expert_help", None)
+            if shown is not None:
+                action.help = shown
+        parser.print_help()
+        parser.exit()
 
 
-def parse_prior(xyz_text: str | None, rotation_text: str | None) -> Prior | None:
-    """--prior 'x,y,z,sigma_cm' and --prior-rotation 'roll,pitch,yaw,sigma_deg' -> Prior (or None)."""
-    if xyz_text is None and rotation_text is None:
-        return None
-    xyz = sigma_t = rotation = sigma_r = None
-    if xyz_text is not None:
-        v = numbers(xyz_text, "--prior", 4)
-        if (problem := lever_arm_problem(v[:3])) is not None:
-            raise RigdError(f"--prior X,Y,Z,SIGMA_CM: {problem}")
-        xyz, sigma_t = np.array(v[:3]), np.full(3, v[3] / 100.0)
-    if rotation_text is not None:
-        v = numbers(rotation_text, "--prior-rotation", 4)
-        rotation, sigma_r = rpy_deg_to_matrix(np.array(v[:3])), np.full(3, np.radians(v[3]))
-    try:
-        return Prior(xyz, sigma_t, rotation, sigma_r)
-    except CalibError as exc:
-        raise RigdError(str(exc)) from exc
+def expert(parser: argparse.ArgumentParser, *names: str, help: str, **kwargs: Any) -> None:
+    """An option that ``--help`` leaves out and ``--help-expert`` lists (tuning and research, not field work)."""
+    action = parser.add_argument(*names, help=argparse.SUPPRESS, **kwargs)
+    action.expert_help = f"(expert) {help}"  # type: ignore[attr-defined]
 
 
 def parse_tolerance(text: str, option: str = "--tolerance") -> TrustOptions:
@@ -137,10 +149,10 @@ def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cluster-timeout", type=positive_float, default=10.0, metavar="S",
                         help="seconds to wait for the cluster's scheduler and its first worker (default 10)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/evaluation)")
-    parser.add_argument("--sigmas", type=str, default=None,
-                        help="sigma_in per coarse-to-fine level, degrees at 1 m (default: the calibration's)")
-    parser.add_argument("--init", type=str, default=None,
-                        help="initial guess 'roll,pitch,yaw,x,y,z' in deg and m (default: rig.yaml initial_guess)")
+    parser.add_argument("--sigmas-deg", type=str, default=None, metavar="S1,S2,...",
+                        help="the GMM's sigma_in per coarse-to-fine level, deg at 1 m (default: the method's)")
+    parser.add_argument("--init", type=str, default=None, metavar="ROLL,PITCH,YAW,X,Y,Z",
+                        help="initial guess in deg and m (default: rig.yaml initial_guess)")
     parser.add_argument("--outlier-rule", choices=[r.value for r in OutlierRule],
                         default=OutlierRule.PER_PARAMETER.value,
                         help="per-parameter (paper Fig. 19: any of roll/pitch/yaw > 0.5 deg or x/y/z > 2.5 cm from "
@@ -149,11 +161,6 @@ def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
                         help="skip each run's uncertainty and verdict (faster; no coverage check)")
     parser.add_argument("--tolerance", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
                         help="field tolerance of the verdicts (default 0.2,2)")
-
-
-def evaluation_trust(args: argparse.Namespace) -> TrustOptions | None:
-    """Each run's trust assessment: None with --no-uncertainty, else with --tolerance (default 0.2,2)."""
-    return None if args.no_uncertainty else (parse_tolerance(args.tolerance) if args.tolerance else TrustOptions())
 
 
 def add_start_axes_option(parser: argparse.ArgumentParser) -> None:
@@ -167,23 +174,24 @@ def add_start_axes_option(parser: argparse.ArgumentParser) -> None:
 def add_method_option(parser: argparse.ArgumentParser) -> None:
     """``--method`` for the protocols that run calibrations from starts (convergence, precision)."""
     parser.add_argument("--method", choices=[m.value for m in Method], default=None,
-                        help="what every run solves with, as `rigd calibrate --method` (default: what `rigd "
-                        "calibrate` picks, nid-assessed on a single pinhole camera with intensity and no prior, "
-                        "else rigd)")
+                        help="what every run solves with: rigd calibrate's methods and the research ones (the "
+                        "paper's settings, the ablations, the photometric baselines; default: what `rigd calibrate` "
+                        "picks, nid-assessed on a single pinhole camera with intensity and no prior, else gmm)")
 
 
-def evaluation_settings(args: argparse.Namespace, trust: TrustOptions | None) -> EvaluationSettings:
-    """The options of :func:`add_evaluation_options`, read."""
-    return EvaluationSettings(
-        dataset=args.dataset,
-        seed=args.seed,
-        workers=args.workers,
-        out_dir=args.out,
-        sigmas_deg=parse_sigmas(args.sigmas) if args.sigmas else None,
-        initial=parse_init(args.init) if getattr(args, "init", None) else None,
-        outlier_rule=OutlierRule(args.outlier_rule),
-        trust=trust,
-        cluster=args.cluster,
-        cluster_timeout_s=args.cluster_timeout,
-        method=Method(args.method) if getattr(args, "method", None) else None,
-    )
+def evaluation_settings(args: argparse.Namespace) -> EvaluationSettings:
+    """The options of :func:`add_evaluation_options` (and ``--method``), read into the request every run solves."""
+    options: dict[str, Any] = {"method": Method(args.method) if getattr(args, "method", None) else None}
+    if args.sigmas_deg:
+        options["sigmas_deg"] = numbers(args.sigmas_deg, "--sigmas-deg", None)
+    if args.tolerance:
+        rot, trans = numbers(args.tolerance, "--tolerance", 2)
+        options["tolerance"] = validated(ToleranceIn, "--tolerance ROT_DEG,TRANS_CM", rotation_deg=rot,
+                                         translation_cm=trans)
+    initial = parse_init(args.init) if getattr(args, "init", None) else None
+    request = validated(CalibrationRequest, "rigd evaluate", dataset=args.dataset,
+                        start=Start.GIVEN if initial is not None else Start.RIG, initial=initial,
+                        options=validated(Options, "rigd evaluate", **options), workers=args.workers,
+                        assess=not getattr(args, "no_uncertainty", False))
+    return EvaluationSettings(request, seed=args.seed, out_dir=args.out, outlier_rule=OutlierRule(args.outlier_rule),
+                              cluster=args.cluster, cluster_timeout_s=args.cluster_timeout)

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 from calib.check import DriftOptions, DriftStatus
 from calib.geometry import Transform
 from rigd.calibration.check import extrinsics_from_file, extrinsics_from_store, group_lines, run_check
-from rigd.cli.args import parse_tolerance
+from rigd.cli.args import parse_tolerance, print_progress
 from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
@@ -70,8 +69,7 @@ def _options(text: str | None) -> DriftOptions:
 def run(args: argparse.Namespace) -> int:
     opts = _options(args.threshold)
     with dataset_input(args) as dataset:
-        outcome = run_check(dataset.path, _checked(args, dataset), opts,
-                            lambda stage, f: print(f"[{f * 100:5.1f} %] {stage}", file=sys.stderr, flush=True))
+        outcome = run_check(dataset.path, _checked(args, dataset), opts, print_progress)
     rep = outcome.report
     if args.json:
         print(json.dumps(json_safe(rep)))

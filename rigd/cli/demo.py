@@ -16,12 +16,12 @@ from typing import Any
 import numpy as np
 
 from calib.geometry import Transform
-from calib.prior import Prior
 from drivers.sim.motion import MotionRigSpec, save_spec
-from rigd.calibration import CalibrationRequest, run_calibration
+from rigd.calibration import CalibrationRequest, Options, Start, TransformIn, run_calibration
+from rigd.calibration.request import PriorIn
 from rigd.capture import CaptureRequest, run_capture
 from rigd.capture.engine import SIM_MOVE_S, SIM_STOP_MARGIN_S, sim_stops
-from rigd.cli.args import non_negative_float
+from rigd.cli.args import non_negative_float, print_progress
 from rigd.cli.calibrate import print_trust
 from rigd.cli.capture import StatusPrinter
 
@@ -83,11 +83,13 @@ def run(args: argparse.Namespace) -> int:
     if args.drawing_cm > 0:
         sigma_m = args.drawing_cm / 100
         drawing = truth.translation_m + rng.normal(0.0, sigma_m / 2, 3)  # the drawing is off by a few mm too
-        prior = Prior(xyz_m=drawing, sigma_xyz_m=np.full(3, sigma_m))
+        prior = PriorIn(xyz_m=drawing.tolist(), sigma_cm=args.drawing_cm)
         print(f"lever arm from the rig's drawing: {np.round(drawing, 4).tolist()} m, sigma {args.drawing_cm:g} cm "
               "(rig.yaml prior)", file=sys.stderr)
-    request = CalibrationRequest(dataset=dataset, out_dir=args.out / "calibration", initial=start, prior=prior)
-    outcome = run_calibration(request, lambda s, f: print(f"[{f * 100:5.1f} %] {s}", file=sys.stderr))
+    out = args.out / "calibration"
+    request = CalibrationRequest(dataset=dataset, out_dir=out, start=Start.GIVEN, initial=TransformIn.of(start),
+                                 options=Options(prior=prior))
+    outcome = run_calibration(request, print_progress)
     rep = outcome.report
     init = rep["change_from_initial"]
     err = rep["error_vs_ground_truth"]  # the simulated dataset has its ground truth (asserted above)
@@ -95,6 +97,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"error vs ground truth: {err['rotation_deg']:.3f} deg, {err['translation_cm']:.2f} cm "
           f"(rpy {np.round(err['rpy_deg'], 3).tolist()} deg, xyz {np.round(err['xyz_cm'], 2).tolist()} cm)")
     print_trust(rep["uncertainty"], rep["verdict"])
-    print(f"wall time {rep['quality']['wall_time_s']:.1f} s; extrinsics: {outcome.out_dir / 'extrinsics.yaml'}")
-    print(f"overlays (before/after): {outcome.out_dir / 'overlays'}")
+    print(f"wall time {rep['quality']['wall_time_s']:.1f} s; extrinsics: {out / 'extrinsics.yaml'}")
+    print(f"overlays (before/after): {out / 'overlays'}")
     return 0

@@ -13,7 +13,6 @@ from rigd.cli.args import (
     add_method_option,
     add_start_axes_option,
     evaluation_settings,
-    evaluation_trust,
     non_negative_float,
     numbers,
     parse_tolerance,
@@ -158,7 +157,7 @@ def summary_lines(outcome: EvaluationOutcome) -> list[str]:
 
 
 def run_drift_command(args: argparse.Namespace) -> int:
-    settings = evaluation_settings(args, None)
+    settings = evaluation_settings(args)
     if args.tolerance is not None:
         raise RigdError("rigd evaluate drift: give rigd check's thresholds with --threshold (no verdicts here)")
     opts = DriftOptions()
@@ -184,7 +183,7 @@ def run_drift_command(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    settings = evaluation_settings(args, evaluation_trust(args))
+    settings = evaluation_settings(args)
     if args.protocol == "convergence":
         outcome = run_convergence(ConvergenceRequest(settings, args.trials, args.rot_deg, args.trans_m,
                                                      StartAxes(args.start_axes)))

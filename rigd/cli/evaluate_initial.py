@@ -8,7 +8,6 @@ from typing import Any
 from rigd.cli.args import (
     add_evaluation_options,
     evaluation_settings,
-    evaluation_trust,
     non_negative_float,
     positive_int,
 )
@@ -34,7 +33,7 @@ def register_initial(protocols: Any) -> None:
 
 
 def run_initial_command(args: argparse.Namespace) -> int:
-    settings = evaluation_settings(args, evaluation_trust(args))
+    settings = evaluation_settings(args)
     rep = run_initial(InitialRequest(settings, args.trials, args.yaw_deg, args.tilt_deg, args.lever_m))
     ref = rep["reference"]
     print(f"initial guess on {rep['dataset']} ({rep['pairs']} pairs): {rep['settings']['trials']} random mounts "

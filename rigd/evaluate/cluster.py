@@ -33,9 +33,7 @@ from distributed import Client, KilledWorker, as_completed, get_worker
 from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.comm.registry import get_backend
 
-from calib.assess import TrustOptions
-from calib.methods import Method
-from calib.pipeline import CalibParams
+from rigd.calibration.request import CalibrationRequest
 from rigd.errors import RigdError
 from rigd.evaluate.trials import WorkerState, collect, extract_state
 
@@ -45,14 +43,11 @@ R = TypeVar("R")
 
 @dataclass(frozen=True)
 class FeatureKey:
-    """What a worker's features depend on: ``root`` must be the dataset's path on every worker; ``stamp``
-    (:func:`dataset_stamp`) changes when the dataset is rewritten at the same path."""
+    """What a worker's features depend on: the request (its dataset's path must be the same on every worker);
+    ``stamp`` (:func:`dataset_stamp`) changes when the dataset is rewritten at the same path."""
 
-    root: Path
+    request: CalibrationRequest
     stamp: str
-    params: CalibParams
-    trust: TrustOptions | None
-    method: Method = Method.RIGD
 
 
 def dataset_stamp(root: Path) -> str:
@@ -96,7 +91,8 @@ def _features(key: FeatureKey) -> WorkerState:
         _COUNTS["tasks"] += 1
         if _CACHED is None or _CACHED[0] != key:
             _CACHED = None  # free the previous dataset's features before extracting the next
-            _CACHED = (key, extract_state(key.root, key.params, key.trust, key.method))
+            cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
+            _CACHED = (key, extract_state(key.request))
             _COUNTS["extractions"] += 1
         return _CACHED[1]
 
@@ -119,8 +115,7 @@ def _on_worker(key: FeatureKey, client_code: tuple[tuple[str, str], ...], fn: Ca
 class DaskCluster:
     """The workers of the Dask scheduler at ``address`` (a :class:`rigd.evaluate.runner.TrialRunner`)."""
 
-    def __init__(self, address: str, timeout_s: float, root: Path, params: CalibParams,
-                 trust: TrustOptions | None, method: Method = Method.RIGD) -> None:
+    def __init__(self, address: str, timeout_s: float, request: CalibrationRequest) -> None:
         self._address = address
         try:
             scheme, location = parse_address(address)
@@ -141,7 +136,7 @@ class DaskCluster:
             raise RigdError(f"--cluster {address}: the scheduler has no workers after {timeout_s:g} s; start "
                             f"them with `dask worker {address}`") from exc
         self.workers = len(self._client.nthreads())
-        self._key = FeatureKey(root, dataset_stamp(root), params, trust, method)
+        self._key = FeatureKey(request, dataset_stamp(request.dataset))
 
     def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
         futures = [self._client.submit(_on_worker, self._key, code_version(), fn, t, pure=False) for t in tasks]

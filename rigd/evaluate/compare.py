@@ -12,33 +12,27 @@ pool of worker processes that extract that method's features once.
 
 from __future__ import annotations
 
-import multiprocessing
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from calib.errors import CalibError
 from calib.evaluate import OutlierRule, RunStats, StartAxes, pose_error, random_starts, random_subsets, run_stats
 from calib.geometry import Transform
-from calib.gmm import PairFeatures
-from calib.methods import Method, calibrate_method, gmm_params, photo_params
-from calib.photometric import PhotoPair
-from rigd.calibration.service import dataset_features, dataset_photo_pairs, of_pairs
+from calib.methods import Method
+from rigd.calibration.request import CalibrationRequest, Options
 from rigd.dataset import open_dataset
 from rigd.dataset.records import transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
-from rigd.evaluate.trials import Run, Task, collect
+from rigd.evaluate.runner import trial_runner
+from rigd.evaluate.trials import EvaluationSettings, Run, Task, run_task
 
 AXES6 = ("roll_deg", "pitch_deg", "yaw_deg", "x_m", "y_m", "z_m")
 
@@ -80,82 +74,24 @@ class CompareOutcome:
     plot_path: Path
 
 
-@dataclass(frozen=True)
-class _State:
-    method: Method
-    feats: tuple[PairFeatures, ...] | None
-    photo: tuple[PhotoPair, ...] | None
-    error: str | None
-    n_pairs: int = 0  # the dataset's pairs (feats and photo hold one per view of each, view by view)
-
-
-_STATE: _State | None = None  # one per worker process
-
-
-def _init_worker(root: Path, method: Method) -> None:
-    global _STATE
-    cv2.setNumThreads(1)
-    try:
-        dataset = open_dataset(root, WORKING_WIDTH_PX)
-        gmm, photo = gmm_params(method), photo_params(method)
-        feats = tuple(dataset_features(dataset, gmm, None)) if gmm is not None else None
-        pairs = tuple(dataset_photo_pairs(dataset, photo, None)) if photo is not None else None
-    except (RigdError, CalibError) as exc:
-        _STATE = _State(method, None, None, f"{root}: {exc}")
-        return
-    _STATE = _State(method, feats, pairs, None, len(dataset))
-
-
-def _release() -> None:
-    global _STATE
-    _STATE = None
-
-
-def _run_task(task: Task) -> Run:
-    state = _STATE
-    if state is None or state.error is not None:
-        raise RigdError(state.error if state else "compare worker was not initialised")
-    started = time.monotonic()
-    feats = None if state.feats is None else of_pairs(state.feats, state.n_pairs, task.pairs)
-    photo = None if state.photo is None else of_pairs(state.photo, state.n_pairs, task.pairs)
-    try:
-        result = calibrate_method(state.method, feats, photo, task.start)
-    except CalibError as exc:
-        return Run(task.index, task.pairs, task.start, None, str(exc), None, 0, time.monotonic() - started)
-    iterations = sum(level.iterations for level in result.optim.levels)
-    return Run(task.index, task.pairs, task.start, result.T_camera_lidar, None, result.optim.final_cost, iterations,
-               time.monotonic() - started)
-
-
-def _run(root: Path, method: Method, tasks: Sequence[Task], workers: int, progress: bool) -> tuple[Run, ...]:
-    """``tasks`` with ``method`` (results by task index), in one pool: the features are extracted once per worker
-    for both protocols."""
+def _run(req: CompareRequest, method: Method, tasks: Sequence[Task]) -> tuple[Run, ...]:
+    """``tasks`` solved as `rigd calibrate --method METHOD` would, without its assessment, in the evaluation's pool:
+    the features are extracted once per worker for both protocols."""
     if not tasks:
         return ()
-    if workers == 1:  # no pool: one process would only add its start-up and the features' transfer
-        _init_worker(root, method)
-        try:
-            return tuple(_run_task(t) for t in tasks)
-        finally:
-            _release()
-    ctx = multiprocessing.get_context("spawn")  # as rigd.evaluate.runner: no fork after OpenCV threads started
-    with ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(root, method),
-                             mp_context=ctx) as pool:
-        futures = [pool.submit(_run_task, t) for t in tasks]
-        try:
-            runs = collect(as_completed(futures), len(futures), method.value, progress)
-        except BrokenProcessPool as exc:
-            raise RigdError(f"{method.value}: a worker process died ({exc}); fewer --workers need less memory") from exc
-        return tuple(sorted(runs, key=lambda r: r.index))
+    request = CalibrationRequest(dataset=req.dataset, options=Options(method=method), workers=req.workers,
+                                 assess=False)
+    with trial_runner(EvaluationSettings(request, progress=req.progress)) as workers:
+        return tuple(sorted(workers.run(run_task, tasks, method.value, req.progress), key=lambda r: r.index))
 
 
 def parse_methods(text: str) -> tuple[Method, ...]:
     """'gmm,mi,nid,gom,...' -> methods ('gmm' is rigd's GMM); raises RigdError naming an unknown one."""
-    names = {m.value: m for m in Method} | {"gmm": Method.RIGD}
+    names = {m.value: m for m in Method}
     out = []
     for name in (n.strip() for n in text.split(",") if n.strip()):
         if name not in names:
-            raise RigdError(f"--methods: unknown method {name!r}; known: gmm, {', '.join(m.value for m in Method)}")
+            raise RigdError(f"--methods: unknown method {name!r}; known: {', '.join(m.value for m in Method)}")
         out.append(names[name])
     if not out:
         raise RigdError("--methods: give at least one method")
@@ -314,7 +250,7 @@ def run_compare(req: CompareRequest) -> CompareOutcome:
     for method in req.methods:
         tasks = [Task(i, reference, s) for i, s in enumerate(subsets)]
         tasks += [Task(len(subsets) + i, t, all_pairs) for i, t in enumerate(starts)]
-        runs = _run(dataset.root, method, tasks, req.workers, req.progress)
+        runs = _run(req, method, tasks)
         prec, conv = runs[:len(subsets)], runs[len(subsets):]
         errors = [r.error for r in runs if r.error is not None]
         if errors and all(r.result is None for r in runs):

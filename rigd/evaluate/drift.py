@@ -12,7 +12,7 @@ of :mod:`rigd.evaluate.runner`.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,11 +24,10 @@ from calib.evaluate import random_subsets
 from calib.geometry import Transform
 from calib.uncertainty import tau_at
 from rigd.calibration.check import with_rig_tolerance
-from rigd.calibration.service import of_pairs
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 from rigd.evaluate.runner import trial_runner, where_run
-from rigd.evaluate.trials import EvaluationSettings, WorkerState, calib_params, open_for
+from rigd.evaluate.trials import EvaluationSettings, WorkerState, gmm_request, of_pairs, open_for
 
 ERROR = "error"  # a trial whose checked pose sees nothing: counted apart, not as an answer
 ANSWERS = (*(s.value for s in DriftStatus), ERROR)
@@ -100,9 +99,10 @@ def _tasks(truth: Transform, n_pairs: int, request: DriftRequest) -> list[_Drift
 def _run_drift_task(state: WorkerState, task: tuple[_DriftTask, DriftOptions]) -> DriftTrial:
     t, opts = task
     started = time.monotonic()
-    feats = of_pairs(state.feats, state.n_pairs, t.pairs)
+    assert state.solve is not None and state.solve.gmm is not None and state.features.gmm is not None
+    feats = of_pairs(state.features.gmm, state.n_pairs, t.pairs)
     try:
-        result = check_drift(feats, t.checked, state.params, opts, state.prior)
+        result = check_drift(feats, t.checked, state.solve.gmm, opts, state.solve.prior)
     except CalibError:
         return DriftTrial(t.index, t.injected, ERROR, time.monotonic() - started, t.pairs)
     groups = result.judgement.groups
@@ -134,15 +134,15 @@ def run_drift(request: DriftRequest) -> DriftOutcome:
     """Writes OUT/drift.yaml; needs a dataset with ground truth."""
     started = time.monotonic()
     s = request.settings
-    dataset = open_for(s)
+    checks = gmm_request(s.request)
+    dataset, _ = open_for(replace(s, request=checks))
     if dataset.ground_truth is None:
         raise RigdError(f"{dataset.root}: drift evaluation needs ground_truth.yaml (a simulated dataset)")
     if request.size is not None and not 1 <= request.size <= len(dataset):
         raise RigdError(f"--size must be between 1 and the dataset's {len(dataset)} pairs, got {request.size}")
-    params = calib_params(s.sigmas_deg)
     opts = with_rig_tolerance(request.options, dataset)
     tasks = [(t, opts) for t in _tasks(dataset.ground_truth, len(dataset), request)]
-    with trial_runner(s, dataset.root, params, None) as workers:
+    with trial_runner(s, checks) as workers:
         where = where_run(s, workers)
         trials = tuple(sorted(workers.run(_run_drift_task, tasks, "drift", s.progress), key=lambda r: r.index))
     summary = {label: _row([t for t in trials if t.injected == label]) for label, _, _ in _classes(request)}

@@ -31,11 +31,11 @@ from calib.evaluate import random_starts
 from calib.geometry import Transform, rotation_angle_deg, rpy_deg_to_matrix
 from calib.gmm import PairFeatures
 from calib.initial import SearchOptions, base_rotation
-from calib.pipeline import calibrate
+from calib.methods import Method, solve
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 from rigd.evaluate.runner import trial_runner, where_run
-from rigd.evaluate.trials import EvaluationSettings, WorkerState, calib_params, open_for
+from rigd.evaluate.trials import EvaluationSettings, WorkerState, open_for
 
 
 @dataclass(frozen=True)
@@ -88,11 +88,13 @@ def _mounts(request: InitialRequest, base: np.ndarray) -> list[Transform]:
 def _run_trial(state: WorkerState, task: _Task) -> InitialTrial:
     started = time.monotonic()
     target = task.mount or task.truth
-    feats = list(state.feats) if task.mount is None else remount(list(state.feats), task.truth, task.mount)
+    assert state.solve is not None and state.features.gmm is not None
+    feats = state.features.gmm
+    feats = list(feats) if task.mount is None else remount(list(feats), task.truth, task.mount)
     searched: list[float] = []
-    try:
-        result = calibrate(feats, task.start, state.params, trust=state.trust,
-                           on_search=lambda d, n: searched.append(time.monotonic()) if d == n else None)
+    try:  # no prior: a remount moves the lever arm away from the drawing's
+        result = solve(replace(state.solve, initial=task.start, prior=None), feats=feats,
+                       on_search=lambda d, n: searched.append(time.monotonic()) if d == n else None)
     except CalibError as exc:
         return InitialTrial(task.index, (), None, None, 0.0, time.monotonic() - started, None, str(exc))
     T = result.T_camera_lidar
@@ -119,16 +121,16 @@ def run_initial(request: InitialRequest) -> dict[str, Any]:
     """Writes OUT/initial.yaml and returns its content; needs a dataset with ground truth."""
     started = time.monotonic()
     s = request.settings
-    dataset = open_for(s)
+    searches = s.request.model_copy(update={"options": s.request.options.model_copy(update={"method": Method.GMM})})
+    dataset, _ = open_for(replace(s, request=searches))
     truth = dataset.ground_truth
     if truth is None:
         raise RigdError(f"{dataset.root}: the initial-guess evaluation needs ground_truth.yaml (a simulated dataset)")
-    params = calib_params(s.sigmas_deg)
     base = base_rotation(dataset.rig.camera.models()[0])
     ref_start = random_starts(truth, 1, 5.0, 0.1, s.seed + 1)[0]
     mounts = _mounts(request, base)
     tasks = [_Task(-1, None, ref_start, truth)] + [_Task(i, m, None, truth) for i, m in enumerate(mounts)]
-    with trial_runner(s, dataset.root, params, s.trust) as workers:
+    with trial_runner(s, searches) as workers:
         where = where_run(s, workers)
         done = sorted(workers.run(_run_trial, tasks, "initial guess", s.progress), key=lambda r: r.index)
     ref, trials = done[0], done[1:]

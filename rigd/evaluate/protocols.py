@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from calib.errors import CalibError
 from calib.evaluate import (
     Coverage,
     Params6,
@@ -28,9 +27,7 @@ from calib.evaluate import (
     run_stats,
 )
 from calib.geometry import Transform
-from calib.methods import Method, calibrate_method
-from calib.pipeline import CalibParams
-from rigd.calibration.service import of_pairs
+from rigd.calibration.request import Resolved
 from rigd.dataset import Dataset
 from rigd.dataset.records import prior_to_yaml, transform_to_yaml
 from rigd.dataset.reference import AXES, Reference, agreement
@@ -38,7 +35,7 @@ from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 from rigd.evaluate.plots import plot_convergence, plot_precision
 from rigd.evaluate.runner import TrialRunner, trial_runner, where_run
-from rigd.evaluate.trials import EvaluationSettings, Run, Task, WorkerState, calib_params, method_for, open_for
+from rigd.evaluate.trials import EvaluationSettings, Run, Task, open_for, run_task
 
 
 class Protocol(Enum):
@@ -87,28 +84,8 @@ class EvaluationOutcome:
     plot_path: Path
 
 
-def _run_task(state: WorkerState, task: Task) -> Run:
-    started = time.monotonic()
-    try:
-        feats = of_pairs(state.feats, state.n_pairs, task.pairs) if state.feats else None
-        photo = of_pairs(state.photo, state.n_pairs, task.pairs) if state.photo else None
-        result = calibrate_method(state.method, feats, photo, task.start, state.params, prior=state.prior,
-                                  trust=state.trust)
-    except CalibError as exc:  # a start that sees nothing: a failed run, counted as not converged
-        return Run(task.index, task.pairs, task.start, None, str(exc), None, 0, time.monotonic() - started)
-    iterations = sum(level.iterations for level in result.optim.levels)
-    a = result.assessment
-    return Run(task.index, task.pairs, task.start, result.T_camera_lidar, None, result.optim.final_cost, iterations,
-               time.monotonic() - started, None if a is None else tuple(float(v) for v in a.uncertainty.sigma),
-               None if a is None else a.verdict.status.value)
-
-
-def _initial(settings: EvaluationSettings, dataset: Dataset) -> Transform | None:
-    return settings.initial if settings.initial is not None else dataset.rig.initial_guess
-
-
 def _run_all(runner: TrialRunner, tasks: Sequence[Task], desc: str, progress: bool) -> tuple[Run, ...]:
-    return tuple(sorted(runner.run(_run_task, tasks, desc, progress), key=lambda r: r.index))
+    return tuple(sorted(runner.run(run_task, tasks, desc, progress), key=lambda r: r.index))
 
 
 def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
@@ -116,18 +93,16 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     first calibration from the initial guess); writes OUT/convergence.yaml and convergence.png."""
     started = time.monotonic()
     s = request.settings
-    dataset = open_for(s)
-    method = method_for(s, dataset)
-    params = calib_params(s.sigmas_deg, method)
+    dataset, resolved = open_for(s)
     pairs = tuple(range(len(dataset)))
-    with trial_runner(s, dataset.root, params, s.trust, method) as workers:
+    with trial_runner(s) as workers:
         where = where_run(s, workers)
         if dataset.ground_truth is not None:
             reference, source = dataset.ground_truth, Source.GROUND_TRUTH
         elif dataset.reference is not None:
             reference, source = dataset.reference.T_camera_lidar, Source.REFERENCE
         else:
-            initial = _initial(s, dataset)
+            initial = s.initial(dataset)
             if initial is None:
                 raise RigdError(f"{dataset.root}: no ground_truth.yaml and no initial_guess in rig.yaml; give a "
                                 "start for the reference calibration with --init 'r,p,y,x,y,z'")
@@ -141,7 +116,7 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
     setup = {"trials": request.trials, "rot_deg": request.rot_deg, "trans_m": request.trans_m,
              "start_axes": axes.value, **where}
-    return _finish(Protocol.CONVERGENCE, s, method, dataset, params, setup, runs, stats, reference, source, started)
+    return _finish(Protocol.CONVERGENCE, s, resolved, dataset, setup, runs, stats, reference, source, started)
 
 
 def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
@@ -149,17 +124,15 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     initial_guess or, failing both, the ground truth); writes OUT/precision.yaml and precision.png."""
     started = time.monotonic()
     s = request.settings
-    dataset = open_for(s)
-    method = method_for(s, dataset)
-    params = calib_params(s.sigmas_deg, method)
+    dataset, resolved = open_for(s)
     subsets = random_subsets(len(dataset), request.size, request.subsets, s.seed)
-    initial = _initial(s, dataset)
+    initial = s.initial(dataset)
     start, start_source = ((initial, Source.INITIAL_GUESS) if initial is not None
                            else (dataset.ground_truth, Source.GROUND_TRUTH))
     if start is None:
         raise RigdError(f"{dataset.root}: no initial_guess in rig.yaml and no ground_truth.yaml; give the start "
                         "with --init 'r,p,y,x,y,z'")
-    with trial_runner(s, dataset.root, params, s.trust, method) as workers:
+    with trial_runner(s) as workers:
         where = where_run(s, workers)
         runs = _run_all(workers, [Task(i, start, p) for i, p in enumerate(subsets)], "precision", s.progress)
     truth = dataset.ground_truth
@@ -168,7 +141,7 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     stats = run_stats(reference, [r.result for r in runs], s.outlier_rule)
     setup = {"subsets": request.subsets, "size": request.size, "start": start_source.value,
              "start_T_camera_lidar": transform_to_yaml(start), **where}
-    return _finish(Protocol.PRECISION, s, method, dataset, params, setup, runs, stats, reference, source, started)
+    return _finish(Protocol.PRECISION, s, resolved, dataset, setup, runs, stats, reference, source, started)
 
 
 def _params_yaml(p: Params6 | None) -> dict[str, float] | None:
@@ -266,9 +239,10 @@ def _runs_yaml(runs: Sequence[Run], stats: RunStats, protocol: Protocol) -> list
     return out
 
 
-def _finish(protocol: Protocol, s: EvaluationSettings, method: Method, dataset: Dataset, params: CalibParams,
+def _finish(protocol: Protocol, s: EvaluationSettings, resolved: Resolved, dataset: Dataset,
             setup: dict[str, Any], runs: tuple[Run, ...], stats: RunStats, reference: Transform, source: Source,
             started: float) -> EvaluationOutcome:
+    solve = resolved.solve
     out = Path(s.out_dir) if s.out_dir is not None else dataset.root / "evaluation"
     out.mkdir(parents=True, exist_ok=True)
     plot_path = out / f"{protocol.value}.png"
@@ -282,8 +256,8 @@ def _finish(protocol: Protocol, s: EvaluationSettings, method: Method, dataset: 
         "protocol": protocol.value,
         "dataset": str(dataset.root),
         "pairs_in_dataset": len(dataset),
-        "settings": {**setup, "seed": s.seed, "method": method.value,
-                     **({"sigmas_deg": list(params.optim.sigmas_deg)} if method.uses_gmm else {})},
+        "settings": {**setup, "seed": s.seed, "method": solve.method.value,
+                     **({"sigmas_deg": list(solve.gmm.optim.sigmas_deg)} if solve.gmm is not None else {})},
         "reference": {"source": source.value, "T_camera_lidar": transform_to_yaml(reference)},
         "summary": _summary_yaml(stats, runs, with_error=dataset.ground_truth is not None),
         "wall_time_s": round(time.monotonic() - started, 2),
@@ -292,13 +266,13 @@ def _finish(protocol: Protocol, s: EvaluationSettings, method: Method, dataset: 
     }
     if dataset.reference is not None:
         report["summary"]["vs_reference"] = _vs_reference(dataset.reference, runs)
-    if dataset.rig.prior is not None:  # every run's solve used it, as `rigd calibrate` does
-        report["settings"]["prior"] = prior_to_yaml(dataset.rig.prior)
-    if s.trust is not None:
+    if solve.prior is not None:  # every run's solve used it, as `rigd calibrate` does
+        report["settings"]["prior"] = prior_to_yaml(solve.prior)
+    if solve.trust is not None:
         sigmas = [None if r.sigma is None else np.array(r.sigma) for r in runs]
         ref_sigma = dataset.reference.local_sigma() if source is Source.REFERENCE and dataset.reference else None
         check = coverage(reference, [r.result for r in runs], sigmas, [r.verdict for r in runs],
-                         s.trust.tolerance_display, ref_sigma)
+                         solve.trust.tolerance_display, ref_sigma)
         report["summary"]["uncertainty_check"] = _coverage_yaml(check, source, ref_sigma)
     yaml_path = out / f"{protocol.value}.yaml"
     write_yaml(yaml_path, report)

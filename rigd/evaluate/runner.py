@@ -14,12 +14,11 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any, TypeVar
 
-from calib.assess import TrustOptions
-from calib.methods import Method
-from calib.pipeline import CalibParams
+import cv2
+
+from rigd.calibration.request import CalibrationRequest
 from rigd.errors import RigdError
 from rigd.evaluate.trials import EvaluationSettings, WorkerState, collect, extract_state
 
@@ -43,9 +42,10 @@ class TrialRunner(typing.Protocol):
 _STATE: WorkerState | None = None  # one per local pool process, set by _init_worker
 
 
-def _init_worker(root: Path, params: CalibParams, trust: TrustOptions | None, method: Method) -> None:
+def _init_worker(request: CalibrationRequest) -> None:
     global _STATE
-    _STATE = extract_state(root, params, trust, method)
+    cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
+    _STATE = extract_state(request)
 
 
 def _in_pool(fn: Callable[[WorkerState, T], R], task: T) -> R:
@@ -57,14 +57,12 @@ def _in_pool(fn: Callable[[WorkerState, T], R], task: T) -> R:
 class LocalPool:
     """``workers`` processes on this machine, each extracting the features once in its initializer."""
 
-    def __init__(self, root: Path, params: CalibParams, workers: int, trust: TrustOptions | None,
-                 method: Method = Method.RIGD) -> None:
+    def __init__(self, request: CalibrationRequest) -> None:
         # spawn, not fork: a child forked from a process whose OpenCV/BLAS threads hold locks can deadlock on
         # its first cv2 call (seen: the test suite's process hung in cv2.setNumThreads in every forked worker).
-        self._executor = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                                             initargs=(root, params, trust, method),
-                                             mp_context=multiprocessing.get_context("spawn"))
-        self.workers = workers
+        self._executor = ProcessPoolExecutor(max_workers=request.workers, initializer=_init_worker,
+                                             initargs=(request,), mp_context=multiprocessing.get_context("spawn"))
+        self.workers = request.workers
 
     def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
         futures = [self._executor.submit(_in_pool, fn, t) for t in tasks]
@@ -80,14 +78,40 @@ class LocalPool:
         self._executor.shutdown(cancel_futures=True)
 
 
+class InProcess:
+    """One worker: this process, with the features extracted once (no spawn, no copy: ``--workers 1``)."""
+
+    workers = 1
+
+    def __init__(self, request: CalibrationRequest) -> None:
+        self._state = extract_state(request)
+
+    def run(self, fn: Callable[[WorkerState, T], R], tasks: Sequence[T], desc: str, progress: bool) -> list[R]:
+        state = self._state.checked()
+        return collect((_Done(fn(state, t)) for t in tasks), len(tasks), desc, progress)
+
+    def close(self) -> None:
+        del self._state
+
+
+class _Done:
+    """A result as :func:`collect` takes a finished future's."""
+
+    def __init__(self, value: Any) -> None:
+        self._value = value
+
+    def result(self) -> Any:
+        return self._value
+
+
 @contextmanager
-def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams, trust: TrustOptions | None,
-                 method: Method = Method.RIGD) -> Iterator[TrialRunner]:
-    """The local process pool, or with ``s.cluster`` the Dask cluster at that address; every run solves with
-    ``method``."""
+def trial_runner(s: EvaluationSettings, request: CalibrationRequest | None = None) -> Iterator[TrialRunner]:
+    """The local process pool, or with ``s.cluster`` the Dask cluster at that address; every run solves
+    ``request`` (default ``s.request``)."""
+    request = s.request if request is None else request
     runner: TrialRunner
     if s.cluster is None:
-        runner = LocalPool(root, params, s.workers, trust, method)
+        runner = InProcess(request) if request.workers == 1 else LocalPool(request)
     else:
         try:
             from rigd.evaluate.cluster import DaskCluster  # distributed is the [cluster] extra: imported only here
@@ -95,7 +119,8 @@ def trial_runner(s: EvaluationSettings, root: Path, params: CalibParams, trust: 
             if exc.name not in ("distributed", "dask"):
                 raise
             raise RigdError(f"--cluster needs Dask distributed ({exc}): pip install 'rigd[cluster]'") from exc
-        runner = DaskCluster(s.cluster, s.cluster_timeout_s, root.resolve(), params, trust, method)
+        runner = DaskCluster(s.cluster, s.cluster_timeout_s, request.model_copy(
+            update={"dataset": request.dataset.resolve()}))
     try:
         yield runner
     finally:

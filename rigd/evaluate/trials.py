@@ -1,59 +1,71 @@
-"""What every evaluation protocol shares: its settings, one calibration's task and result, and the state a
-worker keeps for all its trials (one dataset's features, extracted once). Where the trials run is
-:mod:`rigd.evaluate.runner`."""
+"""What every evaluation protocol shares: its settings, one calibration's task and result, and the state a worker
+keeps for all its trials: one dataset's features, extracted once for the calibration request every trial solves
+(the request `rigd calibrate` would build, read against the dataset by the same rigd.calibration.request.resolve;
+a trial replaces only the start and the pairs). Where the trials run is :mod:`rigd.evaluate.runner`."""
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable
-from dataclasses import dataclass
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-import cv2
 from tqdm import tqdm
 
-from calib.assess import TrustOptions
 from calib.errors import CalibError
 from calib.evaluate import OutlierRule
 from calib.geometry import Transform
-from calib.gmm import PairFeatures
-from calib.methods import Method, gmm_params, photo_params
-from calib.photometric import PhotoPair
-from calib.pipeline import CalibParams
-from calib.prior import Prior
-from rigd.calibration.service import (
-    dataset_features,
-    dataset_photo_pairs,
-    default_method,
-    params_with_sigmas,
-    with_camera_model,
-)
-from rigd.dataset import Dataset, open_dataset
-from rigd.dataset.working import WORKING_WIDTH_PX
+from calib.methods import Method, SolveRequest, solve
+from calib.pipeline import CalibResult
+from rigd.calibration.features import Features, features_for
+from rigd.calibration.job import prepare
+from rigd.calibration.request import CalibrationRequest, Resolved, Start, TransformIn
+from rigd.dataset import Dataset
 from rigd.errors import RigdError
 
 
 @dataclass(frozen=True)
 class EvaluationSettings:
-    """What the protocols share. ``sigmas_deg`` None: ``CalibParams()``'s schedule. ``initial``: the start
-    of the reference calibration (convergence without ground truth) or of every run (precision); None: the
-    dataset's rig.yaml initial_guess."""
+    """What the protocols share. ``request``: what every run solves (its dataset, options and ``assess``; its
+    start, ``Start.GIVEN`` with a transform or the rig file's, is the start of the reference calibration
+    (convergence without ground truth) or of every run (precision))."""
 
-    dataset: Path
+    request: CalibrationRequest
     seed: int = 0
-    workers: int = 2
     out_dir: Path | None = None  # None: DATASET/evaluation
-    sigmas_deg: tuple[float, ...] | None = None
-    initial: Transform | None = None
     outlier_rule: OutlierRule = OutlierRule.PER_PARAMETER
     progress: bool = True  # a tqdm bar on stderr
     cluster: str | None = None  # a Dask scheduler's address (tcp://host:8786): run there instead of `workers`
     cluster_timeout_s: float = 10.0  # for connecting to it and for its first worker
-    trust: TrustOptions | None = TrustOptions()  # None: no uncertainty/verdict per run (faster, no coverage check)
-    # What every run solves with (`rigd calibrate --method`); None: what `rigd calibrate` picks for the dataset
-    # (rigd.calibration.service.default_method: nid-assessed on a single pinhole camera, else the GMM).
-    method: Method | None = None
+
+    @property
+    def dataset(self) -> Path:
+        return self.request.dataset
+
+    @property
+    def workers(self) -> int:
+        return self.request.workers
+
+    def initial(self, dataset: Dataset) -> Transform | None:
+        """The start the settings give: the request's transform, else the rig file's guess."""
+        if self.request.initial is not None:
+            return self.request.initial.transform
+        return dataset.rig.initial_guess
+
+
+def runs_request(request: CalibrationRequest) -> CalibrationRequest:
+    """``request`` as its runs solve it: every run starts from a start of its own, so the request is read as one
+    given a start (the method a start allows, rigd.calibration.request._method), at the working width."""
+    start = request.initial or TransformIn.of(Transform.identity())
+    return request.model_copy(update={"start": Start.GIVEN, "initial": start})
+
+
+def gmm_request(request: CalibrationRequest) -> CalibrationRequest:
+    """``request`` with the GMM and no assessment: what a check (rigd check) and the global search work on."""
+    options = request.options.model_copy(update={"method": Method.GMM})
+    return request.model_copy(update={"options": options, "assess": False})
 
 
 @dataclass(frozen=True)
@@ -83,18 +95,14 @@ class Run:
 
 @dataclass(frozen=True)
 class WorkerState:
-    """What a worker keeps for all its trials: one dataset's features (the GMM's edges, the photometric
-    pairs, as ``method`` needs), the settings they were made with, and the rig file's prior, which every
-    trial's solve uses as `rigd calibrate` does."""
+    """What a worker keeps for all its trials: the request read against the dataset (``solve``), the features it
+    needs of every pair (one per view of each pair, view by view), the dataset's pair count, or why there are
+    none (raised by every task, so the parent reports it)."""
 
-    feats: tuple[PairFeatures, ...]
-    params: CalibParams
-    trust: TrustOptions | None
-    error: str | None  # feature extraction failed: every task re-raises it, so the parent reports it
-    prior: Prior | None = None
-    n_pairs: int = 0  # the dataset's pairs (feats holds one per view of each, view by view)
-    method: Method = Method.RIGD
-    photo: tuple[PhotoPair, ...] = ()  # one per view of each pair, view by view, for a photometric method
+    solve: SolveRequest | None
+    features: Features
+    n_pairs: int
+    error: str | None = None
 
     def checked(self) -> WorkerState:
         """``self``, or the feature extraction's error raised."""
@@ -102,47 +110,52 @@ class WorkerState:
             raise RigdError(self.error)
         return self
 
+    def calibrate(self, start: Transform | None, pairs: Sequence[int], **changes: Any) -> CalibResult:
+        """The request solved from ``start`` on ``pairs`` (``changes``: other fields of the solve replaced)."""
+        assert self.solve is not None
+        gmm, photo, _ = self.features
+        return solve(replace(self.solve, initial=start, **changes),
+                     feats=None if gmm is None else of_pairs(gmm, self.n_pairs, pairs),
+                     photo=None if photo is None else of_pairs(photo, self.n_pairs, pairs))
 
-def extract_state(root: Path, params: CalibParams, trust: TrustOptions | None,
-                  method: Method = Method.RIGD) -> WorkerState:
-    """``root``'s features for ``method``, or the reason there are none (raised later by the trial that needs
-    them)."""
-    cv2.setNumThreads(1)  # one trial per core: the workers already occupy the cores
+
+def extract_state(request: CalibrationRequest) -> WorkerState:
+    """The features ``request``'s runs need (:func:`runs_request`), or the reason there are none."""
     try:
-        dataset = open_dataset(root, WORKING_WIDTH_PX)
-        trust = None if trust is None else with_camera_model(trust, dataset)  # as rigd calibrate judges its result
-        feats = tuple(dataset_features(dataset, params, None)) if method.uses_gmm else ()
-        photo_opts = photo_params(method)
-        photo = () if photo_opts is None else tuple(dataset_photo_pairs(dataset, photo_opts, None))
+        dataset, resolved = prepare(runs_request(request))
+        features = features_for(dataset, resolved.solve)
     except (RigdError, CalibError) as exc:
-        return WorkerState((), params, trust, f"{root}: {exc}", method=method)
-    return WorkerState(feats, params, trust, None, dataset.rig.prior, len(dataset), method, photo)
+        return WorkerState(None, Features(None, None, None), 0, f"{request.dataset}: {exc}")
+    return WorkerState(resolved.solve, features, len(dataset))
 
 
-def calib_params(sigmas_deg: tuple[float, ...] | None, method: Method = Method.RIGD) -> CalibParams:
-    """``method``'s GMM settings (``CalibParams()`` for a photometric-only method, whose solve ignores them) with
-    only the sigma schedule replaced (when given), as `rigd calibrate` sets them."""
-    params = gmm_params(method) or CalibParams()
-    if sigmas_deg is None:
-        return params
-    return params_with_sigmas(params, sigmas_deg)
+def open_for(settings: EvaluationSettings) -> tuple[Dataset, Resolved]:
+    """The dataset and the request its runs solve, as the workers read them."""
+    return prepare(runs_request(settings.request))
 
 
-def method_for(settings: EvaluationSettings, dataset: Dataset) -> Method:
-    """The runs' method: as asked, or what `rigd calibrate` picks for ``dataset`` from a start (every run has one)
-    with rig.yaml's prior, which the runs use."""
-    if settings.method is not None:
-        return settings.method
-    return default_method(dataset, Transform.identity(), dataset.rig.prior)
+def run_task(state: WorkerState, task: Task) -> Run:
+    """One calibration of ``task``: a start that sees nothing is a failed run, counted as not converged."""
+    started = time.monotonic()
+    try:
+        result = state.calibrate(task.start, task.pairs)
+    except CalibError as exc:
+        return Run(task.index, task.pairs, task.start, None, str(exc), None, 0, time.monotonic() - started)
+    iterations = sum(level.iterations for level in result.optim.levels)
+    a = result.assessment
+    return Run(task.index, task.pairs, task.start, result.T_camera_lidar, None, result.optim.final_cost, iterations,
+               time.monotonic() - started, None if a is None else tuple(float(v) for v in a.uncertainty.sigma),
+               None if a is None else a.verdict.status.value)
 
 
-def open_for(settings: EvaluationSettings) -> Dataset:
-    if settings.workers < 1:
-        raise RigdError(f"--workers must be at least 1, got {settings.workers}")
-    dataset = open_dataset(settings.dataset, WORKING_WIDTH_PX)
-    if len(dataset) == 0:
-        raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
-    return dataset
+Item = TypeVar("Item")
+
+
+def of_pairs(items: Sequence[Item], n_pairs: int, pairs: Sequence[int]) -> list[Item]:
+    """Every view of ``pairs`` from a dataset's per-view list ``items`` (``n_pairs`` pairs, view by view), in the
+    same order."""
+    views = len(items) // n_pairs
+    return [items[v * n_pairs + i] for v in range(views) for i in pairs]
 
 
 def collect(done: Iterable[Any], total: int, desc: str, progress: bool) -> list[Any]:

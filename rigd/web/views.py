@@ -4,7 +4,6 @@ latest jobs with the verdicts they produced, a page of the newest versions, the 
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -19,43 +18,40 @@ from rigd.api.routes.datasets import list_datasets
 from rigd.api.routes.extrinsics import version_out
 from rigd.api.routes.jobs import list_jobs
 from rigd.api.routes.status import get_status
-from rigd.api.runner import Start
 from rigd.api.service import Service
+from rigd.calibration.advice import Action
 from rigd.calibration.check import group_lines
-from rigd.report import VersionQuality, calibrated, verdict_of
+from rigd.calibration.request import Start, TransformIn
+from rigd.report import NextStep, VersionQuality, calibrated, verdict_of
 from rigd.results import CaptureJobResult, is_calibration, is_capture, is_check
 from rigd.store import ExtrinsicsVersion
 
 JOBS_SHOWN = 15
 VERSIONS_PAGE = 10  # versions on the page at first; "Show older" adds as many again
 
-# The advice's steps (rigd/calibration/advice.py) that the page can act on: (words in the step, action, label).
-ADVICE_ACTIONS = (
-    ("rig.yaml prior", "prior", "Give the lever arm"),
-    ("--fix translation", "fix", "Fix the translation"),
-    ("--search", "search", "Use the global search"),
-    ("capture more pairs", "capture", "Capture more pairs"),
-    ("rigd capture --n", "capture", "Capture more pairs"),
-)
+# The advice's actions (rigd.calibration.advice.Action) the page has a button for, with its label.
+ADVICE_BUTTONS = {
+    Action.LEVER_ARM.value: "Give the lever arm",
+    Action.FIX_TRANSLATION.value: "Fix the translation",
+    Action.SEARCH.value: "Use the global search",
+    Action.CAPTURE.value: "Capture more pairs",
+}
 
 
-# The pairs a step asks for in all (advice.py: "about 12 in all", "rigd capture --n 12").
-CAPTURE_TARGET = re.compile(r"about (\d+) in all|rigd capture --n (\d+)")
+def _records(steps: list[NextStep | str]) -> list[NextStep]:
+    """The steps as records; a report stored before steps were records holds words alone (no buttons)."""
+    return [{"text": s, "actions": [], "axes": [], "pairs": None} if isinstance(s, str) else s for s in steps]
 
 
-def capture_target(steps: list[str]) -> int | None:
+def capture_target(steps: list[NextStep | str]) -> int | None:
     """The one count the advice's capture button fills in: the largest its steps ask for (None: none asks)."""
-    counts = [int(a or b) for step in steps for a, b in CAPTURE_TARGET.findall(step)]
+    counts = [s["pairs"] for s in _records(steps) if s["pairs"] and Action.CAPTURE.value in s["actions"]]
     return max(counts) if counts else None
 
 
-def advice_actions(step: str) -> list[tuple[str, str]]:
-    """(action, label) of the page's buttons for an advice step, each action once."""
-    actions: dict[str, str] = {}
-    for words, action, label in ADVICE_ACTIONS:
-        if words in step:
-            actions.setdefault(action, label)
-    return list(actions.items())
+def advice_actions(step: NextStep) -> list[tuple[str, str]]:
+    """(action, label) of the page's buttons for an advice step."""
+    return [(a, ADVICE_BUTTONS[a]) for a in step["actions"] if a in ADVICE_BUTTONS]
 
 
 def report_sensors(quality: VersionQuality) -> list[str]:
@@ -110,17 +106,20 @@ class VersionView:
     @property
     def capture_target(self) -> int | None:
         """The pairs in all the advice asks for (its "Capture more pairs" button fills them in)."""
-        return capture_target(list(self.record.verdict.get("next_steps", [])) if self.record.verdict else [])
+        return capture_target(self._next_steps())
+
+    def _next_steps(self) -> list[NextStep | str]:
+        return list(self.record.verdict.get("next_steps", [])) if self.record.verdict else []
 
     @property
     def steps(self) -> list[tuple[str, list[tuple[str, str]]]]:
         """The advice's steps, each with the page's buttons for it (a button only at its first step)."""
         seen: set[str] = set()
         steps = []
-        for step in self.record.verdict.get("next_steps", []) if self.record.verdict else []:
+        for step in _records(self._next_steps()):
             actions = [(a, label) for a, label in advice_actions(step) if a not in seen]
             seen.update(a for a, _ in actions)
-            steps.append((step, actions))
+            steps.append((step["text"], actions))
         return steps
 
 
@@ -232,17 +231,19 @@ class JobView:
     @property
     def options(self) -> list[str]:
         """A calibration's start and the options it was given, in words."""
-        p = self.record.params
         if self.record.kind != "calibrate":
             return []
-        start = {Start.ACTIVE.value: f"from version {p.get('init_version')}", Start.RIG.value: "from the rig file's "
-                 "guess", Start.SEARCH.value: "from a global search", Start.EXPLICIT.value: "from a given transform"}
-        words = [start.get(str(p.get("init")), str(p.get("init")))]
+        request = self.record.params.get("request") or {}
+        start = {Start.ACTIVE.value: f"from version {request.get('start_version')}",
+                 Start.RIG.value: "from the rig file's guess", Start.SEARCH.value: "from a global search",
+                 Start.GIVEN.value: "from a given transform"}
+        words = [start.get(str(request.get("start")), str(request.get("start")))]
+        p = request.get("options") or {}
         prior = p.get("prior") or {}
-        if "sigma_cm" in prior:
+        if prior.get("sigma_cm") is not None:
             lever = ", ".join(f"{x * 100.0:.1f}" for x in prior["xyz_m"])  # cm, as the page's forms and tables
             words.append(f"lever arm ({lever}) ± {prior['sigma_cm']:g} cm")
-        if "sigma_deg" in prior:
+        if prior.get("sigma_deg") is not None:
             words.append(f"angles ± {prior['sigma_deg']:g}°")
         if p.get("fix_translation"):
             words.append("translation fixed")
@@ -280,12 +281,13 @@ class JobView:
 
 def _calibrate_again(p: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     """The start as the operator chose it (the active version or the rig file's guess as they are now), a given
-    transform as it was given."""
-    explicit = p.get("init") == Start.EXPLICIT.value and p.get("initial")
-    init = {"matrix": p["initial"]["matrix"]} if explicit else p.get("init")
-    return "/calibrate", {"dataset": p.get("dataset"), "init": init, "sigmas_deg": p.get("sigmas_deg"),
-                          "auto_activate": p.get("auto_activate"), "prior": p.get("prior"),
-                          "fix_translation": p.get("fix_translation"), "tolerance": p.get("tolerance")}
+    transform as it was given, with the same options."""
+    request = p.get("request") or {}
+    start = request.get("start")
+    init = {"matrix": TransformIn.model_validate(request["initial"]).transform.matrix.tolist()} \
+        if start == Start.GIVEN.value else start
+    return "/calibrate", {"dataset": p.get("dataset"), "init": init, "auto_activate": p.get("auto_activate"),
+                          **(request.get("options") or {})}
 
 
 def _check_again(p: dict[str, Any]) -> tuple[str, dict[str, Any]]:

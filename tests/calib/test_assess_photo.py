@@ -20,7 +20,7 @@ from calib.assess_photo import (
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.gmm import transform_points
-from calib.methods import Method, calibrate_method
+from calib.methods import Method, SolveRequest, solve
 from calib.photometric import (
     PhotoCost,
     PhotoPair,
@@ -100,8 +100,8 @@ def test_nid_assessed_method_has_a_verdict_and_the_baseline_none():
     pair = ideal_pair(4)
     start = Transform.from_tau(tau_at(TRUTH.tau, np.array([np.radians(0.2), 0, 0, 0.01, 0, 0])))
     trust = TrustOptions(restarts=1)
-    assert calibrate_method(Method.NID, None, [pair], start, trust=trust).assessment is None
-    result = calibrate_method(Method.NID_ASSESSED, None, [pair], start, trust=trust)
+    assert solve(SolveRequest(method=Method.NID, initial=start, trust=trust), photo=[pair]).assessment is None
+    result = solve(SolveRequest(method=Method.NID_ASSESSED, initial=start, trust=trust), photo=[pair])
     assert result.assessment is not None and result.assessment.verdict.status is not Status.NOT_ASSESSED
 
 

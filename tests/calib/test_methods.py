@@ -1,6 +1,7 @@
-"""calib.methods: each method's settings differ from rigd's exactly where its name says, and the photometric
-methods refuse what they cannot honour."""
+"""calib.methods: each method's settings differ from the GMM's exactly where its name says, and a request a method
+cannot honour is refused by name before any work."""
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -8,7 +9,7 @@ import pytest
 
 from calib.errors import CalibError
 from calib.gmm import SigmaModel
-from calib.methods import Method, calibrate_method, gmm_params, photo_params
+from calib.methods import FIELD_METHODS, Method, SolveRequest, gmm_params, photo_params, solve
 from calib.photometric import PhotoCost
 from calib.pipeline import CalibParams, PointEdgeMethod, paper_params
 from calib.prior import Prior
@@ -17,7 +18,7 @@ from tests.calib.test_photometric import TRUTH, ideal_pair
 
 def test_ablations_change_one_thing_each():
     rigd = CalibParams()
-    assert gmm_params(Method.RIGD) == rigd
+    assert gmm_params(Method.GMM) == rigd
     assert gmm_params(Method.GMM_W1) == replace(rigd, gmm=replace(rigd.gmm, weighted=False))
     uniform = gmm_params(Method.GMM_UNIFORM)
     assert uniform is not None and uniform.gmm.sigma_model is SigmaModel.UNIFORM
@@ -36,16 +37,38 @@ def test_photometric_methods_have_no_gmm_and_the_hybrid_has_both():
         opts = photo_params(method)
         assert gmm_params(method) is None and opts is not None and opts.cost is cost
         assert method.uses_photometric and not method.uses_gmm
-    assert gmm_params(Method.RIGD_NID) == CalibParams() and photo_params(Method.RIGD_NID) is not None
+    assert gmm_params(Method.GMM_NID) == CalibParams() and photo_params(Method.GMM_NID) is not None
     assert photo_params(Method.GMM_W1) is None
 
 
-def test_photometric_method_refuses_a_gaussian_prior_and_has_no_assessment():
+def test_a_request_a_method_cannot_honour_is_refused_by_name():
     pair = ideal_pair(4)
     prior = Prior(np.array([0.05, -0.1, 0.02]), np.full(3, 0.01))
-    with pytest.raises(CalibError, match="GMM cost only"):
-        calibrate_method(Method.NID, None, [pair], TRUTH, prior=prior)
+    refused = [(SolveRequest(method=Method.NID, initial=TRUTH, prior=prior), "GMM cost only"),
+               (SolveRequest(method=Method.NID_ASSESSED, initial=TRUTH, sigmas_deg=(1.0,)), "no coarse-to-fine"),
+               (SolveRequest(method=Method.NID_ASSESSED), "needs an initial guess"),
+               (SolveRequest(method=Method.NID_ASSESSED, initial=TRUTH, fit_elevation=True), "elevation offset"),
+               (SolveRequest(method=Method.GMM, initial=TRUTH, sigmas_deg=(1.0, -2.0)), "positive angles")]
+    for request, words in refused:
+        with pytest.raises(CalibError, match=words):
+            solve(request, photo=[pair])
     with pytest.raises(CalibError, match="photometric pairs"):
-        calibrate_method(Method.NID, None, None, TRUTH)
+        solve(SolveRequest(method=Method.NID, initial=TRUTH))
     with pytest.raises(CalibError, match="GMM edge features"):
-        calibrate_method(Method.RIGD, None, [pair], TRUTH)
+        solve(SolveRequest(method=Method.GMM, initial=TRUTH), photo=[pair])
+
+
+def test_the_field_offers_the_gmm_and_nid_with_its_assessment_only():
+    assert FIELD_METHODS == (Method.GMM, Method.NID_ASSESSED)
+    assert all(m.spec.assessed for m in FIELD_METHODS)
+
+
+def test_a_given_ladder_replaces_both_the_default_and_the_heads():
+    params = SolveRequest(sigmas_deg=(5.0, 2.0)).gmm
+    assert params is not None and params.optim.sigmas_deg == (5.0, 2.0) and params.head_sigmas_deg is None
+
+
+@pytest.mark.parametrize("bad", [(3.0, 0.0), (3.0, -1.0), (math.nan,), (math.inf, 1.0)])
+def test_a_ladder_that_is_not_positive_angles_is_refused_naming_it(bad):
+    with pytest.raises(CalibError, match="sigmas must be positive angles in degrees"):
+        SolveRequest(initial=TRUTH, sigmas_deg=bad).check()

@@ -32,7 +32,7 @@ def test_calibrate_json_prints_one_object_and_writes_outputs(small_dataset, tmp_
     assert set(verdict["weak_axes"]) <= {"roll", "pitch", "yaw", "x", "y", "z"} and verdict["reasons"]
     assert (verdict["status"] == "trusted") == (not verdict["weak_axes"])
     assert (verdict["status"] == "trusted") == (not verdict["next_steps"])
-    assert verdict["status"] == "trusted" or any(s.startswith("only 2 pairs") for s in verdict["next_steps"])
+    assert verdict["status"] == "trusted" or any(s["text"].startswith("only 2 pairs") for s in verdict["next_steps"])
     unc = report["uncertainty"]
     assert len(unc["rpy_deg"]) == 3 and len(unc["xyz_cm"]) == 3 and isinstance(unc["weakest"], str)
     assert np.array(unc["covariance"], dtype=float).shape == (6, 6)
@@ -85,7 +85,7 @@ def test_fixed_translation_holds_the_prior_lever_arm_and_reports_no_translation_
     init = np.r_[truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m]
     lever = truth.translation_m + [0.01, 0.0, -0.01]
     code = main(["calibrate", str(small_dataset), f"--init={','.join(map(str, init))}", "--no-visuals", "--json",
-                 "--prior", ",".join(map(str, lever)) + ",1.0", "--fix", "translation", "--tolerance", "0.5,5",
+                 "--lever-arm-m", ",".join(map(str, lever)), "--fix", "translation", "--tolerance", "0.5,5",
                  "--out", str(tmp_path), "--max-width", "256", "--workers", "1"])
     report = json.loads(capsys.readouterr().out)
     assert code == {"trusted": 0, "weak": 3, "failed": 4}[report["verdict"]["status"]]
@@ -95,10 +95,11 @@ def test_fixed_translation_holds_the_prior_lever_arm_and_reports_no_translation_
     assert report["quality"]["image_size_px"] == [256, 128] and report["quality"]["source_image_size_px"] == [512, 256]
 
 
-@pytest.mark.parametrize("args, words", [(["--prior", "0,0,0"], "--prior"), (["--prior", "0,0,0,-1"], "positive"),
-                                         (["--tolerance", "0.2"], "--tolerance"), (["--tolerance", "0,2"], "positive"),
+@pytest.mark.parametrize("args, words", [(["--lever-arm-m", "0,0"], "--lever-arm-m"),
+                                         (["--lever-arm-m", "0,0,0", "--lever-arm-sigma-cm", "-1"], "sigma_cm"),
+                                         (["--tolerance", "0.2"], "--tolerance"), (["--tolerance", "0,2"], "0.001"),
                                          (["--workers", "0"], "--workers"), (["--workers", "two"], "whole number"),
-                                         (["--max-width", "-5"], "--max-width"), (["--max-width", "wide"], "pixels")])
+                                         (["--max-width", "-5"], "--max-width"), (["--max-width", "wide"], "number")])
 def test_bad_prior_tolerance_workers_or_width_is_refused(small_dataset, args, words, capsys):
     try:
         code = main(["calibrate", str(small_dataset), "--init", "0,0,0,0,0,0", "--no-visuals", *args])
@@ -111,9 +112,10 @@ def test_bad_prior_tolerance_workers_or_width_is_refused(small_dataset, args, wo
 def test_a_lever_arm_no_rig_has_is_refused_naming_its_unit(small_dataset, tmp_path, capsys):
     """The versions table's centimetres given as metres (19 m): exit 2 before anything runs, the unit named."""
     out = tmp_path / "out"
-    code = main(["calibrate", str(small_dataset), "--prior", "9.34,6.24,-15.68,1", "--out", str(out), "--no-visuals"])
+    code = main(["calibrate", str(small_dataset), "--lever-arm-m", "9.34,6.24,-15.68", "--out", str(out),
+                 "--no-visuals"])
     err = capsys.readouterr().err
-    assert code == 2 and "--prior X,Y,Z,SIGMA_CM" in err
+    assert code == 2 and "--lever-arm-m" in err
     assert "19.29 m from the camera, more than the 5 m any rig has: it is in metres" in err
     assert "[0.0934, 0.0624, -0.1568] m" in err and not out.exists()
 
@@ -130,7 +132,10 @@ def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path, ca
     search = report["initial_search"]
     assert search["grid"]["mounts"] == 600 and search["candidates"][0]["from_start_deg"] == 0.0
     assert search["grid"]["scores"] == ["edges", "mutual information"]  # the simulated clouds carry intensity
-    assert "no initial guess: global search" in captured.err  # none given (with --search: chosen, not missing)
+    # none given (with --search: chosen, not missing), said with the method chosen for it
+    assert report["start"] == {"source": "search", "choice": "global search",
+                               "why": "the rig file has no initial guess"}
+    assert report["method"]["name"] == "gmm" and report["method"]["why"] == "the default for a equirectangular camera"
     truth = open_dataset(small_dataset).ground_truth
     start = np.array(search["start"]["rpy_deg"])
     assert np.abs((start - truth.rpy_deg + 180.0) % 360.0 - 180.0).max() < 10.0  # inside the local basin

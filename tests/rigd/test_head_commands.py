@@ -11,12 +11,11 @@ import pytest
 import yaml
 
 from calib.camera import Mounted
-from calib.geometry import rotation_angle_deg
 from drivers.sim import ladybug_like_head
-from rigd.calibration.service import of_pairs
 from rigd.cli import main
 from rigd.dataset import open_dataset
 from rigd.dataset.records import HeadConfig
+from rigd.evaluate.trials import of_pairs
 
 
 @pytest.fixture(scope="module")
@@ -66,14 +65,11 @@ def test_calibrate_a_head_writes_each_sensors_overlays_and_finds_the_truth(head_
 
 
 def test_the_photometric_baseline_runs_on_a_head(head_dataset: Path, tmp_path: Path) -> None:
-    truth = open_dataset(head_dataset).ground_truth
-    assert truth is not None
-    init = np.r_[truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m]
-    code = main(["calibrate", str(head_dataset), "--init", ",".join(map(str, init)), "--out", str(tmp_path / "n"),
-                 "--method", "nid", "--no-visuals", "--max-width", "115"])
-    assert code == 5  # a baseline: not assessed
-    found = yaml.safe_load((tmp_path / "n" / "extrinsics.yaml").read_text())["T_camera_lidar"]
-    assert rotation_angle_deg(np.array(found["matrix"])[:3, :3], truth.rotation) < 3.0
+    assert main(["evaluate", "convergence", str(head_dataset), "--method", "nid", "--trials", "1", "--rot-deg", "0.5",
+                 "--trans-m", "0.01", "--workers", "1", "--out", str(tmp_path / "n")]) == 0
+    report = yaml.safe_load((tmp_path / "n" / "convergence.yaml").read_text())
+    assert report["settings"]["method"] == "nid" and report["runs"][0]["verdict"] is None  # a baseline: not assessed
+    assert report["summary"]["error_vs_ground_truth"]["run_median"]["rotation_deg"] < 3.0
 
 
 def test_a_subset_of_pairs_takes_every_view_of_each() -> None:

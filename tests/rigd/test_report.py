@@ -17,7 +17,9 @@ QUALITY = {"final_cost": -1.5, "converged": True, "levels": [], "pairs": [{"edge
            "wall_time_s": 2.0}
 REPORT = {"T_camera_lidar": {}, "quality": QUALITY, "change_from_initial": {"rotation_deg": 1.0, "translation_cm": 2.0},
           "dataset": "ds", "error_vs_ground_truth": {"rotation_deg": 0.1}, "uncertainty": UNCERTAINTY,
-          "verdict": VERDICT, "method": {"name": "rigd"}, "tolerance": {"rotation_deg": 0.2, "translation_cm": 2.0}}
+          "verdict": VERDICT, "method": {"name": "gmm", "why": "asked for"},
+          "start": {"source": "given", "choice": "the transform given", "why": "asked for"},
+          "tolerance": {"rotation_deg": 0.2, "translation_cm": 2.0}}
 
 
 def test_status_names_are_calib_statuses():
@@ -26,7 +28,8 @@ def test_status_names_are_calib_statuses():
 
 def test_stored_quality_is_the_reports_with_what_the_service_shows():
     quality = stored_quality(REPORT, 6)  # type: ignore[arg-type]
-    assert list(quality) == [*QUALITY, "pairs_used", "error_vs_ground_truth", "uncertainty", "verdict"]
+    assert list(quality) == [*QUALITY, "pairs_used", "error_vs_ground_truth", "uncertainty", "verdict", "method",
+                             "start"]  # the method and the start, each with why: the page shows them
     assert verdict_of(quality) == VERDICT and uncertainty_of(quality) == UNCERTAINTY
     assert verdict_of({}) is None and uncertainty_of({}) is None  # a version stored by hand
 

@@ -2,47 +2,51 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from fastapi import APIRouter, Response, status
 
-from calib.geometry import Transform
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut
 from rigd.api.routes.jobs import queued_out
-from rigd.api.runner import CalibrationPlan, Start
+from rigd.api.runner import CalibrationPlan
 from rigd.api.service import Service
+from rigd.calibration.request import CalibrationRequest, Start, TransformIn, resolve
+from rigd.dataset import Dataset
 from rigd.errors import RigdError
 from rigd.store import ConflictError
 
 router = APIRouter(tags=["calibrate"])
 
 
+def _start(service: Service, body: CalibrateIn, dataset: Dataset) -> dict[str, Any]:
+    """The request's start from the body's ``init``: the active version resolved now (its number kept), the rig
+    file's guess (the dataset's, else the service's; neither: the job searches and says so)."""
+    if body.init is InitMode.ACTIVE:
+        active = service.versions.active()
+        if active is None:
+            raise ConflictError("there is no active extrinsics version yet; start from init 'rig' or a transform")
+        return {"start": Start.ACTIVE, "initial": TransformIn.of(active.T_camera_lidar),
+                "start_version": active.number}
+    if body.init is InitMode.RIG:  # the guess recorded with the job and its version
+        guess = dataset.rig.initial_guess or service.rig.initial_guess
+        return {"start": Start.RIG, "initial": None if guess is None else TransformIn.of(guess)}
+    if body.init is InitMode.SEARCH:
+        return {"start": Start.SEARCH}
+    return {"start": Start.GIVEN, "initial": body.init}
+
+
 def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
-    """Check the dataset and resolve the initial guess now, so a bad request fails before it is queued."""
+    """The body as the calibration request the worker runs, read against the dataset now, so that a request it
+    cannot honour fails before it is queued."""
     if body.dataset in service.runner.capturing():
         raise ConflictError(f"dataset {body.dataset} is being captured; calibrate it when the capture ends")
     dataset = service.datasets.open(body.dataset)
     if len(dataset) == 0:
         raise RigdError(f"dataset {body.dataset} has no pairs yet")
-    initial: Transform | None
-    init_version = None
-    if body.init is InitMode.ACTIVE:
-        active = service.versions.active()
-        if active is None:
-            raise ConflictError("there is no active extrinsics version yet; start from init 'rig' or a transform")
-        initial, init_version, start = active.T_camera_lidar, active.number, Start.ACTIVE
-    elif body.init is InitMode.RIG:
-        guess = dataset.rig.initial_guess or service.rig.initial_guess
-        # no guess in either rig file: the global search finds the start
-        initial, start = guess, Start.RIG if guess is not None else Start.SEARCH
-    elif body.init is InitMode.SEARCH:
-        initial, start = None, Start.SEARCH
-    else:
-        initial, start = body.init.transform, Start.EXPLICIT
-    sigmas = tuple(body.sigmas_deg) if body.sigmas_deg is not None else None
-    prior = body.prior.model_dump(exclude_none=True) if body.prior is not None else None
-    tolerance = body.tolerance.model_dump() if body.tolerance is not None else None
-    return CalibrationPlan(body.dataset, initial, start, init_version, sigmas, body.auto_activate, prior,
-                           body.fix_translation, tolerance, body.fit_elevation_offset)
+    request = CalibrationRequest(dataset=dataset.root, options=body.options(), **_start(service, body, dataset))
+    resolve(request, dataset)
+    return CalibrationPlan(body.dataset, request, body.auto_activate)
 
 
 @router.post("/calibrate", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, dependencies=[Authorized],

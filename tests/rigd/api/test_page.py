@@ -13,7 +13,6 @@ The page's load time (navigation start to the load event) is printed: ``pytest -
 
 from __future__ import annotations
 
-import inspect
 import os
 import re
 import signal
@@ -465,7 +464,7 @@ def test_a_restart_during_a_job_says_it_was_interrupted_and_offers_it_again(brow
             until(browser, 10, lambda d: len(client.get("/jobs", params={"kind": "calibrate"}).json()) == 2)
             again = client.get("/jobs", params={"kind": "calibrate"}).json()[0]
             assert again["id"] != job["id"] and again["params"]["dataset"] == "restart"
-            assert again["params"]["init"] == job["params"]["init"]
+            assert again["params"]["request"]["start"] == job["params"]["request"]["start"]
             client.delete(f"/jobs/{again['id']}")
             assert wait_job(client, again["id"], 60)["status"] in ("cancelled", "succeeded")
         until(browser, 10, lambda d: f"Run again of job {job['id']}: job {again['id']}" in message(d)[0])
@@ -799,7 +798,7 @@ def first_calibration(browser, server) -> dict:
     assert len(shown) >= 2, shown  # the stage moved on while it ran (edges, optimising, overlays)
     with server.client() as client:
         job = client.get("/jobs", params={"kind": "calibrate"}).json()[0]
-        assert job["params"]["init"] in ("rig", "search") and job["status"] == "succeeded", job
+        assert job["params"]["request"]["start"] in ("rig", "search") and job["status"] == "succeeded", job
         v1 = client.get("/extrinsics/versions/1").json()
     verdict = v1["verdict"]["status"]
     badge = browser.find_element(By.CSS_SELECTOR, '.job[data-kind="calibrate"] .badge')
@@ -870,9 +869,9 @@ def advice_and_options(browser, server, v1: dict) -> None:
     steps = v1["verdict"].get("next_steps") or []
     assert bool(steps) == (v1["verdict"]["status"] != "trusted")
     if steps:
-        assert texts(browser, "#v1 .next-steps li")[0].startswith(steps[0])
+        assert texts(browser, "#v1 .next-steps li")[0].startswith(steps[0]["text"])
         # Fewer than 12 pairs: the advice asks for more, one count in all, and its button prepares that capture.
-        counts = [int(a or b) for step in steps for a, b in re.findall(r"about (\d+) in all|--n (\d+)", step)]
+        counts = [step["pairs"] for step in steps if "capture" in step["actions"] and step["pairs"]]
         click(browser, '#v1 button[data-advice="capture"]')
         assert browser.find_element(By.NAME, "dataset").get_attribute("value") == "field"
         assert browser.find_element(By.NAME, "n").get_attribute("value") == str(max(counts))
@@ -906,9 +905,11 @@ def advice_and_options(browser, server, v1: dict) -> None:
     until(browser, 10, lambda d: len(d.find_elements(By.CSS_SELECTOR, '.job[data-kind="calibrate"]')) == 2)
     with server.client() as client:
         job = client.get("/jobs", params={"kind": "calibrate"}).json()[0]
-    assert job["params"]["prior"] == {"xyz_m": [0.1, 0.05, -0.15], "sigma_cm": 1.5}
-    assert job["params"]["fix_translation"] is True
-    assert job["params"]["tolerance"] == {"rotation_deg": 0.3, "translation_cm": 2.5}
+    assert job["params"]["request"]["options"]["prior"] == {"xyz_m": [0.1, 0.05, -0.15], "sigma_cm": 1.5,
+                                                          "rpy_deg": None, "sigma_deg": None}
+    options = job["params"]["request"]["options"]
+    assert options["fix_translation"] is True
+    assert options["tolerance"] == {"rotation_deg": 0.3, "translation_cm": 2.5}
     options = "lever arm (10.0, 5.0, -15.0) ± 1.5 cm, translation fixed, tolerance 0.3° / 2.5 cm"
     assert options in text(browser, f'[data-job="{job["id"]}"]')
     click(browser, f'button[data-action="cancel"][data-job="{job["id"]}"]')
@@ -1003,18 +1004,19 @@ def test_only_a_heads_report_lists_sensors():
     assert report_sensors(head) == ["cam0", "cam1"]
 
 
-def test_the_advice_the_page_acts_on_is_the_advice_written():
-    """Each advice button is keyed to words of rigd/calibration/advice.py: rewording the advice must not leave
-    a button that never shows."""
-    import rigd.calibration.advice as advice
-    from rigd.web.views import ADVICE_ACTIONS, advice_actions
+def test_the_page_acts_on_the_advice_records_not_their_words():
+    """A button per action the page can take, from the step's record (rewording the advice changes no button);
+    a report stored before steps were records keeps its words and has no button."""
+    from rigd.calibration.advice import Action, Step
+    from rigd.calibration.sections import step_yaml
+    from rigd.web.views import ADVICE_BUTTONS, advice_actions, capture_target
 
-    source = inspect.getsource(advice)
-    assert [words for words, _, _ in ADVICE_ACTIONS if words not in source] == []
-    step = "only 2 pairs: rigd is measured with 12 (rigd capture --n 12)"
+    step = step_yaml(Step("any words at all", (Action.CAPTURE,), (), 12))
     assert advice_actions(step) == [("capture", "Capture more pairs")]
-    assert advice_actions("x: ... give the lever arm (rig.yaml prior: {...}, or --fix translation)") == [
-        ("prior", "Give the lever arm"), ("fix", "Fix the translation")]
+    both = step_yaml(Step("other words", (Action.LEVER_ARM, Action.FIX_TRANSLATION, Action.FIT_ELEVATION)))
+    assert advice_actions(both) == [("prior", "Give the lever arm"), ("fix", "Fix the translation")]
+    assert set(ADVICE_BUTTONS) <= {a.value for a in Action}
+    assert capture_target([step, both, "only 2 pairs: rigd is measured with 12 (rigd capture --n 12)"]) == 12
 
 
 def test_live_reads_only_known_parts():

@@ -97,8 +97,10 @@ def test_capture_then_calibrate_the_captured_dataset(app):
         assert error["rotation_deg"] == pytest.approx(rotation_error_deg)
         assert error["translation_cm"] == pytest.approx(
             100 * np.linalg.norm(matrix(v1["T_camera_lidar"])[:3, 3] - truth.translation_m))
-        assert v1["parameters"]["init"] == "rig" and np.allclose(v1["parameters"]["initial"]["rpy_deg"],
-                                                                 RIG_GUESS["rpy_deg"])
+        request = v1["parameters"]["request"]
+        assert request["start"] == "rig" and np.allclose(
+            Transform.from_matrix(np.array(request["initial"]["matrix"])).rpy_deg, RIG_GUESS["rpy_deg"])
+        assert v1["quality"]["start"] == {"source": "rig", "choice": "the rig file's initial guess", "why": "asked for"}
         assert v1["dataset_id"] == "field" and v1["dataset_hash"].startswith("sha256:")
         assert v1["job_id"] == first["id"] and v1["code_version"]
         check_overlays(client, v1)
@@ -132,7 +134,8 @@ def test_recalibration_from_the_active_version_reports_its_change(field):
         # Field recalibration from the active version: the change against it is reported.
         second = calibrate(client, {"dataset": "field", "init": "active", "auto_activate": True})
         v2 = client.get(second["result_link"]).json()
-        assert v2["parameters"]["init"] == "active" and v2["parameters"]["init_version"] == 1
+        request = v2["parameters"]["request"]
+        assert request["start"] == "active" and request["start_version"] == 1
         assert v2["supersedes"] == 1 and v2["change"]["against"] == 1
         delta = matrix(v1["T_camera_lidar"]) @ np.linalg.inv(matrix(v2["T_camera_lidar"]))
         assert v2["change"]["rotation_deg"] == pytest.approx(

@@ -30,7 +30,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rigd.api.main import json_nesting
-from rigd.api.models import MAX_NESTING, CalibrateIn, PriorIn, ToleranceIn, body_problem
+from rigd.api.models import CalibrateIn
+from rigd.calibration.request import MAX_NESTING, PriorIn, ToleranceIn, body_problem
 
 JSON = {"Content-Type": "application/json"}
 IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}

@@ -32,7 +32,8 @@ def test_prior_and_fixed_translation_reach_the_calibration(tmp_path):
             assert job["status"] == "succeeded", job
             version = client.get(job["result_link"]).json()
             assert np.allclose(matrix(version["T_camera_lidar"])[:3, 3], lever, atol=1e-9)  # held at the prior
-            assert version["parameters"]["prior"] == {"xyz_m": lever, "sigma_cm": 1.0}
+            prior = version["parameters"]["request"]["options"]["prior"]
+            assert prior == {"xyz_m": lever, "sigma_cm": 1.0, "rpy_deg": None, "sigma_deg": None}
             assert version["uncertainty"]["xyz_cm"] == [0.0, 0.0, 0.0]
             assert version["verdict"]["status"] in ("trusted", "weak", "failed")
             assert version["status"] == ("active" if version["verdict"]["status"] == "trusted" else "candidate")
@@ -50,6 +51,6 @@ def test_an_elevation_fit_reaches_the_worker_and_two_places_are_refused_by_name(
             job = wait_job(client, client.post("/calibrate", json=body).json()["id"])
             assert job["status"] == "failed", job
             assert "elevation offset needs 3 or more places, got 2" in job["error"]
-            assert job["params"]["fit_elevation_offset"] is True
+            assert job["params"]["request"]["options"]["fit_elevation_offset"] is True
     finally:
         server.stop()

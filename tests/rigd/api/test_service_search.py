@@ -17,7 +17,8 @@ def test_calibrate_with_init_search_finds_the_mount(tmp_path):
             job = wait_job(client, response.json()["id"])
             assert job["status"] == "succeeded", job
             version = client.get(job["result_link"]).json()
-            assert version["parameters"]["init"] == "search" and version["parameters"]["initial"] is None
+            request = version["parameters"]["request"]
+            assert request["start"] == "search" and request["initial"] is None
             search = version["quality"]["initial_search"]
             assert search["grid"]["mounts"] > 0 and search["candidates"]
             assert version["quality"]["error_vs_ground_truth"]["rotation_deg"] < 1.0

@@ -1,11 +1,12 @@
-"""rigd.calibration.advice: next steps follow the assessment's numbers."""
+"""rigd.calibration.advice: next steps follow the assessment's numbers; each is a record of its words, the actions
+it asks for (the CLI and the page say how), its axes and the pairs a capture needs in all."""
 
 from dataclasses import replace
 
 import numpy as np
 
 from calib.assess import Assessment, Restart, Status, TrustOptions, Uncertainty, Verdict
-from rigd.calibration.advice import SceneFacts, next_steps
+from rigd.calibration.advice import Action, SceneFacts, next_steps
 
 TRUST = TrustOptions()  # 0.2 deg / 2 cm, 2.5 sigma
 FAR = SceneFacts(pairs=12, typical_range_m=16.0, pixels_per_radian=1000.0, translation_prior=False)
@@ -18,37 +19,46 @@ def assessment(sigma, status, weak, restarts=(), is_minimum=True, moved_deg=None
                       moved_m)
 
 
+def advise(a, facts, trust):
+    """The steps' words."""
+    return tuple(step.text for step in next_steps(a, facts, trust))
+
+
 def test_trusted_needs_nothing():
-    assert next_steps(assessment([0.01] * 3 + [0.3] * 3, Status.TRUSTED, ()), FAR, TRUST) == ()
+    assert advise(assessment([0.01] * 3 + [0.3] * 3, Status.TRUSTED, ()), FAR, TRUST) == ()
 
 
 def test_far_scene_with_weak_translation_suggests_near_structure_or_a_lever_arm_prior():
-    steps = next_steps(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)), FAR, TRUST)
+    steps = advise(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)), FAR, TRUST)
     first = steps[0]
     assert first.startswith("y: translation is seen only through parallax") and "(16 m)" in first
     assert "0.62 px" in first  # 1000 px/rad * 1 cm / 16 m
-    assert "structure 2-10 m" in first and "prior" in first and "--fix translation" in first
-    near = next_steps(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)),
+    assert "structure 2-10 m" in first and "lever arm" in first and "hold the translation" in first
+    actions = next_steps(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)), FAR, TRUST)[0].actions
+    assert actions == (Action.CAPTURE, Action.LEVER_ARM, Action.FIX_TRANSLATION)
+    near = advise(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)),
                       FAR._replace(typical_range_m=4.0), TRUST)[0]
-    assert "(4 m) 1 cm moves an edge 2.5 px" in near and "structure" not in near and "--fix translation" in near
+    assert "(4 m) 1 cm moves an edge 2.5 px" in near and "structure" not in near and "hold the translation" in near
     # sigma 3 cm at 2.5 sigma against 2 cm: (7.5 / 2)^2 * 12 = 168.75 pairs: more of the same will not do it
     assert any("would not do it (about 169 needed" in s for s in steps)
-    with_prior = next_steps(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)),
+    with_prior = advise(assessment([0.02] * 3 + [0.5, 3.0, 0.5], Status.WEAK, ("y",)),
                             FAR._replace(translation_prior=True), TRUST)
     assert not any("parallax" in s or "y:" in s for s in with_prior)
 
 
 def test_weak_rotation_asks_for_about_as_many_pairs_as_sigma_needs():
     # pitch 2.5 * 0.1 = 0.25 deg against 0.2: 12 * 1.25^2 = 18.75 -> 19 pairs
-    steps = next_steps(assessment([0.05, 0.1, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), FAR, TRUST)
+    steps = advise(assessment([0.05, 0.1, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), FAR, TRUST)
     assert steps == ("pitch: capture more pairs at new places and headings, about 19 in all (sigma falls roughly "
                      "as 1/sqrt(pairs); now 12), and keep the rig still during each capture",)
+    (step,) = next_steps(assessment([0.05, 0.1, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), FAR, TRUST)
+    assert step.actions == (Action.CAPTURE,) and step.pairs == 19 and step.axes == ("pitch",)
 
 
 def test_failed_with_a_tie_and_few_pairs_says_why_and_not_to_use_it():
     tie = Restart(np.array([1.0, 0, 0, 0, 0, 0]), 0.5, "search runner-up")
     few = FAR._replace(pairs=4)
-    steps = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.FAILED, ("roll",), [tie], is_minimum=False),
+    steps = advise(assessment([0.05] * 3 + [0.3] * 3, Status.FAILED, ("roll",), [tie], is_minimum=False),
                        few, TRUST)
     assert steps[0].startswith("the finest level did not end at a minimum")
     assert any("another pose fits these pairs as well (search runner-up)" in s for s in steps)
@@ -56,7 +66,7 @@ def test_failed_with_a_tie_and_few_pairs_says_why_and_not_to_use_it():
     assert steps[-1].startswith("do not use this result")
     # a restart that ends elsewhere but clearly higher is not a tie
     far_above = Restart(np.array([1.0, 0, 0, 0, 0, 0]), 20.0)
-    steps = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.WEAK, ("roll",), [far_above]), FAR, TRUST)
+    steps = advise(assessment([0.05] * 3 + [0.3] * 3, Status.WEAK, ("roll",), [far_above]), FAR, TRUST)
     assert not any("another pose" in s for s in steps)
 
 
@@ -64,18 +74,18 @@ def test_most_restarts_at_other_minima_point_at_the_edges_and_one_stuck_restart_
     away = Restart(np.array([2.0, 0, 0, 0, 0, 0]), 15.0)  # 2 deg off at a clearly higher cost
     back = Restart(np.array([0.01, 0, 0, 0.1, 0, 0]), 0.2)
     sigma = [0.05] * 3 + [0.3] * 3
-    rugged = next_steps(assessment(sigma, Status.FAILED, (), [away, away, back, away]), FAR, TRUST)
+    rugged = advise(assessment(sigma, Status.FAILED, (), [away, away, back, away]), FAR, TRUST)
     assert any(s.startswith("restarts near the solution ended at other minima") for s in rugged)
-    one = next_steps(assessment(sigma, Status.WEAK, ("roll",), [away, back, back, back]), FAR, TRUST)
+    one = advise(assessment(sigma, Status.WEAK, ("roll",), [away, back, back, back]), FAR, TRUST)
     assert not any("other minima" in s for s in one)
 
 
 def test_a_solve_that_ran_far_from_its_start_points_at_the_overlays_and_the_guess():
     sharp = [0.05] * 3 + [0.3] * 3
-    steps = next_steps(assessment(sharp, Status.FAILED, ("yaw",), moved_deg=45.5), FAR, TRUST)
-    assert steps[0].startswith("the solve ran 46 deg from its start") and "--search" in steps[0]
+    steps = advise(assessment(sharp, Status.FAILED, ("yaw",), moved_deg=45.5), FAR, TRUST)
+    assert steps[0].startswith("the solve ran 46 deg from its start") and "global search" in steps[0]
     assert steps[-1].startswith("do not use this result")
-    near = next_steps(assessment(sharp, Status.FAILED, ("yaw",), moved_deg=3.0), FAR, TRUST)
+    near = advise(assessment(sharp, Status.FAILED, ("yaw",), moved_deg=3.0), FAR, TRUST)
     assert not any("ran" in s and "from its start" in s for s in near)
 
 
@@ -84,14 +94,14 @@ def test_a_pose_resting_on_a_few_places_asks_for_more_places_not_for_thousands_o
     width: sigma 30 cm): more pairs of such places do pin it (all ten: trusted), so no 1/sqrt(pairs) count."""
     sigma = [1.19, 0.51, 0.097, 0.87, 2.9, 30.6]
     few = FAR._replace(pairs=5)
-    steps = next_steps(assessment(sigma, Status.FAILED, ("roll", "pitch", "z"), held_by=(1, 4)), few, TRUST)
+    steps = advise(assessment(sigma, Status.FAILED, ("roll", "pitch", "z"), held_by=(1, 4)), few, TRUST)
     held = [s for s in steps if "rests on" in s]
     assert len(held) == 1 and held[0].startswith("roll, pitch, z: the pose rests on pairs/0001 and pairs/0004:")
     assert "without any one of them" in held[0] and "new places" in held[0]
     assert not any("would not do it" in s or "needed" in s for s in steps)
-    one = next_steps(assessment(sigma, Status.WEAK, ("z",), held_by=(3,)), few, TRUST)
+    one = advise(assessment(sigma, Status.WEAK, ("z",), held_by=(3,)), few, TRUST)
     assert any("rests on pairs/0003: without it " in s for s in one)
-    assert any("would not do it" in s for s in next_steps(assessment(sigma, Status.FAILED, ("z",)), few, TRUST))
+    assert any("would not do it" in s for s in advise(assessment(sigma, Status.FAILED, ("z",)), few, TRUST))
 
 
 def test_the_places_a_pose_rests_on_are_named_by_their_folders():
@@ -99,7 +109,7 @@ def test_the_places_a_pose_rests_on_are_named_by_their_folders():
     overlays (numbered by position) are named with it."""
     sigma = [0.79, 0.69, 0.04, 1.73, 1.30, 11.8]
     pruned = FAR._replace(pairs=5, pair_names=tuple(f"pairs/{n:04d}" for n in (3, 4, 6, 8, 9)))
-    steps = next_steps(assessment(sigma, Status.FAILED, ("z",), held_by=(4,)), pruned, TRUST)
+    steps = advise(assessment(sigma, Status.FAILED, ("z",), held_by=(4,)), pruned, TRUST)
     assert any("the pose rests on pairs/0009 (overlays/0004_*): without it " in s for s in steps)
 
 
@@ -108,28 +118,32 @@ def test_the_pairs_asked_for_are_one_target_that_does_not_move_below_the_measure
     the same in the count step and in the "only N pairs" step."""
     for pairs, pitch_sigma in ((4, 0.113), (8, 0.094)):  # 8 and 11 pairs by the 1/sqrt(pairs) estimate
         facts = FAR._replace(pairs=pairs)
-        steps = next_steps(assessment([0.05, pitch_sigma, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), facts, TRUST)
+        steps = advise(assessment([0.05, pitch_sigma, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), facts, TRUST)
         assert "about 12 in all" in steps[0] and f"now {pairs})" in steps[0], steps
-        assert steps[1] == f"only {pairs} pairs: rigd is measured with 12 (rigd capture --n 12)"
+        assert steps[1] == f"only {pairs} pairs: rigd is measured with 12"
+        records = next_steps(assessment([0.05, pitch_sigma, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), facts,
+                             TRUST)
+        assert [s.pairs for s in records] == [12, 12]
 
 
 def test_a_translation_that_ran_metres_points_at_the_lever_arms_unit():
-    steps = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.FAILED, (), moved_m=19.1), FAR, TRUST)
-    assert steps[0].startswith("the translation ran 19.1 m from its start") and "in metres" in steps[0]
-    assert "rig.yaml prior" in steps[0] and "in cm on the page" in steps[0]
+    steps = advise(assessment([0.05] * 3 + [0.3] * 3, Status.FAILED, (), moved_m=19.1), FAR, TRUST)
+    assert steps[0].startswith("the translation ran 19.1 m from its start") and "its unit" in steps[0]
+    step = next_steps(assessment([0.05] * 3 + [0.3] * 3, Status.FAILED, (), moved_m=19.1), FAR, TRUST)[0]
+    assert step.actions == (Action.LEVER_ARM,) and step.axes == ("x", "y", "z")
 
 
 def test_an_axis_the_elevation_offset_sets_asks_for_a_better_known_offset_not_more_pairs():
     def with_elevation(z_part_cm):
         a = assessment([0.03, 0.03, 0.02, 0.3, 0.6, 1.2], Status.WEAK, ("z",))
         part = np.array([0.01, 0.01, 0.0, 0.03, 0.01, z_part_cm])
-        return next_steps(replace(a, uncertainty=replace(a.uncertainty, elevation=part)),
+        return advise(replace(a, uncertainty=replace(a.uncertainty, elevation=part)),
                           FAR._replace(typical_range_m=4.0), TRUST)
 
     steps = with_elevation(1.1)  # of z's 1.2 cm, the offset's 1.1
     said = [s for s in steps if "elevation offset" in s]
     assert len(said) == 1 and said[0].startswith("z: the LiDAR's elevation offset is not known well enough")
-    assert "moves z by 1.1 cm" in said[0] and "--fit-elevation-offset" in said[0]
+    assert "moves z by 1.1 cm" in said[0] and "fit the offset" in said[0] and "declare it" in said[0]
     assert not any(s.startswith("z: capture more pairs") for s in steps)
     data_set = with_elevation(0.3)  # the data's own sigma sets z: more pairs, as before
     assert not any("elevation offset" in s for s in data_set)

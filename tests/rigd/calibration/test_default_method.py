@@ -1,6 +1,6 @@
-"""rigd.calibration.service.default_method: NID with its assessment on a single pinhole camera when NID can run
-(a start, clouds with intensity, no Gaussian prior), the GMM everywhere else; rigd calibrate without --method
-reports the method it chose."""
+"""The default method (rigd.calibration.request.resolve): NID with its assessment on a single pinhole camera when NID
+can run (a start, clouds with intensity, no Gaussian prior), the GMM everywhere else, each choice with its reason;
+rigd calibrate without --method reports the method it chose and why."""
 
 import shutil
 from pathlib import Path
@@ -11,13 +11,12 @@ import yaml
 
 from calib.geometry import Transform
 from calib.methods import Method
-from calib.prior import Prior
-from rigd.calibration.service import default_method
+from rigd.calibration.request import CalibrationRequest, Decision, Options, PriorIn, Start, TransformIn, resolve
 from rigd.cli import main
 from rigd.cli.exit_codes import Calibrate
-from rigd.dataset import open_dataset
+from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
-from rigd.evaluate.trials import EvaluationSettings, method_for
+from rigd.evaluate.trials import EvaluationSettings, open_for
 from rigd.simulate import write_simulated_dataset
 from tests.testdata import PINHOLE_FRAME
 
@@ -47,33 +46,42 @@ def pinhole(tmp_path_factory):
     return _pinhole_dataset(tmp_path_factory.mktemp("pin") / "ours_3", every=4)
 
 
+def _chosen(dataset: Dataset, start: Transform | None, **options: object) -> Decision:
+    request = CalibrationRequest(dataset=dataset.root, start=Start.GIVEN if start else Start.SEARCH,
+                                 initial=TransformIn.of(start) if start else None, options=Options(**options))
+    return resolve(request, dataset).method_why
+
+
 def test_a_pinhole_camera_with_a_start_is_solved_by_assessed_nid(pinhole, tmp_path):
     dataset = open_dataset(pinhole)
     start = dataset.ground_truth
-    assert default_method(dataset, start, None) is Method.NID_ASSESSED
-    assert default_method(dataset, start, Prior(fix_translation=True)) is Method.NID_ASSESSED  # held, not weighed
-    assert default_method(dataset, None, None) is Method.RIGD  # no start: the global search scores the GMM's edges
-    drawing = Prior(xyz_m=start.translation_m, sigma_xyz_m=np.full(3, 0.01))
-    assert default_method(dataset, start, drawing) is Method.RIGD  # a Gaussian prior weighs the GMM's likelihood
+    assert _chosen(dataset, start).choice == Method.NID_ASSESSED.value
+    assert _chosen(dataset, start, fix_translation=True).choice == Method.NID_ASSESSED.value  # held, not weighed
+    searched = _chosen(dataset, None)  # no start: the global search scores the GMM's edges
+    assert searched.choice == Method.GMM.value and "searches for its start" in searched.why
+    drawing = PriorIn(xyz_m=start.translation_m.tolist(), sigma_cm=1.0)
+    weighed = _chosen(dataset, start, prior=drawing)  # a Gaussian prior weighs the GMM's likelihood
+    assert weighed.choice == Method.GMM.value and "prior" in weighed.why
     no_intensity = open_dataset(_pinhole_dataset(tmp_path / "bare", with_intensity=False))
-    assert default_method(no_intensity, start, None) is Method.RIGD
+    assert "no intensity" in _chosen(no_intensity, start).why
     zeros = open_dataset(_pinhole_dataset(tmp_path / "zeros", flat=True))  # NID has nothing to align
-    assert default_method(zeros, start, None) is Method.RIGD
+    assert _chosen(zeros, start).choice == Method.GMM.value
+    asked = _chosen(dataset, start, method=Method.GMM)
+    assert asked == Decision(Method.GMM.value, "asked for")
 
 
 def test_a_panorama_keeps_the_gmm(tmp_path):
     root = write_simulated_dataset(tmp_path / "pano", "indoor", 1, seed=5, width=256, height=128, progress=False)
     dataset = open_dataset(root)
     assert dataset.ground_truth is not None
-    assert default_method(dataset, dataset.ground_truth, None) is Method.RIGD
-    assert method_for(EvaluationSettings(dataset=root), dataset) is Method.RIGD
+    assert _chosen(dataset, dataset.ground_truth).choice == Method.GMM.value
+    assert open_for(EvaluationSettings(CalibrationRequest(dataset=root)))[1].solve.method is Method.GMM
 
 
 def test_the_evaluation_protocols_run_what_calibrate_picks(pinhole):
-    dataset = open_dataset(pinhole)
-    assert method_for(EvaluationSettings(dataset=pinhole), dataset) is Method.NID_ASSESSED
-    asked = EvaluationSettings(dataset=pinhole, method=Method.RIGD)
-    assert method_for(asked, dataset) is Method.RIGD
+    assert open_for(EvaluationSettings(CalibrationRequest(dataset=pinhole)))[1].solve.method is Method.NID_ASSESSED
+    asked = CalibrationRequest(dataset=pinhole, options=Options(method=Method.GMM))
+    assert open_for(EvaluationSettings(asked))[1].solve.method is Method.GMM
 
 
 def test_calibrate_without_a_method_reports_the_one_it_chose(pinhole, tmp_path, capsys):
@@ -84,8 +92,9 @@ def test_calibrate_without_a_method_reports_the_one_it_chose(pinhole, tmp_path, 
     code = main(["calibrate", str(pinhole), "--init", init, "--no-visuals", "--max-width", "480", "--out", str(out)])
     assert code in (Calibrate.TRUSTED, Calibrate.WEAK, Calibrate.FAILED), capsys.readouterr().err  # any verdict
     report = yaml.safe_load((out / "extrinsics.yaml").read_text())
-    assert report["method"]["name"] == "nid-assessed"
+    assert report["method"]["name"] == "nid-assessed" and "default on one pinhole camera" in report["method"]["why"]
     assert report["verdict"]["status"] != "not_assessed"
+    assert "method: nid-assessed (the default on one pinhole camera" in capsys.readouterr().out
 
 
 def test_an_elevation_fit_on_one_pinhole_camera_is_refused_by_name(pinhole, tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""How a calibration spreads over --workers N cores (rigd.calibration.service): the pairs' edges in threads of
+"""How a calibration spreads over --workers N cores (rigd.calibration.features): the pairs' edges in threads of
 this process, the independent solves in N - 1 spawned workers started at once."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from calib.pipeline import CalibParams
-from rigd.calibration.service import cores, dataset_features, edge_threads, worker_pool
+from rigd.calibration.features import cores, dataset_features, edge_threads, worker_pool
 from rigd.dataset import open_dataset
 from rigd.simulate import write_simulated_dataset
 

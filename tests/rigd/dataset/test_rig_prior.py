@@ -5,12 +5,11 @@ import pytest
 import yaml
 
 from calib.assess import TrustOptions
-from calib.pipeline import CalibParams
-from rigd.calibration.service import with_camera_model
+from rigd.calibration.request import CalibrationRequest, with_camera_model
 from rigd.dataset import Cloud, open_dataset, write_pair, write_rig
 from rigd.dataset.records import RigConfig
 from rigd.errors import DatasetError
-from rigd.evaluate.trials import extract_state
+from rigd.evaluate.trials import EvaluationSettings, open_for
 
 CAMERA = {"model": "equirectangular", "width": 64, "height": 32}
 
@@ -100,11 +99,12 @@ def test_the_calibration_and_its_evaluation_judge_a_single_camera_with_its_princ
               "D": [], "principal_point_sigma_px": 2.0}
     for name, cam, expected in (("pin", camera, (2.0 / 250.0, 2.0 / 500.0)), ("pano", CAMERA, (0.0, 0.0))):
         root = tmp_path / name
-        (root / "pairs").mkdir(parents=True)
         write_rig(root, RigConfig.from_yaml({"camera": cam}, "rig.yaml"))
+        size = (cam["height"], cam["width"], 3)
+        write_pair(root, 0, np.zeros(size, np.uint8), Cloud(np.array([[10.0, 0.0, 0.0]])), {})
         trust = with_camera_model(TrustOptions(), open_dataset(root))
         assert trust.intrinsics_sigma_rad == pytest.approx(expected)
-        assert extract_state(root, CalibParams(), TrustOptions()).trust == trust
+        assert open_for(EvaluationSettings(CalibrationRequest(dataset=root)))[1].solve.trust == trust
 
 
 def test_a_declared_lidar_elevation_offset_raises_every_loaded_point_and_is_bounded(tmp_path):
@@ -115,7 +115,8 @@ def test_a_declared_lidar_elevation_offset_raises_every_loaded_point_and_is_boun
     dataset = open_dataset(tmp_path)
     assert dataset.rig.lidar_elevation_offset_deg == 0.3 and dataset.rig.lidar_elevation_sigma_deg == 0.05
     assert with_camera_model(TrustOptions(), dataset).elevation_sigma_deg == 0.05  # the verdict's, as calibrate runs
-    assert extract_state(tmp_path, CalibParams(), TrustOptions()).trust.elevation_sigma_deg == 0.05  # and evaluate
+    evaluated = open_for(EvaluationSettings(CalibrationRequest(dataset=tmp_path)))[1].solve.trust
+    assert evaluated is not None and evaluated.elevation_sigma_deg == 0.05  # and evaluate
     loaded = dataset.load_pair(0).cloud.points_lidar
     elevation = np.degrees(np.arctan2(loaded[:, 2], np.hypot(loaded[:, 0], loaded[:, 1])))
     assert elevation == pytest.approx(np.degrees(np.arctan2([0.0, -1.0], [10.0, 5.0])) + 0.3)

@@ -73,7 +73,7 @@ def cluster(tmp_path_factory):
 
 def _convergence(dataset, out, capsys, *where):
     code = main(["evaluate", "convergence", str(dataset), "--trials", str(TRIALS), "--seed", "4", "--out", str(out),
-                 "--no-uncertainty", "--sigmas", "3.5,1.8", *where])  # two levels: the same code, quicker trials
+                 "--no-uncertainty", "--sigmas-deg", "3.5,1.8", *where])  # two levels: the same code, quicker trials
     captured = capsys.readouterr()
     assert code == 0, captured.err
     return yaml.safe_load((out / "convergence.yaml").read_text()), captured.out

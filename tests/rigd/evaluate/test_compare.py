@@ -1,18 +1,13 @@
-"""``rigd evaluate compare`` and ``rigd calibrate --method nid``: reports, table, plot, method names."""
+"""``rigd evaluate compare``: reports, table, plot, method names; research methods run there, not in rigd calibrate."""
 
-import json
 from dataclasses import replace
 
-import numpy as np
 import pytest
 import yaml
 
 import calib.methods
-import rigd.calibration.service
-import rigd.evaluate.compare
-from calib.methods import Method, photo_params
+from calib.methods import Method
 from rigd.cli import main
-from rigd.dataset import open_dataset
 from rigd.errors import RigdError
 from rigd.evaluate.compare import parse_methods
 
@@ -23,15 +18,14 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 def quick_photometric(monkeypatch):
     """The photometric methods with a small budget (the test checks the plumbing, not the optimum); --workers 1
     runs in this process, so the patch reaches the runs."""
-    def quick(method):
-        opts = photo_params(method)
-        return None if opts is None else replace(opts, max_points=3000, max_evals=120, restarts=0)
-    for module in (calib.methods, rigd.evaluate.compare, rigd.calibration.service):
-        monkeypatch.setattr(module, "photo_params", quick)
+    for method, spec in calib.methods.METHODS.items():
+        if spec.photo is not None:
+            quick = replace(spec.photo, max_points=3000, max_evals=120, restarts=0)
+            monkeypatch.setitem(calib.methods.METHODS, method, replace(spec, photo=quick))
 
 
 def test_parse_methods():
-    assert parse_methods("gmm, nid,gom,nid") == (Method.RIGD, Method.NID, Method.GOM)
+    assert parse_methods("gmm, nid,gom,nid") == (Method.GMM, Method.NID, Method.GOM)
     with pytest.raises(RigdError, match="unknown method 'sift'"):
         parse_methods("gmm,sift")
 
@@ -67,13 +61,8 @@ def test_compare_on_as_few_pairs_as_a_subset_runs_no_precision_and_says_so(small
     assert "nan" not in nid_line and "| — / " in nid_line
 
 
-def test_calibrate_with_nid_is_not_assessed(small_dataset, tmp_path, capsys, quick_photometric):
-    truth = open_dataset(small_dataset).ground_truth
-    init = np.r_[truth.rpy_deg + [0.5, -0.5, 0.5], truth.translation_m + [0.01, -0.01, 0.01]]
-    code = main(["calibrate", str(small_dataset), "--method", "nid", "--init", ",".join(map(str, init)), "--out",
-                 str(tmp_path / "out"), "--json", "--no-visuals"])
-    assert code == 5
-    report = json.loads(capsys.readouterr().out)
-    assert report["verdict"]["status"] == "not_assessed" and report["method"]["name"] == "nid"
-    assert report["uncertainty"]["rpy_deg"] == [None, None, None]
-    assert report["method"]["photometric"]["cost"] == "nid"
+def test_calibrate_refuses_a_research_method_by_name(small_dataset, tmp_path, capsys):
+    with pytest.raises(SystemExit) as refused:
+        main(["calibrate", str(small_dataset), "--method", "nid", "--out", str(tmp_path / "out")])
+    assert refused.value.code == 2 and "invalid choice: 'nid'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

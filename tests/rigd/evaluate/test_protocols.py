@@ -10,8 +10,8 @@ import yaml
 from calib.assess import TrustOptions
 from calib.evaluate import random_starts, random_subsets, run_stats
 from calib.geometry import Transform
-from calib.methods import Method, calibrate_method, photo_params
-from rigd.calibration.service import dataset_photo_pairs
+from calib.methods import Method, SolveRequest, photo_params, solve
+from rigd.calibration.features import dataset_photo_pairs
 from rigd.cli import main
 from rigd.dataset import open_dataset, write_pair
 from rigd.dataset.pcd import Cloud
@@ -28,7 +28,7 @@ SUMMARY_KEYS = {"runs", "finished", "converged", "converged_percent", "outlier_r
 def _convergence(dataset, out, workers, capsys):
     # Two levels of the ladder: what is checked is the report, the starts and the workers' independence
     code = main(["evaluate", "convergence", str(dataset), "--trials", "2", "--seed", "4", "--workers", str(workers),
-                 "--out", str(out), "--sigmas", "3.5,1.8"])
+                 "--out", str(out), "--sigmas-deg", "3.5,1.8"])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     return yaml.safe_load((out / "convergence.yaml").read_text()), captured.out
@@ -65,7 +65,7 @@ def test_precision_report_uses_the_seeded_subsets(small_dataset, tmp_path, capsy
     # one worker: each extracts the features (a process and ~1 s more); the workers' independence is the
     # convergence test's
     code = main(["evaluate", "precision", str(small_dataset), "--subsets", "3", "--size", "1", "--seed", "2",
-                 "--workers", "1", "--out", str(out), "--sigmas", "3.5,1.8"])
+                 "--workers", "1", "--out", str(out), "--sigmas-deg", "3.5,1.8"])
     assert code == 0, capsys.readouterr().err
     report = yaml.safe_load((out / "precision.yaml").read_text())
     assert report["protocol"] == "precision" and report["settings"]["start"] == "ground_truth"
@@ -136,7 +136,7 @@ def test_a_method_is_evaluated_as_calibrate_runs_it(small_dataset, tmp_path, cap
     dataset = open_dataset(sparse, WORKING_WIDTH_PX)
     (start,) = random_starts(dataset.ground_truth, 1, 1.0, 0.02, seed=2)
     photo = dataset_photo_pairs(dataset, photo_params(Method.NID_ASSESSED), None)
-    direct = calibrate_method(Method.NID_ASSESSED, None, photo, start, trust=TrustOptions())
+    direct = solve(SolveRequest(method=Method.NID_ASSESSED, initial=start, trust=TrustOptions()), photo=photo)
     (run,) = report["runs"]
     assert direct.assessment is not None and run["verdict"] == direct.assessment.verdict.status.value
     assert np.allclose(run["result"]["rpy_deg"], direct.T_camera_lidar.rpy_deg, atol=1e-9)
