@@ -87,6 +87,7 @@ class TrustOptions:
     jackknife_min_pairs: int = 4  # fewer pairs: the jackknife leaves out groups of image cells instead
     jackknife_min_rings: int = 4  # rings with edge points needed for the jackknife over rings
     jackknife_groups: int = 8
+    min_places: int = 2  # fewer places: the sigmas cannot be checked across places, nothing is vouched for
     search_runners_up: int = 1  # without an initial guess: the global search's next starts solved in full
     failed_tolerances: float = 5.0  # ambiguity or sigma beyond this many tolerances on most axes: failed
     min_returned_share: float = 0.5  # fewer restarts back at the solution: the cost has several minima nearby
@@ -496,7 +497,21 @@ def _moved_far(moved_m: float | None, trust: TrustOptions) -> Verdict | None:
 
 
 def verdict_of(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None = None,
-             moved_m: float | None = None) -> Verdict:
+               moved_m: float | None = None, places: int | None = None) -> Verdict:
+    """The verdict of ``unc`` and the ``restarts`` (docs/trust.md); ``places``: how many places the pairs were
+    taken at (None: each pair its own), of which a result needs ``trust.min_places`` for any axis to be vouched
+    for: the pairs of one place share its every bias, which no spread among them shows."""
+    verdict = _verdict(unc, restarts, trust, moved_deg, moved_m)
+    if places is None or places >= trust.min_places or verdict.status is Status.FAILED:
+        return verdict
+    where = "one place" if places == 1 else f"{places} places"
+    return Verdict(Status.WEAK, AXES, (*verdict.reasons, f"every pair was taken at {where}: the sigmas come from "
+                                       "one scene seen alike and cannot be checked across places, so no axis is "
+                                       "vouched for"))
+
+
+def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None,
+             moved_m: float | None) -> Verdict:
     tol = trust.tolerance_display
     reasons: list[str] = []
     weak = set()
@@ -581,5 +596,6 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
     )
     moved, moved_m = moved_from(starts, best.tau)
     unc = with_elevation(with_intrinsics(unc, best.tau, trust), trust)
-    return Assessment(best.tau, best, unc, restarts, verdict_of(unc, list(restarts), trust, moved, moved_m), moved,
-                      moved_m)
+    n_places = len(np.unique(places(feats)))
+    return Assessment(best.tau, best, unc, restarts, verdict_of(unc, list(restarts), trust, moved, moved_m, n_places),
+                      moved, moved_m)

@@ -68,6 +68,7 @@ from calib.photometric import (
 from calib.uncertainty import (
     TO_DISPLAY,
     nll_scale,
+    places,
     positive_part,
     sandwich,
     scatter,
@@ -282,7 +283,8 @@ def photo_uncertainty(pairs: list[PhotoPair], tau: F64, params: PhotoParams, tru
         raise CalibError(f"the photometric assessment is defined for NID, not {params.cost.value}")
     lps = level_pairs(pairs, tau, params, len(params.blur_deg) - 1, point_subsets(pairs, tau, params))
     labels, cluster_pair = _clusters(lps, tau, opts.cell_deg)
-    groups, n_groups, by_pair = _groups(cluster_pair, len(pairs), trust)
+    place = places(pairs)  # the jackknife leaves out places (a pair without one is a place of its own)
+    groups, n_groups, by_pair = _groups(place[cluster_pair], int(place.max()) + 1, trust)
     ppr = float(np.median([lp.camera.pixels_per_radian for lp in lps]))
     r_typ = typical_range(lps, tau)
     h = np.array([opts.step_px / ppr] * 3 + [opts.step_px / ppr * r_typ] * 3)
@@ -433,5 +435,5 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
                      for r, c in runs if r is not best)
     moved, moved_m = moved_from(starts, best.tau)
     unc = with_elevation(with_intrinsics(unc, best.tau, trust), trust)
-    verdict = verdict_of(unc, list(restarts), trust, moved, moved_m)
+    verdict = verdict_of(unc, list(restarts), trust, moved, moved_m, len(np.unique(places(pairs))))
     return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m)

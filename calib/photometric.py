@@ -113,7 +113,8 @@ class PhotoPair:
     """One pair for the photometric costs: ``grey`` (H,W) float32 in [0, 1] (equalised), ``points_lidar``
     (N,3) float64 m, ``reflectivity`` (N,) float64 in [0, 1] (rank-normalised), ``mask`` (H,W) bool, True where
     the image shows the scene (None: everywhere; points landing elsewhere are not compared), ``ring`` (N,) int64
-    the ring of each point (the cloud's laser index, else its half-degree elevation bin; None: not known)."""
+    the ring of each point (the cloud's laser index, else its half-degree elevation bin; None: not known);
+    ``place``: the assessment's jackknife leaves out whole places."""
 
     camera: CameraModel
     grey: F32
@@ -121,6 +122,7 @@ class PhotoPair:
     reflectivity: F64
     mask: NDArray[np.bool_] | None = None
     ring: NDArray[np.int64] | None = None
+    place: int | None = None  # the place the pair was taken at (None: a place of its own), as PairFeatures.place
 
 
 @dataclass(frozen=True)

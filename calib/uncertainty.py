@@ -18,13 +18,18 @@ median over the axes of ``B_kk / H_kk``; it is how a prior is weighed against th
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from calib.geometry import cross_rows, so3_exp, so3_log
 from calib.gmm import Frozen, GmmOptions, PairFeatures, freeze_all, pair_terms, transform_points
+
+if TYPE_CHECKING:  # calib.photometric imports this module
+    from calib.photometric import PhotoPair
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -86,10 +91,11 @@ class Clusters:
         return out
 
 
-def places(feats: tuple[PairFeatures, ...] | list[PairFeatures]) -> I64:
+def places(feats: Sequence[PairFeatures] | Sequence[PhotoPair]) -> I64:
     """(P,) int64: the place of each pair, numbered 0.. in order of first appearance (a pair without a
     ``place`` is a place of its own)."""
-    keys = [("place", f.place) if f.place is not None else ("pair", i) for i, f in enumerate(feats)]
+    given: list[int | None] = [f.place for f in feats]
+    keys = [("place", p) if p is not None else ("pair", i) for i, p in enumerate(given)]
     numbers: dict[tuple[str, int], int] = {}
     return np.array([numbers.setdefault(k, len(numbers)) for k in keys], dtype=np.int64)
 

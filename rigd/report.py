@@ -213,6 +213,14 @@ class MethodSettings(TypedDict):
 
 
 @with_config(_OPEN)
+class Places(TypedDict):
+    """Where the pairs were taken (rigd.dataset.places): how many places, and the place of each pair."""
+
+    count: int
+    of_pairs: list[int]
+
+
+@with_config(_OPEN)
 class StartYaml(TypedDict):
     """Where the solve started (rigd.calibration.request.Start's value) and why."""
 
@@ -260,6 +268,7 @@ class CalibrationReport(TypedDict):
     quality: Quality
     change_from_initial: Change
     dataset: str
+    places: NotRequired[Places]
     error_vs_ground_truth: NotRequired[GroundTruthError]  # simulated datasets
     agreement_with_reference: NotRequired[ReferenceAgreement]  # imported datasets with a reference.yaml
     uncertainty: Uncertainty

@@ -53,13 +53,24 @@ class Step:
 class SceneFacts(NamedTuple):
     """``pairs``: how many pairs were calibrated; ``typical_range_m``: harmonic mean range of the edge points
     (m); ``pixels_per_radian``: the camera's scale; ``translation_prior``: a translation prior or a fixed
-    translation was used; ``pair_names``: each pair's folder, ``pairs/NNNN`` (empty: named by position)."""
+    translation was used; ``pair_names``: each pair's folder, ``pairs/NNNN`` (empty: named by position);
+    ``place_of``: each pair's place (rigd.dataset.places; empty: each pair a place of its own)."""
 
     pairs: int
     typical_range_m: float
     pixels_per_radian: float
     translation_prior: bool
     pair_names: tuple[str, ...] = ()
+    place_of: tuple[int, ...] = ()
+
+    @property
+    def places(self) -> int:
+        """How many places: only these are independent evidence (the jackknife leaves out places)."""
+        return len(set(self.place_of)) if self.place_of else self.pairs
+
+    def in_all(self, places: int) -> int:
+        """The pairs a dataset holds in all with one pair at each new place up to ``places``."""
+        return self.pairs + max(places - self.places, 0)
 
 
 def _pairs_needed(sigma: np.ndarray, tolerance: np.ndarray, factor: float, pairs: int) -> int:
@@ -77,9 +88,12 @@ def _pair_name(i: int, facts: SceneFacts) -> str:
     return folder if folder == by_position else f"{folder} (overlays/{i:04d}_*)"
 
 
-def _pair_names(indices: tuple[int, ...], facts: SceneFacts) -> str:
-    """The pairs at ``indices`` by their folders (a dataset whose pairs were pruned is not numbered by position)."""
-    names = [_pair_name(i, facts) for i in indices]
+def _pair_names(places: tuple[int, ...], facts: SceneFacts) -> str:
+    """The pairs of ``places`` by their folders (a dataset whose pairs were pruned is not numbered by position);
+    a place of several pairs as all of them."""
+    of = facts.place_of or tuple(range(facts.pairs))
+    names = [" + ".join(_pair_name(i, facts) for i, p in enumerate(of) if p == place) or _pair_name(place, facts)
+             for place in places]
     return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
@@ -93,12 +107,12 @@ def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustO
         return Step(f"{', '.join(axes)}: the pose rests on {_pair_names(held_by, facts)}: without {either} "
                     "the other pairs' edges do not hold it, and the sigma is how far it then slides, not noise that "
                     "averages away; capture more pairs at new places with structure like theirs (see their overlays)",
-                    (Action.CAPTURE,), named, max(facts.pairs + len(held_by), MEASURED_PAIRS))
+                    (Action.CAPTURE,), named, facts.in_all(max(facts.places + len(held_by), MEASURED_PAIRS)))
     idx = [AXES.index(ax) for ax in axes]
     sigma = a.uncertainty.sigma[idx]
     if not np.all(np.isfinite(sigma)):
         return None
-    needed = _pairs_needed(sigma, trust.tolerance_display[idx], trust.sigma_factor, facts.pairs)
+    needed = _pairs_needed(sigma, trust.tolerance_display[idx], trust.sigma_factor, facts.places)
     names = ", ".join(axes)
     if needed > MAX_USEFUL_PAIRS:
         return Step(f"{names}: more pairs of scenes like these would not do it (about {needed} needed at the rate "
@@ -107,9 +121,16 @@ def _more_pairs(axes: list[str], a: Assessment, facts: SceneFacts, trust: TrustO
     # Never fewer than rigd is measured with: the estimate moves with each calibration's sigma (4 pairs asked for
     # 8, then those 8 for 11), and one target, the one the "only N pairs" step names too, is what a capture needs.
     target = max(needed, MEASURED_PAIRS)
-    return Step(f"{names}: capture more pairs at new places and headings, about {target} in all (sigma falls "
-                f"roughly as 1/sqrt(pairs); now {facts.pairs}), and keep the rig still during each capture",
-                (Action.CAPTURE,), named, target)
+    return Step(f"{names}: capture more pairs at new places and headings, about {target} places in all (sigma "
+                f"falls roughly as 1/sqrt(places); now {_counted(facts)}), and keep the rig still during each capture",
+                (Action.CAPTURE,), named, facts.in_all(target))
+
+
+def _counted(facts: SceneFacts) -> str:
+    """``12`` places, or ``20 pairs at 1 place`` where pairs share places."""
+    pairs = "1 pair" if facts.pairs == 1 else f"{facts.pairs} pairs"
+    places = "1 place" if facts.places == 1 else f"{facts.places} places"
+    return str(facts.places) if facts.places == facts.pairs else f"{pairs} at {places}"
 
 
 def ring_set(axes: list[str], a: Assessment) -> list[str]:
@@ -168,7 +189,7 @@ def _translation(axes: list[str], facts: SceneFacts) -> Step | None:
     if facts.typical_range_m > NEAR_M:
         return Step(f"{seen}; capture pairs with structure 2-{NEAR_M:g} m from the rig, or give the lever arm from "
                     "the rig's drawing (or hold the translation at it)", (Action.CAPTURE, *actions), tuple(axes),
-                    MEASURED_PAIRS if facts.pairs < MEASURED_PAIRS else None)
+                    facts.in_all(MEASURED_PAIRS) if facts.places < MEASURED_PAIRS else None)
     return Step(f"{seen}; give the lever arm from the rig's drawing (or hold the translation at it)", actions,
                 tuple(axes))
 
@@ -225,10 +246,12 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[S
     by_rings = ring_set(counted, a)
     steps.append(_rings(by_rings, a))
     steps.append(_more_pairs([ax for ax in counted if ax not in by_rings], a, facts, trust))
-    if facts.pairs < MEASURED_PAIRS:
-        have = "1 pair" if facts.pairs == 1 else f"{facts.pairs} pairs"
-        steps.append(Step(f"only {have}: rigd is measured with {MEASURED_PAIRS}", (Action.CAPTURE,),
-                          pairs=MEASURED_PAIRS))
+    if facts.places < MEASURED_PAIRS:
+        have = ("1 pair" if facts.pairs == 1 else f"{facts.pairs} pairs") if facts.places == facts.pairs \
+            else _counted(facts)
+        steps.append(Step(f"only {have}: rigd is measured with {MEASURED_PAIRS} places (move the rig between "
+                          "captures: pairs at one place see the same scene alike)", (Action.CAPTURE,),
+                          pairs=facts.in_all(MEASURED_PAIRS)))
     if v.status is Status.FAILED:
         steps.append(Step("do not use this result: keep the active calibration (the service does not activate it)",
                           (Action.KEEP_ACTIVE,)))

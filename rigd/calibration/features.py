@@ -22,6 +22,7 @@ from calib.pipeline import CalibParams, PairInput, extract_features, extract_pla
 from rigd.calibration.pool import FeaturePool, preload
 from rigd.calibration.progress import Progress, Stage
 from rigd.dataset import Dataset, Pair
+from rigd.dataset.places import dataset_places
 from rigd.errors import RigdError
 
 
@@ -43,10 +44,11 @@ def feature_at(feats: list[PairFeatures], dataset: Dataset, pair: int, view: int
 
 
 def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None,
-                     executor: Executor | None = None) -> list[PairFeatures]:
+                     executor: Executor | None = None, places: tuple[int, ...] | None = None) -> list[PairFeatures]:
     """Edge features of every pair of ``dataset``, one per view of a pair (FeaturelessError names a pair without
-    enough edges), the pairs extracted side by side in ``executor`` (:func:`edge_threads`) if given. Ordered
-    view by view (:func:`feature_at`)."""
+    enough edges), the pairs extracted side by side in ``executor`` (:func:`edge_threads`) if given, each with
+    its place (``places``, rigd.dataset.places; None: each pair its own). Ordered view by view
+    (:func:`feature_at`)."""
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
     if executor is None:
@@ -64,7 +66,9 @@ def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress |
     # One camera object per view for all pairs (each pair's was made, or unpickled, on its own): the cost projects
     # and sums the pairs that share one camera object together (calib.gmm.pair_terms), not one pair at a time.
     cameras = dataset.rig.camera.models()
-    return [dataclasses.replace(place[v], camera=camera) for v, camera in enumerate(cameras) for place in per_pair]
+    where = places or tuple(range(len(dataset)))
+    return [dataclasses.replace(views[v], camera=camera, place=where[i]) for v, camera in enumerate(cameras)
+            for i, views in enumerate(per_pair)]
 
 
 @contextmanager
@@ -131,14 +135,17 @@ def _per_pair(dataset: Dataset, stage: Stage, progress: Progress | None, make: C
     return out
 
 
-def dataset_photo_pairs(dataset: Dataset, params: PhotoParams, progress: Progress | None) -> list[PhotoPair]:
-    """The photometric costs' arrays of every pair, one per view, view by view as :func:`dataset_features`
-    (FeaturelessError names a pair whose cloud has no intensity)."""
+def dataset_photo_pairs(dataset: Dataset, params: PhotoParams, progress: Progress | None,
+                        places: tuple[int, ...] | None = None) -> list[PhotoPair]:
+    """The photometric costs' arrays of every pair, one per view, view by view as :func:`dataset_features`, each
+    with its place (FeaturelessError names a pair whose cloud has no intensity)."""
     cameras = dataset.rig.camera.models()
+    where = places or tuple(range(len(dataset)))
     per_pair = _per_pair(dataset, Stage.REFLECTIVITY, progress, lambda pair, i: [photo_pair(
         image, pair.cloud.points_lidar, pair.cloud.intensity, pair.cloud.ring, camera, params, index=i, mask=mask)
         for image, camera, mask in zip(pair.images, cameras, dataset.masks, strict=True)])
-    return [views[v] for v in range(len(cameras)) for views in per_pair]
+    return [dataclasses.replace(views[v], place=where[i]) for v in range(len(cameras))
+            for i, views in enumerate(per_pair)]
 
 
 def _search_photo(dataset: Dataset, progress: Progress | None) -> list[PhotoPair] | None:
@@ -153,22 +160,24 @@ def _search_photo(dataset: Dataset, progress: Progress | None) -> list[PhotoPair
 class Features(NamedTuple):
     """What a request's method solves on: the GMM's edges (None: not a GMM method), the photometric pairs (None:
     not a photometric method), the pairs' images and reflectivity for the global search's score (None: no search,
-    or a cloud without intensity)."""
+    or a cloud without intensity), and the place of each pair (rigd.dataset.places)."""
 
     gmm: list[PairFeatures] | None
     photo: list[PhotoPair] | None
     search_photo: list[PhotoPair] | None
+    places: tuple[int, ...] = ()
 
 
 def features_for(dataset: Dataset, solve: SolveRequest, progress: Progress | None = None,
                  workers: int = 1) -> Features:
     """The features ``solve`` needs of ``dataset``, the pairs' edges in ``workers`` threads."""
     gmm = solve.gmm
+    places = dataset_places(dataset)
     feats = None
     if gmm is not None:
         with edge_threads(workers, len(dataset)) as threads:
-            feats = dataset_features(dataset, gmm, progress, threads)
+            feats = dataset_features(dataset, gmm, progress, threads, places)
         return_freed_memory()
-    photo = dataset_photo_pairs(dataset, solve.photo, progress) if solve.photo is not None else None
+    photo = dataset_photo_pairs(dataset, solve.photo, progress, places) if solve.photo is not None else None
     search = _search_photo(dataset, progress) if solve.initial is None and gmm is not None else None
-    return Features(feats, photo, search)
+    return Features(feats, photo, search, places)

@@ -46,7 +46,7 @@ def _scene_facts(dataset: Dataset, features: Features, resolved: Resolved) -> Sc
     return SceneFacts(len(dataset), typical_range_m(features.gmm) if features.gmm else 0.0,
                       dataset.rig.camera.models()[0].pixels_per_radian,
                       prior is not None and (prior.xyz_m is not None or prior.fix_translation),
-                      tuple(f"pairs/{d.name}" for d in dataset.pair_dirs))
+                      tuple(f"pairs/{d.name}" for d in dataset.pair_dirs), features.places)
 
 
 def _steps(result: CalibResult, dataset: Dataset, features: Features, resolved: Resolved) -> tuple[Step, ...]:
@@ -102,7 +102,8 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
             assert result.search is not None  # no start: the search gave it
             initial = Transform.from_tau(result.search.best.tau)
         report = build_report(result=result, resolved=resolved, initial=initial, dataset=dataset,
-                              wall_s=time.monotonic() - started, steps=_steps(result, dataset, features, resolved),
+                              wall_s=time.monotonic() - started, places=features.places,
+                              steps=_steps(result, dataset, features, resolved),
                               search_wall_s=search_wall_s)
         if request.out_dir is not None:
             _write(request, dataset, features, initial, result, report, progress)

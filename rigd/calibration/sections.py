@@ -201,7 +201,8 @@ def _settings(resolved: Resolved, cameras: list[CameraModel]) -> _Settings:
 
 
 def build_report(*, result: CalibResult, resolved: Resolved, initial: Transform, dataset: Dataset, wall_s: float,
-                 steps: tuple[Step, ...] = (), search_wall_s: float = 0.0) -> CalibrationReport:
+                 places: tuple[int, ...], steps: tuple[Step, ...] = (), search_wall_s: float = 0.0
+                 ) -> CalibrationReport:
     """The whole report of ``result`` (solved as ``resolved`` says, from ``initial``), its sections in the order
     extrinsics.yaml lists them; ``steps``: what to do next (rigd.calibration.advice)."""
     T = result.T_camera_lidar
@@ -218,6 +219,7 @@ def build_report(*, result: CalibResult, resolved: Resolved, initial: Transform,
             "translation_cm": float(np.linalg.norm(T.translation_m - initial.translation_m) * 100.0),
         },
         "dataset": str(dataset.root),
+        "places": {"count": len(set(places)), "of_pairs": list(places)},
         **_compared(dataset, T),
         **assessed,
         **searched,

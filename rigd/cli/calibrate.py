@@ -158,6 +158,9 @@ def print_report(report: CalibrationReport, written: Path) -> None:
     print(f"method: {method['name']} ({method.get('why', 'asked for')})")
     if "start" in report:
         print(f"start: {report['start']['choice']} ({report['start']['why']})")
+    if "places" in report:
+        pairs, places = len(report["places"]["of_pairs"]), report["places"]["count"]
+        print(f"pairs: {pairs} at {places} place{'s' if places != 1 else ''} (pairs at one place count once)")
     if "initial_search" in report:
         print_search(report["initial_search"])
     if "lidar_elevation_offset" in report:

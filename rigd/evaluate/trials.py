@@ -113,7 +113,7 @@ class WorkerState:
     def calibrate(self, start: Transform | None, pairs: Sequence[int], **changes: Any) -> CalibResult:
         """The request solved from ``start`` on ``pairs`` (``changes``: other fields of the solve replaced)."""
         assert self.solve is not None
-        gmm, photo, _ = self.features
+        gmm, photo = self.features.gmm, self.features.photo
         return solve(replace(self.solve, initial=start, **changes),
                      feats=None if gmm is None else of_pairs(gmm, self.n_pairs, pairs),
                      photo=None if photo is None else of_pairs(photo, self.n_pairs, pairs))

@@ -435,3 +435,19 @@ def test_a_left_out_solve_that_carries_most_of_the_spread_holds_the_pose_short_o
     assert assess_module.holding_groups(even, [0, 1, 2, 3, 4], scale, radius) == ()
     small = steps * 0.5  # the same shares, nowhere near the width: the pose is held
     assert assess_module.holding_groups(small, [0, 1, 2, 3, 4], scale, radius) == ()
+
+
+def test_pairs_at_one_place_vouch_for_no_axis():
+    """A sharp result from pairs of one place: weak, every axis named (the place's biases are common to every pair);
+    from two places the usual verdict; a failed one stays failed."""
+    from calib.assess import AXES, Status, TrustOptions, Uncertainty, verdict_of
+
+    sharp = np.full(6, 0.01)
+    unc = Uncertainty(np.eye(6) * 1e-4, sharp, sharp, None, 0, "", True, 1.0, 0.9)
+    trust = TrustOptions()
+    one = verdict_of(unc, [], trust, places=1)
+    assert one.status is Status.WEAK and one.weak_axes == AXES and "one place" in one.reasons[-1]
+    assert verdict_of(unc, [], trust, places=2).status is Status.TRUSTED
+    assert verdict_of(unc, [], trust).status is Status.TRUSTED
+    lost = Uncertainty(np.eye(6), sharp, sharp, None, 0, "", False, 1.0, 0.9)
+    assert verdict_of(lost, [], trust, places=1).status is Status.FAILED

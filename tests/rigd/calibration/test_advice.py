@@ -49,8 +49,8 @@ def test_far_scene_with_weak_translation_suggests_near_structure_or_a_lever_arm_
 def test_weak_rotation_asks_for_about_as_many_pairs_as_sigma_needs():
     # pitch 2.5 * 0.1 = 0.25 deg against 0.2: 12 * 1.25^2 = 18.75 -> 19 pairs
     steps = advise(assessment([0.05, 0.1, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), FAR, TRUST)
-    assert steps == ("pitch: capture more pairs at new places and headings, about 19 in all (sigma falls roughly "
-                     "as 1/sqrt(pairs); now 12), and keep the rig still during each capture",)
+    assert steps == ("pitch: capture more pairs at new places and headings, about 19 places in all (sigma falls "
+                     "roughly as 1/sqrt(places); now 12), and keep the rig still during each capture",)
     (step,) = next_steps(assessment([0.05, 0.1, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), FAR, TRUST)
     assert step.actions == (Action.CAPTURE,) and step.pairs == 19 and step.axes == ("pitch",)
 
@@ -119,8 +119,8 @@ def test_the_pairs_asked_for_are_one_target_that_does_not_move_below_the_measure
     for pairs, pitch_sigma in ((4, 0.113), (8, 0.094)):  # 8 and 11 pairs by the 1/sqrt(pairs) estimate
         facts = FAR._replace(pairs=pairs)
         steps = advise(assessment([0.05, pitch_sigma, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), facts, TRUST)
-        assert "about 12 in all" in steps[0] and f"now {pairs})" in steps[0], steps
-        assert steps[1] == f"only {pairs} pairs: rigd is measured with 12"
+        assert "about 12 places in all" in steps[0] and f"now {pairs})" in steps[0], steps
+        assert steps[1].startswith(f"only {pairs} pairs: rigd is measured with 12 places")
         records = next_steps(assessment([0.05, pitch_sigma, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), facts,
                              TRUST)
         assert [s.pairs for s in records] == [12, 12]
@@ -148,3 +148,13 @@ def test_an_axis_the_elevation_offset_sets_asks_for_a_better_known_offset_not_mo
     data_set = with_elevation(0.3)  # the data's own sigma sets z: more pairs, as before
     assert not any("elevation offset" in s for s in data_set)
     assert any(s.startswith("z: capture more pairs") for s in data_set)
+
+
+def test_pairs_at_one_place_count_once_and_the_capture_asks_for_new_places():
+    """20 pairs at one place (the rig never moved): the advice counts the place, and the capture's target in all
+    is the 20 pairs plus one at each of 11 new places."""
+    one_place = FAR._replace(pairs=20, place_of=(0,) * 20)
+    steps = next_steps(assessment([0.05, 0.1, 0.05, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",)), one_place, TRUST)
+    assert "now 20 pairs at 1 place" in steps[0].text
+    assert steps[-1].text.startswith("only 20 pairs at 1 place: rigd is measured with 12 places")
+    assert [s.pairs for s in steps] == [steps[0].pairs, 31] and steps[0].pairs >= 31
