@@ -65,10 +65,16 @@ def _import(src: Path, out: Path, *extra: str) -> int:
 
 def test_acfr_layout_imports_with_its_reference_as_its_authors_define_it(tmp_path: Path) -> None:
     src = write_tree(tmp_path / "src")
+    mask = np.full((SIZE[1], SIZE[0]), 255, np.uint8)
+    mask[-3:] = 0  # the rig's own body
+    cv2.imwrite(str(src / "mask.png"), mask)
     assert _import(src, tmp_path / "out", "--only", "10,1", "--reference", str(src / "calib.csv"),
-                   "--reference-convention", "camera-in-lidar:rpy-rad-xyz") == 0
+                   "--reference-convention", "camera-in-lidar:rpy-rad-xyz", "--init", "1,-80,-60,0.01,-0.2,-0.1",
+                   "--mask", str(src / "mask.png")) == 0
     ds = open_dataset(tmp_path / "out")
     camera = ds.rig.camera
+    assert ds.rig.initial_guess is not None and ds.masks[0] is not None and not ds.masks[0][-1].any()
+    np.testing.assert_allclose(ds.rig.initial_guess.translation_m, [0.01, -0.2, -0.1])
     assert camera.kind is CameraKind.FISHEYE and camera.K is not None and camera.D is not None
     np.testing.assert_allclose(camera.K.ravel(), K)
     np.testing.assert_allclose(camera.D, FISHEYE_INFO["D"])
