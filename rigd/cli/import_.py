@@ -1,4 +1,4 @@
-"""``rigd import ford|kitti SRC OUT``: recordings of other rigs as rigd datasets (docs/dataset.md, "Importing")."""
+"""``rigd import FORMAT SRC OUT``: recordings of other rigs as rigd datasets (docs/dataset.md, "Importing")."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rigd.cli.args import non_negative_float, positive_int, progress_bar
+from rigd.cli.args import non_negative_float, parse_init, positive_int, progress_bar
 from rigd.cli.bag_input import add_topic_options
+from rigd.errors import RigdError
 
 
 def _scan_list(text: str) -> list[int]:
@@ -56,6 +57,7 @@ def register(subparsers: Any) -> None:
                        help="frames to take, e.g. 0-5 or 0,50,100 (default: every frame)")
     kitti.set_defaults(func=_kitti)
     _register_bag(formats)
+    _register_pairs(formats)
 
 
 def _register_bag(formats: Any) -> None:
@@ -81,6 +83,66 @@ def _register_bag(formats: Any) -> None:
                      "mean grey level is not kept, e.g. 4 (default 0: the images are not consulted, as traffic "
                      "in view changes a still rig's images too)")
     bag.set_defaults(func=_bag)
+
+
+def _register_pairs(formats: Any) -> None:
+    pairs = formats.add_parser(
+        "pairs", help="a folder of images and one of PCD clouds, with a ROS camera_info YAML",
+        description="Pair the images of IMAGES with the PCD clouds of CLOUDS by the number in their names (the last "
+        "run of digits: pose1.png with pose1_full.pcd) or by sorted order, and write them as a dataset with the "
+        "camera of a ROS camera_info YAML (plumb_bob: pinhole; equidistant / fisheye: OpenCV's fisheye). A published "
+        "calibration given with --reference, in the convention --reference-convention names, becomes "
+        "OUT/reference.yaml (docs/dataset.md, 'Importing').")
+    pairs.add_argument("images", type=Path, metavar="IMAGES", help="folder of the images (.png, .jpg)")
+    pairs.add_argument("clouds", type=Path, metavar="CLOUDS", help="folder of the PCD clouds (may be IMAGES)")
+    pairs.add_argument("out", type=Path, metavar="OUT", help="new (or empty) dataset folder")
+    pairs.add_argument("--camera-info", type=Path, required=True, metavar="YAML",
+                       help="the camera's ROS camera_info YAML (message fields K, D, or camera_calibration's file)")
+    pairs.add_argument("--image-glob", default=None, metavar="PATTERN",
+                       help="the images taken from IMAGES (default *.png, *.jpg, *.jpeg)")
+    pairs.add_argument("--cloud-glob", default="*.pcd", metavar="PATTERN",
+                       help="the clouds taken from CLOUDS (default *.pcd), e.g. '*_full.pcd'")
+    pairs.add_argument("--by-order", action="store_true",
+                       help="pair the n-th image with the n-th cloud in sorted name order (numbers compared as "
+                       "numbers); --only then counts from 0")
+    pairs.add_argument("--only", type=_scan_list, default=None, metavar="LIST",
+                       help="the pairs to take by their number, e.g. 1,5,9 or 1-10 (default: every pair)")
+    pairs.add_argument("--reference", type=Path, default=None, metavar="FILE",
+                       help="a published calibration (text: rows of numbers, or a 4x4); several rows: the mean of "
+                       "those within 2 std, their std its sigma")
+    pairs.add_argument("--reference-convention", default=None, metavar="FRAME:LAYOUT",
+                       help="how --reference is written, never guessed: FRAME camera-in-lidar (p_lidar = R p_camera "
+                       "+ t) or lidar-in-camera (p_camera = R p_lidar + t); LAYOUT rpy-rad-xyz, rpy-deg-xyz, "
+                       "xyz-rpy-rad, xyz-rpy-deg (R = Rz(yaw) Ry(pitch) Rx(roll), metres), xyz-quat-xyzw or matrix; "
+                       "e.g. camera-in-lidar:rpy-rad-xyz")
+    pairs.add_argument("--init", default=None, metavar="R,P,Y,X,Y,Z",
+                       help="rig.yaml's initial guess of T_camera_lidar, deg and m (default none: rigd calibrate "
+                       "searches)")
+    pairs.add_argument("--lidar-model", default="VLP-16", metavar="NAME", help="the LiDAR's name (default VLP-16)")
+    pairs.add_argument("--mask", type=Path, default=None, metavar="PNG",
+                       help="an image of the camera's size, non-zero where it shows the scene (the rig's own body "
+                       "zero), copied to OUT/masks/camera.png")
+    pairs.set_defaults(func=_pairs)
+
+
+def _pairs(args: argparse.Namespace) -> int:
+    from rigd.importers.pairs import IMAGE_GLOBS, PairsOptions, PairsSource, import_pairs
+    from rigd.importers.reference_file import parse_convention, read_reference
+
+    if (args.reference is None) != (args.reference_convention is None):
+        raise RigdError("--reference and --reference-convention go together: the convention is never guessed")
+    reference = None if args.reference is None else \
+        read_reference(args.reference, parse_convention(args.reference_convention))
+    source = PairsSource(args.images, args.clouds, (args.image_glob,) if args.image_glob else IMAGE_GLOBS,
+                         args.cloud_glob, args.by_order)
+    options = PairsOptions(args.camera_info, args.lidar_model, parse_init(args.init) if args.init else None,
+                           reference, args.mask)
+    bar, progress = progress_bar("import pairs", "pair")
+    with bar:
+        n = import_pairs(source, args.out, options, args.only, progress)
+    print(f"written: {args.out} ({n} pairs" + (f"; reference pose in {args.out / 'reference.yaml'})"
+                                               if reference is not None else ")"))
+    return 0
 
 
 def _ford(args: argparse.Namespace) -> int:
