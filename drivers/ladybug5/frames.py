@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any, Protocol
@@ -93,13 +93,27 @@ class FrameSource(Protocol):
 @dataclass
 class SkipCounter:
     """Counts frames dropped (corrupt, a failed grab, a failed stitch; or, as ``exposure_errors`` of the SDK
-    sources, failed exposure reads) and keeps the latest reasons (for status reports)."""
+    sources, failed exposure reads) and keeps the latest reasons (for status reports). ``partial`` counts frames
+    kept without some camera and ``channels`` the channel JPEGs dropped in them (:meth:`record_partial`)."""
 
     count: int = 0
     reasons: list[str] = field(default_factory=list)
     keep: int = 20
+    partial: int = 0
+    channels: int = 0
 
     def record(self, error: Ladybug5Error) -> None:
         self.count += 1
-        self.reasons = [*self.reasons, str(error)][-self.keep :]
+        self._reason(str(error))
         log.warning("skipped frame: %s", error)
+
+    def record_partial(self, where: str, faults: Sequence[object]) -> None:
+        """A frame kept although ``faults`` (each naming a camera's channel) lost it a camera."""
+        self.partial += 1
+        self.channels += len(faults)
+        reason = f"{where}: kept without a camera: " + "; ".join(str(f) for f in faults)
+        self._reason(reason)
+        log.warning("%s", reason)
+
+    def _reason(self, reason: str) -> None:
+        self.reasons = [*self.reasons, reason][-self.keep :]

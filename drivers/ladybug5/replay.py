@@ -33,6 +33,7 @@ from drivers.ladybug5.raw import to_uint8
 from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 
 TIMESTAMPS_FILE = "timestamps.csv"
+PARTIAL_FRAME_CAMERAS = 5  # a frame that lost one camera still makes a panorama (its view left to the overlaps)
 CAMERA_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
@@ -179,7 +180,9 @@ class PgrFrameSource:
     """Frames of a .pgr stream, stitched; device time from the frame headers, host time unknown (None).
 
     ``wrap_period_s`` unwraps a device clock that wraps (e.g. 128 s cycle time); ``time_base`` says
-    whether the camera was PPS-locked (GPS time) when the stream was recorded.
+    whether the camera was PPS-locked (GPS time) when the stream was recorded. A frame with at least
+    ``min_cameras`` cameras whose channel JPEGs decode is stitched from those (counted in ``skipped.partial``, its
+    bad channels in ``skipped.channels``); one with fewer is skipped.
     """
 
     def __init__(
@@ -189,8 +192,10 @@ class PgrFrameSource:
         layout: PgrLayout = DEFAULT_LAYOUT,
         wrap_period_s: float | None = None,
         time_base: TimeBase = TimeBase.CAMERA,
+        min_cameras: int = PARTIAL_FRAME_CAMERAS,
     ) -> None:
         self.stream = PgrStream(path, layout)
+        self.min_cameras = min_cameras
         try:  # a format rigd cannot decode, or no Bayer pattern, is said now rather than at every frame
             self.stream.data_format()
             self.stream.bayer_pattern()
@@ -208,11 +213,13 @@ class PgrFrameSource:
             self.skipped.record(CorruptFrameError(damage))
         for entry, device_s in zip(self.stream.index, self.device_times_s, strict=True):
             try:
-                images = self.stream.camera_images(entry.index)
+                cameras = self.stream.frame_images(entry.index, self.min_cameras)
             except CorruptFrameError as exc:
                 self.skipped.record(exc)
                 continue
-            pano = self.stitcher.stitch([to_uint8(im) for im in images])
+            if cameras.faults:
+                self.skipped.record_partial(f"{self.stream.path}: frame {entry.index}", cameras.faults)
+            pano = self.stitcher.stitch([None if im is None else to_uint8(im) for im in cameras.arrays])
             yield PanoramaFrame(pano, float(device_s), None, entry.sequence_id, entry.exposure, self.time_base)
 
     def close(self) -> None:

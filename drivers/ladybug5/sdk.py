@@ -9,8 +9,8 @@ only one), loads its configuration (``ladybugLoadConfig``), reads its Bayer tile
 head calibration (:mod:`drivers.ladybug5.sdk_head`), and stops and destroys the context.
 
 Every number the binding needs from the SDK's headers comes from ``layout_probe.c`` (:mod:`sdk_layout`).
-Grabbed RAW8, RAW16 and COLOR_SEP_JPEG8 buffers are decoded here (slicing by the full sensor size, border
-crop, the SDK's Bayer pattern); other formats are named as unsupported. The frame sources are in
+Grabbed RAW8, RAW12, RAW16, COLOR_SEP_JPEG8 and COLOR_SEP_JPEG12 buffers are decoded here (slicing by the full
+sensor size, border crop, the SDK's Bayer pattern); other formats are named as unsupported. The frame sources are in
 :mod:`drivers.ladybug5.sdk_source`.
 """
 
@@ -21,7 +21,7 @@ import logging
 import time
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from drivers.ladybug5.errors import (
     CameraNotFoundError,
@@ -259,7 +259,9 @@ def frame_pattern(image: GrabbedImage, lib: LadybugLibrary, tile: BayerPattern |
 
 def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
                 pgr_layout: PgrLayout = DEFAULT_LAYOUT) -> list[Any]:
-    """Six (rows, cols, 3) BGR images (raw sensor orientation, border-cropped; uint8, uint16 for RAW16)."""
+    """Six (rows, cols, 3) BGR images (raw sensor orientation, border-cropped; uint8, or uint16 with the significant
+    bits at the top for RAW12, RAW16 and COLOR_SEP_JPEG12). A camera whose channel JPEGs do not decode makes the
+    frame a CorruptFrameError naming each faulty channel."""
     where = f"grabbed frame {image.sequence_id}"
     name = layout.format_name(image.data_format)
     if name is None or name not in DataFormat.__members__:
@@ -269,7 +271,8 @@ def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
     if (geometry.cols, geometry.rows) != (image.cols, image.rows):
         raise CorruptFrameError(f"{where}: {image.full_cols}x{image.full_rows} minus border {image.border} is not "
                                 f"the {image.cols}x{image.rows} the frame says")
-    if fmt is DataFormat.COLOR_SEP_JPEG8:
-        mosaics = frame_block_mosaics(image.data, pgr_layout, where)
-        return [demosaic(*fit_mosaic(m, geometry, pattern, f"{where} camera {c}")) for c, m in enumerate(mosaics)]
-    return decode_raw(image.data, fmt, geometry, pattern, where)
+    if fmt.jpeg_bits:
+        mosaics = frame_block_mosaics(image.data, pgr_layout, where, fmt.jpeg_bits).arrays
+        return [demosaic(*fit_mosaic(cast(Any, m), geometry, pattern, f"{where} camera {c}"))
+                for c, m in enumerate(mosaics)]
+    return decode_raw(image.data, fmt, geometry, pattern, where, pgr_layout.raw16_bits)

@@ -175,12 +175,12 @@ def test_error_codes_map_to_named_errors(fake):
 
 
 def test_unsupported_formats_are_named_not_corrupt(fake):
-    with pytest.raises(UnsupportedFormatError, match="COLOR_SEP_JPEG12 is not supported.*12-bit JPEG"):
-        SdkCamera(fake.library, data_format=DataFormat.COLOR_SEP_JPEG12)
+    with pytest.raises(UnsupportedFormatError, match="HALF_HEIGHT_RAW16 is not supported.*row layout is not public"):
+        SdkCamera(fake.library, data_format=DataFormat.HALF_HEIGHT_RAW16)
     layout = fake.library.layout
-    image = GrabbedImage(COLS, ROWS, COLS, ROWS, Border(), layout.formats["RAW12"], layout.stippled["RGGB"], 0.0,
-                         0.0, 7, b"\0" * 1000, 0.0)
-    with pytest.raises(UnsupportedFormatError, match="grabbed frame 7: data format RAW12 is not supported"):
+    image = GrabbedImage(COLS, ROWS, COLS, ROWS, Border(), layout.formats["HALF_HEIGHT_RAW12"],
+                         layout.stippled["RGGB"], 0.0, 0.0, 7, b"\0" * 1000, 0.0)
+    with pytest.raises(UnsupportedFormatError, match="grabbed frame 7: data format HALF_HEIGHT_RAW12 is not supported"):
         decode_grab(image, layout, BayerPattern.RGGB)
 
 
