@@ -35,7 +35,7 @@ from drivers.ladybug5.frames import Exposure
 from drivers.ladybug5.head import HeadCalibration
 from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrLayout, frame_block_mosaics
 from drivers.ladybug5.raw import SensorGeometry, decode_raw, demosaic, fit_mosaic
-from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, read_head
+from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, LensSource, read_head
 from drivers.ladybug5.sdk_layout import PROBE_SOURCE, SdkLayout, probe_layout
 from drivers.ladybug5.sdk_library import (
     DEFAULT_LIBRARY,
@@ -206,13 +206,14 @@ class SdkCamera:
         raise HeadCalibrationError(f"{self.describe}: no frame in {_SIZE_GRABS} grabs to learn the sensor size "
                                    f"({last})")
 
-    def read_head(self, size_px: tuple[int, int], step_px: int = DEFAULT_MAP_STEP_PX) -> HeadCalibration:
+    def read_head(self, size_px: tuple[int, int], step_px: int = DEFAULT_MAP_STEP_PX,
+                  lens: LensSource = LensSource.AUTO) -> HeadCalibration:
         """The factory calibration the SDK loaded for this camera; ``size_px`` the sensors' raw (width, height)."""
         self._require_started("read_head")
         where = "from the head" if self.config_path is None else f"from {self.config_path}"
         serial = self.info.serial if self.info else None
         return read_head(self.lib, self._context, size_px, f"{self.describe}, ladybugLoadConfig {where}", serial,
-                         step_px)
+                         step_px, lens)
 
     def close(self) -> None:
         """Stop and destroy, in that order, whatever was set up; safe to call twice."""
@@ -233,11 +234,11 @@ class SdkCamera:
 
 
 def read_camera_head(lib: LadybugLibrary, serial: int | None = None, size_px: tuple[int, int] | None = None,
-                     step_px: int = DEFAULT_MAP_STEP_PX) -> HeadCalibration:
+                     step_px: int = DEFAULT_MAP_STEP_PX, lens: LensSource = LensSource.AUTO) -> HeadCalibration:
     """Open a camera (``serial``, or the only one; RAW8: nothing to decode), learn its sensor size from a frame
     unless given, read its factory head calibration, close it."""
     with SdkCamera(lib, serial=serial, data_format=DataFormat.RAW8) as camera:
-        return camera.read_head(size_px or camera.sensor_size(), step_px)
+        return camera.read_head(size_px or camera.sensor_size(), step_px, lens)
 
 
 def _pattern_of(lib: LadybugLibrary, value: int) -> BayerPattern | None:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,7 @@ from drivers.ladybug5.sdk import (
     read_camera_head,
     sdk_status,
 )
-from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, head_from_config_file, head_from_pgr
+from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, LensSource, head_from_config_file, head_from_pgr
 from drivers.ladybug5.usb import (
     POINT_GREY_VENDOR_ID,
     UsbCamera,
@@ -99,7 +100,8 @@ def _register_export_head(sub: Any) -> None:
         "length, image centre, pose in the head and rectification. This reads it from the camera (default), a "
         ".pgr stream's embedded configuration (--pgr) or a configuration file (--calibration), fits an OpenCV "
         "lens model to the rectification and writes OUT (the head dataset format's camera section, usable as "
-        "camera.sdk.rig_file) and the sampled rectification maps beside it. Exit 0, or 1 when a sensor's lens "
+        "camera.sdk.rig_file) and the sampled rectification maps beside it. On a rig without OpenGL the lens is "
+        "fitted to the SDK's 3D map of the raw pixels instead (no maps then). Exit 0, or 1 when a sensor's lens "
         "fit is poor (written anyway). Needs FLIR's SDK and the layout of `rigd camera sdk-layout`.",
     )
     export.add_argument("--out", type=Path, required=True, help="head file to write (YAML)")
@@ -112,6 +114,10 @@ def _register_export_head(sub: Any) -> None:
                         help="sensor size in px (default: a grabbed frame's, or the stream's resolution)")
     export.add_argument("--step", type=_positive, default=DEFAULT_MAP_STEP_PX, metavar="PX",
                         help=f"rectification sampled every PX px (default {DEFAULT_MAP_STEP_PX})")
+    export.add_argument("--lens-from", type=LensSource, choices=list(LensSource), default=LensSource.AUTO,
+                        metavar="{" + ",".join(s.value for s in LensSource) + "}",
+                        help="the lens from the SDK's rectification (may need OpenGL), from its 3D map of the raw "
+                        "pixels (no rendering context), or auto: the rectification, else the 3D map (default)")
     export.add_argument("--layout", type=Path, default=DEFAULT_LAYOUT_FILE,
                         help=f"SDK layout file from rigd camera sdk-layout (default {DEFAULT_LAYOUT_FILE})")
     export.add_argument("--sdk-library", default=DEFAULT_LIBRARY,
@@ -179,15 +185,15 @@ def _read_head(args: argparse.Namespace) -> HeadCalibration:
     if args.pgr is not None:
         stream = PgrStream(args.pgr)
         try:
-            return head_from_pgr(lib, stream, args.size, args.step)
+            return head_from_pgr(lib, stream, args.size, args.step, args.lens_from)
         finally:
             stream.close()
     if args.calibration is not None:
         if args.size is None:
             raise HeadCalibrationError(f"{args.calibration}: a configuration file does not say the sensor size: "
                                        "give it (--size 2448x2048, Ladybug5+: 2464x2048)")
-        return head_from_config_file(lib, args.calibration, args.size, step_px=args.step)
-    return read_camera_head(lib, args.serial, args.size, args.step)
+        return head_from_config_file(lib, args.calibration, args.size, step_px=args.step, lens=args.lens_from)
+    return read_camera_head(lib, args.serial, args.size, args.step, args.lens_from)
 
 
 def run_export_head(args: argparse.Namespace) -> int:
@@ -196,9 +202,11 @@ def run_export_head(args: argparse.Namespace) -> int:
     print(f"wrote {args.out}: {head.summary()}")
     for s in head.sensors:
         rpy = np.degrees(s.extrinsics[:3])
-        print(f"  {s.name}: {s.width}x{s.height} px, f {s.focal_px:.2f} px, centre ({s.centre_px[0]:.2f}, "
-              f"{s.centre_px[1]:.2f}), Euler ZYX [{rpy[0]:.3f} {rpy[1]:.3f} {rpy[2]:.3f}] deg, at "
-              f"[{s.extrinsics[3]:.4f} {s.extrinsics[4]:.4f} {s.extrinsics[5]:.4f}] m; lens fit rms "
+        pinhole = (f"raw f {s.lens.K[0, 0]:.2f} px, centre ({s.lens.K[0, 2]:.2f}, {s.lens.K[1, 2]:.2f})"
+                   if math.isnan(s.focal_px) else
+                   f"f {s.focal_px:.2f} px, centre ({s.centre_px[0]:.2f}, {s.centre_px[1]:.2f})")
+        print(f"  {s.name}: {s.width}x{s.height} px, {pinhole}, Euler ZYX [{rpy[0]:.3f} {rpy[1]:.3f} {rpy[2]:.3f}] "
+              f"deg, at [{s.extrinsics[3]:.4f} {s.extrinsics[4]:.4f} {s.extrinsics[5]:.4f}] m; lens fit rms "
               f"{s.lens.rms_px:.3f} px, max {s.lens.max_px:.3f} px")
     poor = head.poor_sensors()
     if poor:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import shutil
 
 import numpy as np
@@ -122,3 +123,23 @@ def test_export_head_without_the_sdk_is_a_clear_error(tmp_path, capsys):
     code = rigd.cli.main(["camera", "export-head", "--out", str(tmp_path / "h.yaml"), "--layout",
                           str(tmp_path / "absent.yaml")])
     assert code == 2 and "cannot read SDK layout file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("map_error", [0, 1])
+def test_export_head_on_a_headless_rig(fake_sdk, tmp_path, capsys, map_error):
+    copy = tmp_path / "libfakeladybug.so"
+    shutil.copy(fake_sdk[0], copy)
+    handle = ctypes.CDLL(str(copy))  # the same instance the command loads: steer it
+    ctypes.c_int.in_dll(handle, "fake_headless").value = 1
+    ctypes.c_int.in_dll(handle, "fake_map_error").value = map_error
+    code = export(fake_sdk, tmp_path, "--size", "16x12")
+    captured = capsys.readouterr()
+    if map_error:
+        assert code == 2 and "rigd: error: cannot read the head calibration" in captured.err
+        assert "xvfb-run rigd camera export-head" in captured.err and not (tmp_path / "head.yaml").exists()
+        return
+    assert code == 0 and "lens from ladybugGet3dMap" in captured.out
+    assert "cam0: 16x12 px, raw f 10.00 px" in captured.out
+    head = load_head(tmp_path / "head.yaml")
+    assert head.source is HeadSource.FACTORY and head.sensors[0].maps is None
+    np.testing.assert_allclose(head.sensors[0].lens.K[0, 0], 10.0, atol=1e-3)

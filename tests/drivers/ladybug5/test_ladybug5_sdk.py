@@ -41,7 +41,7 @@ from drivers.ladybug5.sdk import (
     frame_pattern,
     sdk_status,
 )
-from drivers.ladybug5.sdk_head import head_from_pgr
+from drivers.ladybug5.sdk_head import LensSource, head_from_pgr
 from drivers.ladybug5.sdk_source import HeadPolicy, SdkFrameSource, SdkSensorSource
 from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 
@@ -294,7 +294,7 @@ def test_the_rectified_images_are_configured_before_their_size_and_geometry(fake
     assert head.sensors[0].focal_px == pytest.approx(10.0)
 
 
-def test_a_refused_configuration_is_named_when_the_geometry_is_refused_too(fake, caplog):
+def test_a_refused_configuration_is_logged_and_the_geometry_read_anyway(fake, caplog):
     fake.set(configure_error=1)  # LADYBUG_FAILED, as perhaps on a rig without OpenGL
     with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera:
         # This SDK gives the geometry without the configuration: a warning, no error.
@@ -303,7 +303,35 @@ def test_a_refused_configuration_is_named_when_the_geometry_is_refused_too(fake,
         fake.set(size_needs_configure=1, rect_cols=0)  # an SDK that needs it, and no size set yet
         with pytest.raises(HeadCalibrationError, match=r"ladybugGetCameraUnitFocalLength failed with Ladybug error "
                            r"\d+ .*\(after ladybugConfigureOutputImages failed with Ladybug error 1"):
-            camera.read_head((COLS, ROWS), step_px=2)
+            camera.read_head((COLS, ROWS), step_px=2, lens=LensSource.RECTIFIED)
+
+
+def test_a_headless_rig_reads_the_lens_from_the_3d_map(fake, caplog):
+    """Every renderer call refused (no OpenGL context): the lens comes from ladybugGet3dMap, the same lens the
+    rectification gives, with the SDK's sphere size and mesh rotation as they were."""
+    fake.set_double(sphere=20.0, map_rx=0.002, map_ry=-0.001, map_rz=0.0)  # a factory levelling of the mesh
+    with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera:
+        rectified = camera.read_head((COLS, ROWS), step_px=1)
+        fake.set(headless=1)
+        head = camera.read_head((COLS, ROWS), step_px=1)
+    assert "INVALID_OPENGL_RENDERING_CONTEXT" in caplog.text or "ladybugSetOffScreenImageSize failed" in caplog.text
+    assert "lens from ladybugGet3dMap" in head.description and head.source is HeadSource.FACTORY
+    for cam, (a, b) in enumerate(zip(rectified.sensors, head.sensors, strict=True)):
+        k, d = fake.lens(cam)
+        np.testing.assert_allclose(b.lens.K, k, atol=2e-3)
+        np.testing.assert_allclose(b.lens.D, d, atol=2e-4)
+        assert b.lens.rms_px < 1e-3 and b.maps is None and np.isnan(b.focal_px)
+        assert b.extrinsics == a.extrinsics
+    values = [ctypes.c_double.in_dll(fake.handle, f"fake_{n}").value for n in ("sphere", "map_rx", "map_ry")]
+    assert values == [20.0, 0.002, -0.001]  # put back
+
+
+def test_a_headless_rig_without_a_3d_map_says_why_and_what_to_do(fake):
+    fake.set(headless=1, map_error=1)
+    with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera, pytest.raises(
+            HeadCalibrationError, match=r"the rectified geometry failed \(.*ladybugSetOffScreenImageSize failed .*"
+            r"ladybugGet3dMap failed with Ladybug error 1.*software renderer is not for Ladybug3 or newer.*xvfb-run"):
+        camera.read_head((COLS, ROWS), step_px=2)
 
 
 def craig_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
