@@ -1,5 +1,5 @@
-"""``rigd camera``: the Ladybug5 -- USB presence and health, SDK layout probe, the factory head calibration
-(docs/ladybug5.md)."""
+"""``rigd camera``: the Ladybug5 -- USB presence and health, SDK layout probe, the factory head calibration, another
+panorama's orientation against rigd's (docs/ladybug5.md)."""
 
 from __future__ import annotations
 
@@ -8,12 +8,16 @@ import math
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
-from drivers.ladybug5.errors import HeadCalibrationError, UsbBackendError
+from drivers.ladybug5.errors import HeadCalibrationError, StreamFormatError, UsbBackendError
 from drivers.ladybug5.head import HeadCalibration
-from drivers.ladybug5.head_file import save_head
+from drivers.ladybug5.head_file import load_head, save_head
+from drivers.ladybug5.pano_check import panorama_alignment
 from drivers.ladybug5.pgr import PgrStream
+from drivers.ladybug5.raw import to_uint8
+from drivers.ladybug5.replay import PARTIAL_FRAME_CAMERAS
 from drivers.ladybug5.sdk import (
     DEFAULT_LIBRARY,
     LadybugLibrary,
@@ -23,6 +27,7 @@ from drivers.ladybug5.sdk import (
     sdk_status,
 )
 from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, LensSource, head_from_config_file, head_from_pgr
+from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 from drivers.ladybug5.usb import (
     POINT_GREY_VENDOR_ID,
     UsbCamera,
@@ -90,6 +95,7 @@ def register(subparsers: Any) -> None:
     layout.add_argument("--compiler", default="c++", help="C or C++ compiler (default c++)")
     layout.set_defaults(func=run_sdk_layout)
     _register_export_head(sub)
+    _register_check_panorama(sub)
 
 
 def _register_export_head(sub: Any) -> None:
@@ -123,6 +129,60 @@ def _register_export_head(sub: Any) -> None:
     export.add_argument("--sdk-library", default=DEFAULT_LIBRARY,
                         help=f"Ladybug SDK library (default {DEFAULT_LIBRARY})")
     export.set_defaults(func=run_export_head)
+
+
+def _register_check_panorama(sub: Any) -> None:
+    check = sub.add_parser(
+        "check-panorama",
+        help="measure how another panorama of a frame (FLIR's renderer or export) is oriented against rigd's",
+        description="Compares PANORAMA with rigd's panorama of the same frame: --reference (a panorama rigd wrote), "
+        "or stitched here from a .pgr frame (--pgr, --frame) with a head file (--head). Prints the turn about "
+        "the vertical, whether it is mirrored or upside down, and the edges' agreement. Exit 0 when it is in rigd's "
+        "convention (docs/conventions.md), 1 otherwise.",
+    )
+    check.add_argument("panorama", type=Path, help="the other panorama (2:1 image)")
+    ref = check.add_mutually_exclusive_group(required=True)
+    ref.add_argument("--reference", type=Path, help="rigd's panorama of the same frame (2:1 image)")
+    ref.add_argument("--pgr", type=Path, help="a .pgr stream: rigd stitches --frame with --head")
+    check.add_argument("--frame", type=int, default=0, help="the .pgr frame's index (default 0)")
+    check.add_argument("--head", type=Path, help="head file or rig camera file the .pgr frame is stitched with")
+    check.set_defaults(func=run_check_panorama)
+
+
+def _image(path: Path) -> Any:
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise StreamFormatError(f"{path}: missing, unreadable or not an image")
+    return image
+
+
+def _rigd_panorama(args: argparse.Namespace, size: tuple[int, int]) -> Any:
+    """rigd's panorama of the frame: the given one, or the .pgr frame stitched with the head at ``size``."""
+    if args.reference is not None:
+        return _image(args.reference)
+    if args.head is None:
+        raise StreamFormatError("--pgr needs the head its frames are stitched with (--head)")
+    stream = PgrStream(args.pgr)
+    try:
+        if not 0 <= args.frame < len(stream.index):
+            raise StreamFormatError(f"{args.pgr}: no frame {args.frame} (it holds {len(stream.index)})")
+        images = stream.frame_images(args.frame, PARTIAL_FRAME_CAMERAS).arrays
+    finally:
+        stream.close()
+    stitcher = Stitcher(load_head(args.head).to_rig(), PanoramaSpec(*size))
+    return stitcher.stitch([None if im is None else to_uint8(im) for im in images])
+
+
+def run_check_panorama(args: argparse.Namespace) -> int:
+    panorama = _image(args.panorama)
+    found = panorama_alignment(panorama, _rigd_panorama(args, (panorama.shape[1], panorama.shape[0])))
+    turns = [f"turned {found.yaw_deg:+.2f} deg (rigd's azimuth at its centre column)"]
+    turns += ["mirrored (azimuth runs the other way)"] * found.mirrored
+    turns += ["upside down"] * found.upside_down
+    print(f"{args.panorama}: {', '.join(turns)}; edges agree {found.score:.2f} (the next best orientation "
+          f"{found.runner_up:.2f})")
+    print("in rigd's convention" if found.same_convention else "NOT in rigd's convention (docs/conventions.md)")
+    return OK if found.same_convention else UNHEALTHY
 
 
 def _match(args: argparse.Namespace) -> UsbMatch:
