@@ -59,6 +59,8 @@ class SensorFrame:
     ``images``: six (H, W, 3) BGR images in raw sensor orientation, border-cropped, uint8 (uint16 from a RAW16
     camera), in the SDK's order (0-4 around, 5 up); ``head``: the calibration they go with (check
     ``head.source``: a factory calibration, or rigd's nominal head). Times as in :class:`PanoramaFrame`.
+    ``missing_cameras``: cameras whose channel JPEGs did not decode (their images zero); only from a source asked
+    for such frames to make panoramas, never from one that feeds a head dataset.
     """
 
     images: tuple[NDArray[Any], ...]
@@ -68,6 +70,7 @@ class SensorFrame:
     sequence_id: int
     exposure: Exposure
     time_base: TimeBase = TimeBase.CAMERA
+    missing_cameras: tuple[int, ...] = ()
 
 
 class SensorFrameSource(Protocol):

@@ -33,8 +33,8 @@ from drivers.ladybug5.errors import (
 from drivers.ladybug5.formats import BayerPattern, DataFormat, require_decoded
 from drivers.ladybug5.frames import Exposure
 from drivers.ladybug5.head import HeadCalibration
-from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrLayout, frame_block_mosaics
-from drivers.ladybug5.raw import SensorGeometry, decode_raw, demosaic, fit_mosaic
+from drivers.ladybug5.pgr import DEFAULT_LAYOUT, CameraSet, PgrLayout, frame_block_mosaics
+from drivers.ladybug5.raw import NUM_SENSORS, SensorGeometry, decode_raw, demosaic, fit_mosaic
 from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, LensSource, read_head
 from drivers.ladybug5.sdk_layout import PROBE_SOURCE, SdkLayout, probe_layout
 from drivers.ladybug5.sdk_library import (
@@ -47,7 +47,8 @@ from drivers.ladybug5.sdk_library import (
 
 __all__ = [
     "DEFAULT_GRAB_TIMEOUT_MS", "DEFAULT_LIBRARY", "PROBE_SOURCE", "CameraInfo", "DataFormat", "DeviceTimeField",
-    "GrabbedImage", "LadybugLibrary", "SdkCamera", "SdkLayout", "decode_grab", "enumerate_cameras", "frame_pattern",
+    "GrabbedImage", "LadybugLibrary", "SdkCamera", "SdkLayout", "decode_grab", "decode_grab_cameras",
+    "enumerate_cameras", "frame_pattern",
     "probe_layout", "read_camera_head", "sdk_status",
 ]
 
@@ -258,11 +259,11 @@ def frame_pattern(image: GrabbedImage, lib: LadybugLibrary, tile: BayerPattern |
     return pattern
 
 
-def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
-                pgr_layout: PgrLayout = DEFAULT_LAYOUT) -> list[Any]:
-    """Six (rows, cols, 3) BGR images (raw sensor orientation, border-cropped; uint8, or uint16 with the significant
-    bits at the top for RAW12, RAW16 and COLOR_SEP_JPEG12). A camera whose channel JPEGs do not decode makes the
-    frame a CorruptFrameError naming each faulty channel."""
+def decode_grab_cameras(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
+                        pgr_layout: PgrLayout = DEFAULT_LAYOUT, min_cameras: int = NUM_SENSORS) -> CameraSet:
+    """The six (rows, cols, 3) BGR images of a grab (raw sensor orientation, border-cropped; uint8, or uint16 with the
+    significant bits at the top for RAW12, RAW16 and COLOR_SEP_JPEG12); a camera whose channel JPEGs do not decode
+    is None with its faults named. Fewer than ``min_cameras`` cameras: a CorruptFrameError naming the faults."""
     where = f"grabbed frame {image.sequence_id}"
     name = layout.format_name(image.data_format)
     if name is None or name not in DataFormat.__members__:
@@ -272,8 +273,14 @@ def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
     if (geometry.cols, geometry.rows) != (image.cols, image.rows):
         raise CorruptFrameError(f"{where}: {image.full_cols}x{image.full_rows} minus border {image.border} is not "
                                 f"the {image.cols}x{image.rows} the frame says")
-    if fmt.jpeg_bits:
-        mosaics = frame_block_mosaics(image.data, pgr_layout, where, fmt.jpeg_bits).arrays
-        return [demosaic(*fit_mosaic(cast(Any, m), geometry, pattern, f"{where} camera {c}"))
-                for c, m in enumerate(mosaics)]
-    return decode_raw(image.data, fmt, geometry, pattern, where, pgr_layout.raw16_bits)
+    if not fmt.jpeg_bits:
+        return CameraSet(tuple(decode_raw(image.data, fmt, geometry, pattern, where, pgr_layout.raw16_bits)))
+    mosaics = frame_block_mosaics(image.data, pgr_layout, where, fmt.jpeg_bits, min_cameras)
+    return CameraSet(tuple(None if m is None else demosaic(*fit_mosaic(m, geometry, pattern, f"{where} camera {c}"))
+                           for c, m in enumerate(mosaics.arrays)), mosaics.faults)
+
+
+def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
+                pgr_layout: PgrLayout = DEFAULT_LAYOUT) -> list[Any]:
+    """All six images of a grab (:func:`decode_grab_cameras`); a camera missing is a CorruptFrameError."""
+    return [cast(Any, im) for im in decode_grab_cameras(image, layout, pattern, pgr_layout).arrays]

@@ -64,7 +64,8 @@ class StitcherBackend:
     def panorama(self, frame: SensorFrame) -> NDArray[np.uint8]:
         if self.stitcher is None:
             self.stitcher = Stitcher(frame.head.to_rig(), self.spec)
-        return self.stitcher.stitch([to_uint8(im) for im in frame.images])
+        return self.stitcher.stitch([None if c in frame.missing_cameras else to_uint8(im)
+                                     for c, im in enumerate(frame.images)])
 
 
 class SdkRendererBackend:

@@ -18,6 +18,7 @@ from ladybug5_helpers import BLUE, RED, documented_channel_jpegs, scaled_rig
 
 from drivers.ladybug5.errors import (
     CameraNotFoundError,
+    CorruptFrameError,
     HeadCalibrationError,
     InterfaceSpeedError,
     Ladybug5Error,
@@ -423,3 +424,27 @@ def test_the_head_of_a_pgr_streams_embedded_configuration(fake, tmp_path):
     write_pgr(tmp_path / "none.pgr", [frame])
     with pytest.raises(HeadCalibrationError, match="holds no configuration"):
         head_from_pgr(fake.library, PgrStream(tmp_path / "none.pgr"))
+
+
+def test_a_live_frame_that_lost_a_camera_still_makes_a_panorama_but_no_head_frame(fake, tmp_path):
+    image = np.full((ROWS, COLS, 3), 128, np.uint8)
+    write_pgr(tmp_path / "one.pgr", [PgrFrameData(5, 0, 1, [bayer_planes(image)] * 6)])
+    stream = PgrStream(tmp_path / "one.pgr")
+    entry = stream.index[0]
+    block = bytearray(stream._buf[entry.offset : entry.offset + entry.size])
+    at = int.from_bytes(block[0x340 + 4 * 32 + 8 : 0x340 + 4 * 32 + 12], "big")  # camera 4, channel 1
+    block[at : at + 2] = b"\0\0"
+    (tmp_path / "block.bin").write_bytes(bytes(block))
+    assert fake.handle.fake_load_block(str(tmp_path / "block.bin").encode()) == 0
+    source = SdkFrameSource(SdkCamera(fake.library, data_format=DataFormat.COLOR_SEP_JPEG8),
+                            Stitcher(tiny_rig(), PanoramaSpec(64, 32, math.inf)), max_consecutive_failures=3)
+    frames = source.frames()
+    panoramas = [next(frames) for _ in range(3)]
+    frames.close()
+    assert len(panoramas) == 3 and (source.skipped.count, source.skipped.partial, source.skipped.channels) == (0, 3, 3)
+    assert "kept without a camera: camera 4 channel 1: no JPEG start marker" in source.skipped.reasons[0]
+    heads = SdkFrameSource(SdkCamera(fake.library, data_format=DataFormat.COLOR_SEP_JPEG8),
+                           Stitcher(tiny_rig(), PanoramaSpec(64, 32, math.inf)), max_consecutive_failures=3)
+    with pytest.raises(CorruptFrameError, match="5 of 6 cameras decode \\(6 needed\\): camera 4 channel 1"):
+        next(heads.frames_with_sensors())  # a head frame needs all six: three in a row end the stream
+    assert heads.skipped.count == 3
