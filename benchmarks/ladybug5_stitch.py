@@ -3,7 +3,8 @@
 Run: .venv/bin/python benchmarks/ladybug5_stitch.py [--repeats N]
 Prints the map precomputation time (once per rig file and panorama size) and the per-frame stitch time
 (median and max over the repeats) for each default panorama size (target: < 0.5 s a frame), and the time
-to decode one COLOR_SEP_JPEG8 frame (24 JPEGs + demosaicing), which a live or .pgr frame adds.
+to decode one COLOR_SEP_JPEG8 frame and one COLOR_SEP_JPEG12 frame (24 JPEGs + demosaicing), which a live or
+.pgr frame adds.
 """
 
 from __future__ import annotations
@@ -16,9 +17,12 @@ import time
 from pathlib import Path
 
 import cv2
+import imagecodecs
 import numpy as np
 
-from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrFrameData, PgrStream, bayer_planes, write_pgr
+from drivers.ladybug5.formats import BayerPattern, DataFormat
+from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrFrameData, PgrStream, PgrWriteOptions, bayer_planes, write_pgr
+from drivers.ladybug5.pgr_write import mosaic_from_bgr
 from drivers.ladybug5.rig import default_ladybug5_rig
 from drivers.ladybug5.stitch import DEFAULT_RADIUS_M, PANORAMA_SIZES, PanoramaSpec, Stitcher
 
@@ -32,10 +36,18 @@ def _median_s(fn, repeats: int) -> float:
     return statistics.median(times)
 
 
-def _decode_time(images: list[np.ndarray], repeats: int, tmp: Path) -> float:
+def _jpeg12_planes(image: np.ndarray) -> list[bytes]:
+    """Four 12-bit channel JPEGs (quality 95) of an 8-bit BGR image's RGGB mosaic, its values scaled to 12 bits."""
+    mosaic = mosaic_from_bgr(image, BayerPattern.RGGB).astype(np.uint16) << 4
+    return [imagecodecs.jpeg8_encode(np.ascontiguousarray(mosaic[r::2, c::2]), level=95, bitspersample=12)
+            for r, c in DEFAULT_LAYOUT.slot_cells]
+
+
+def _decode_time(images: list[np.ndarray], repeats: int, tmp: Path, bits: int = 8) -> float:
     """Median time to turn one frame block (as in a .pgr or an SDK JPEG buffer) into six BGR images."""
-    jpegs = [bayer_planes(im, DEFAULT_LAYOUT) for im in images]
-    write_pgr(tmp / "bench.pgr", [PgrFrameData(0, 0, 0, jpegs)])
+    jpegs = [bayer_planes(im, DEFAULT_LAYOUT) if bits == 8 else _jpeg12_planes(im) for im in images]
+    fmt = DataFormat.COLOR_SEP_JPEG8 if bits == 8 else DataFormat.COLOR_SEP_JPEG12
+    write_pgr(tmp / "bench.pgr", [PgrFrameData(0, 0, 0, jpegs)], options=PgrWriteOptions(data_format=fmt))
     stream = PgrStream(tmp / "bench.pgr")
     try:
         return _median_s(lambda: stream.camera_images(0), repeats)
@@ -71,9 +83,10 @@ def main() -> None:
             f"{width}x{height}: maps {init_s:.2f} s once; stitch median {statistics.median(times) * 1e3:.1f} ms, "
             f"max {max(times) * 1e3:.1f} ms over {args.repeats} frames"
         )
-    with tempfile.TemporaryDirectory() as tmp:
-        decode_s = _decode_time(images, max(3, args.repeats // 4), Path(tmp))
-    print(f"decode one COLOR_SEP_JPEG8 frame (24 JPEGs + demosaic): median {decode_s * 1e3:.1f} ms")
+    for bits in (8, 12):
+        with tempfile.TemporaryDirectory() as tmp:
+            decode_s = _decode_time(images, max(3, args.repeats // 4), Path(tmp), bits)
+        print(f"decode one COLOR_SEP_JPEG{bits} frame (24 JPEGs + demosaic): median {decode_s * 1e3:.1f} ms")
 
 
 if __name__ == "__main__":

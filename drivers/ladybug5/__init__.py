@@ -1,9 +1,10 @@
 """FLIR Ladybug5/5+ adapter (docs/ladybug5.md).
 
-Without FLIR's SDK: USB presence and health (usb), .pgr and directory replay (pgr, replay), RAW decoding (raw),
-stitching (rig, stitch), head calibration files (head, head_file), camera->host time mapping (clock). With the
-SDK: live frames -- six raw sensor images with the factory head calibration, or panoramas -- through a thin
-ctypes binding (sdk_layout, sdk_library, sdk, sdk_head, sdk_source). The simulated rig's camera is
+Without FLIR's SDK: USB presence and health (usb), .pgr and directory replay (pgr, replay) with FLIR's exports
+(exports), channel JPEGs judged one by one (channels), RAW and 12/16-bit decoding (raw), stitching (rig, stitch),
+another panorama's orientation (pano_check), head calibration files (head, head_file), camera->host time mapping
+(clock). With the SDK: live frames -- six raw sensor images with the factory head calibration, or panoramas --
+through a thin ctypes binding (sdk_layout, sdk_library, sdk, sdk_head, sdk_source). The simulated rig's camera is
 ``drivers.ladybug5.sim.SimFrameSource`` (imported on its own so the adapter does not load the simulator).
 """
 

@@ -51,8 +51,9 @@ _TO_BGR = {
 
 
 class DataFormat(Enum):
-    """The SDK's data formats (``LADYBUG_DATAFORMAT_<value>``). rigd decodes RAW8, RAW16 and COLOR_SEP_JPEG8;
-    the others need FLIR's own image processing and are named, not guessed at."""
+    """The SDK's data formats (``LADYBUG_DATAFORMAT_<value>``). rigd decodes RAW8, RAW12, RAW16, COLOR_SEP_JPEG8 and
+    COLOR_SEP_JPEG12 (:mod:`drivers.ladybug5.raw`, :mod:`drivers.ladybug5.channels`); the others are named, not
+    guessed at."""
 
     RAW8 = "RAW8"  # six Bayer mosaics, one after the other, 8 bits a pixel
     JPEG8 = "JPEG8"
@@ -60,22 +61,27 @@ class DataFormat(Enum):
     COLOR_SEP_JPEG8 = "COLOR_SEP_JPEG8"  # per camera 4 JPEGs, one per Bayer channel (a .pgr frame block)
     HALF_HEIGHT_RAW8 = "HALF_HEIGHT_RAW8"
     COLOR_SEP_HALF_HEIGHT_JPEG8 = "COLOR_SEP_HALF_HEIGHT_JPEG8"
-    RAW16 = "RAW16"  # six Bayer mosaics, 16 bits a pixel (little-endian, as in memory)
-    COLOR_SEP_JPEG12 = "COLOR_SEP_JPEG12"
+    RAW16 = "RAW16"  # six Bayer mosaics, 16-bit little-endian words (where the 12 bits sit: raw.Raw16Bits)
+    COLOR_SEP_JPEG12 = "COLOR_SEP_JPEG12"  # as COLOR_SEP_JPEG8, each channel a 12-bit-precision JPEG
     HALF_HEIGHT_RAW16 = "HALF_HEIGHT_RAW16"
     COLOR_SEP_HALF_HEIGHT_JPEG12 = "COLOR_SEP_HALF_HEIGHT_JPEG12"
-    RAW12 = "RAW12"
+    RAW12 = "RAW12"  # six Bayer mosaics, 2 pixels in 3 bytes (ladybug.h: P1 high 8, P2 high 8, the low nibbles)
     HALF_HEIGHT_RAW12 = "HALF_HEIGHT_RAW12"
 
     @property
     def decoded(self) -> bool:
         """Whether rigd decodes this format itself."""
-        return self in (DataFormat.RAW8, DataFormat.RAW16, DataFormat.COLOR_SEP_JPEG8)
+        return self.raw_bits > 0 or self.jpeg_bits > 0
 
     @property
-    def raw_bytes_per_pixel(self) -> int:
-        """Bytes a pixel of a RAW8/RAW16 mosaic; 0 for the compressed formats."""
-        return {DataFormat.RAW8: 1, DataFormat.RAW16: 2}.get(self, 0)
+    def raw_bits(self) -> int:
+        """Bits a pixel of a RAW mosaic occupies in the buffer (8, 12 packed, 16); 0 for the other formats."""
+        return {DataFormat.RAW8: 8, DataFormat.RAW12: 12, DataFormat.RAW16: 16}.get(self, 0)
+
+    @property
+    def jpeg_bits(self) -> int:
+        """Sample precision of a colour-separated JPEG format's channels (8 or 12); 0 for the other formats."""
+        return {DataFormat.COLOR_SEP_JPEG8: 8, DataFormat.COLOR_SEP_JPEG12: 12}.get(self, 0)
 
 
 DECODED_FORMATS = tuple(f for f in DataFormat if f.decoded)
@@ -85,7 +91,8 @@ def require_decoded(fmt: DataFormat, where: str) -> DataFormat:
     """``fmt`` if rigd decodes it, else an :class:`UnsupportedFormatError` naming it and what to use instead."""
     if fmt.decoded:
         return fmt
-    why = "12-bit JPEG needs FLIR's SDK to decode" if "JPEG12" in fmt.value else "rigd has no decoder for it"
+    why = "half-height frames' row layout is not public" if "HALF_HEIGHT" in fmt.value else \
+        "rigd has no decoder for it"
     raise UnsupportedFormatError(
         f"{where}: data format {fmt.value} is not supported ({why}); record or start the camera in "
         f"{', '.join(f.value for f in DECODED_FORMATS)}"

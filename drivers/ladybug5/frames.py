@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any, Protocol
@@ -59,6 +59,8 @@ class SensorFrame:
     ``images``: six (H, W, 3) BGR images in raw sensor orientation, border-cropped, uint8 (uint16 from a RAW16
     camera), in the SDK's order (0-4 around, 5 up); ``head``: the calibration they go with (check
     ``head.source``: a factory calibration, or rigd's nominal head). Times as in :class:`PanoramaFrame`.
+    ``missing_cameras``: cameras whose channel JPEGs did not decode (their images zero); only from a source asked
+    for such frames to make panoramas, never from one that feeds a head dataset.
     """
 
     images: tuple[NDArray[Any], ...]
@@ -68,6 +70,7 @@ class SensorFrame:
     sequence_id: int
     exposure: Exposure
     time_base: TimeBase = TimeBase.CAMERA
+    missing_cameras: tuple[int, ...] = ()
 
 
 class SensorFrameSource(Protocol):
@@ -93,13 +96,27 @@ class FrameSource(Protocol):
 @dataclass
 class SkipCounter:
     """Counts frames dropped (corrupt, a failed grab, a failed stitch; or, as ``exposure_errors`` of the SDK
-    sources, failed exposure reads) and keeps the latest reasons (for status reports)."""
+    sources, failed exposure reads) and keeps the latest reasons (for status reports). ``partial`` counts frames
+    kept without some camera and ``channels`` the channel JPEGs dropped in them (:meth:`record_partial`)."""
 
     count: int = 0
     reasons: list[str] = field(default_factory=list)
     keep: int = 20
+    partial: int = 0
+    channels: int = 0
 
     def record(self, error: Ladybug5Error) -> None:
         self.count += 1
-        self.reasons = [*self.reasons, str(error)][-self.keep :]
+        self._reason(str(error))
         log.warning("skipped frame: %s", error)
+
+    def record_partial(self, where: str, faults: Sequence[object]) -> None:
+        """A frame kept although ``faults`` (each naming a camera's channel) lost it a camera."""
+        self.partial += 1
+        self.channels += len(faults)
+        reason = f"{where}: kept without a camera: " + "; ".join(str(f) for f in faults)
+        self._reason(reason)
+        log.warning("%s", reason)
+
+    def _reason(self, reason: str) -> None:
+        self.reasons = [*self.reasons, reason][-self.keep :]

@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from drivers.geometry import matrix_to_rpy_deg, rpy_deg_to_matrix
 from drivers.ladybug5.errors import HeadCalibrationError
 from drivers.ladybug5.rig import (
+    LADYBUG5_FOCAL_PX,
     LADYBUG5_RECTIFIED_FOCAL_PX,
     LADYBUG5_SIZE_PX,
     RigCamera,
@@ -199,6 +200,26 @@ def sensor_from_sdk(name: str, size_px: tuple[int, int], focal_px: float, centre
     return SensorCalibration(name, size_px[0], size_px[1], float(focal_px),
                              (float(centre_px[0]), float(centre_px[1])), (e[0], e[1], e[2], e[3], e[4], e[5]), lens,
                              maps)
+
+
+def sensor_from_rays(name: str, size_px: tuple[int, int], extrinsics: tuple[float, ...], raw_xy: F64,
+                     points_head: F64) -> SensorCalibration:
+    """A sensor whose lens is fitted to raw pixels ``raw_xy`` (N,2) px and points ``points_head`` (N,3) m of the
+    Ladybug frame on their rays (ladybugGet3dMap's sphere): no rectified pinhole (``focal_px``, ``centre_px`` NaN,
+    no maps). Points behind the camera or not finite are left out."""
+    if len(extrinsics) != 6 or not np.all(np.isfinite(extrinsics)):
+        raise HeadCalibrationError(f"{name}: the SDK's extrinsics are not six finite numbers: {extrinsics}")
+    e = tuple(float(v) for v in extrinsics)
+    rays = (points_head - np.array(e[3:])) @ euler_zyx_matrix(*e[:3])  # R^T (p - t): the sensor's frame
+    keep = np.all(np.isfinite(rays), axis=1) & (rays[:, 2] > 1e-9)
+    if keep.sum() < 20:
+        raise HeadCalibrationError(f"{name}: ladybugGet3dMap placed only {keep.sum()} of {len(keep)} raw pixels in "
+                                   "front of the sensor")
+    focal = LADYBUG5_FOCAL_PX * size_px[0] / LADYBUG5_SIZE_PX[0]  # the start; the fit finds the lens's own
+    centre = ((size_px[0] - 1) / 2.0, (size_px[1] - 1) / 2.0)
+    lens = fit_lens(raw_xy[keep], rays[keep, :2] / rays[keep, 2:], focal, centre)
+    return SensorCalibration(name, size_px[0], size_px[1], float("nan"), (float("nan"), float("nan")),
+                             (e[0], e[1], e[2], e[3], e[4], e[5]), lens)
 
 
 def _model(params: F64, xy: F64) -> tuple[F64, F64]:

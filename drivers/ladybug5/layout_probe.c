@@ -1,7 +1,7 @@
 /*
  * Prints, as YAML, the numbers rigd's ctypes binding (drivers/ladybug5/sdk_library.py) needs from the
  * installed Ladybug SDK's headers: struct offsets and sizes (LadybugImage, LadybugCameraInfo,
- * LadybugProcessedImage), and the values of the enum members it uses.
+ * LadybugProcessedImage, LadybugImage3d and LadybugPoint3d), and the values of the enum members it uses.
  * FLIR's headers are the only authority on these and they change between SDK versions, so they are measured
  * here instead of being written into the Python code.
  *
@@ -53,6 +53,15 @@ static void image_fields(void)
     FIELD("rows", LadybugProcessedImage, uiRows);
     FIELD("data", LadybugProcessedImage, pData);
     FIELD("pixel_format", LadybugProcessedImage, pixelFormat);
+    printf("image3d_fields:\n");
+    FIELD("rows", LadybugImage3d, uiRows);
+    FIELD("cols", LadybugImage3d, uiCols);
+    FIELD("points", LadybugImage3d, ppoints);
+    printf("point3d_size: %lu\n", (unsigned long)sizeof(LadybugPoint3d));
+    printf("point3d_fields:\n");
+    FIELD("x", LadybugPoint3d, fX);
+    FIELD("y", LadybugPoint3d, fY);
+    FIELD("z", LadybugPoint3d, fZ);
 }
 
 static void enum_values(void)

@@ -5,26 +5,25 @@ FLIR does not document the .pgr layout. What is read here is what is publicly kn
 resolution, per-frame header size; :mod:`drivers.ladybug5.pgr_layout`) with the camera's configuration after
 it, then the frames. A frame is an optional per-frame header (head info 0xA0 bytes; newer streams) and the
 data: a COLOR_SEP_JPEG8 block (big-endian image info with the ``0xCAFEBABE`` fingerprint, size, times,
-registers, and a table of the 24 JPEGs: 6 cameras x 4 Bayer channels), or six RAW8/RAW16 mosaics. Every frame
-is checked (fingerprint, sizes, JPEG markers), so a file that disagrees fails loudly, never silently; data
-formats rigd does not decode (12-bit JPEG, RAW12, ...) are named as unsupported. Not read (SDK only): the
-configuration (kept as opaque bytes; :mod:`drivers.ladybug5.sdk_head` hands it to the SDK), GPS/NMEA data.
+registers, and a table of the 24 JPEGs: 6 cameras x 4 Bayer channels, 8- or 12-bit), or six RAW8/RAW12/RAW16
+mosaics. Every frame is checked (fingerprint, sizes); each channel JPEG by its start marker and the decoder
+(:mod:`drivers.ladybug5.channels`): a bad channel loses its camera, not the frame, and is reported by name. Data
+formats rigd does not decode (half height, ...) are named as unsupported. Not read (SDK only): the configuration
+(kept as opaque bytes; :mod:`drivers.ladybug5.sdk_head` hands it to the SDK), GPS/NMEA data.
 """
 
 from __future__ import annotations
 
 import mmap
 import struct
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, cast
 
-import cv2
-import numpy as np
 from numpy.typing import NDArray
 
-from drivers.ladybug5.errors import CorruptFrameError, StreamFormatError
+from drivers.ladybug5.channels import CameraSet, assemble_mosaic, block_jpegs, frame_mosaics
+from drivers.ladybug5.errors import StreamFormatError
 from drivers.ladybug5.formats import (
     STREAM_BAYER_CODES,
     STREAM_FORMAT_CODES,
@@ -37,9 +36,6 @@ from drivers.ladybug5.frames import Exposure
 from drivers.ladybug5.pgr_layout import (
     DEFAULT_LAYOUT,
     FINGERPRINT,
-    JPEG_EOI,
-    JPEG_SOI,
-    JPEGS_PER_CAMERA,
     NUM_CAMERAS,
     SIGNATURE,
     FrameHeaderStyle,
@@ -51,9 +47,9 @@ from drivers.ladybug5.pgr_write import PgrFrameData, PgrWriteOptions, bayer_plan
 from drivers.ladybug5.raw import SensorGeometry, decode_raw, demosaic
 
 __all__ = [
-    "DEFAULT_LAYOUT", "FINGERPRINT", "NUM_CAMERAS", "SIGNATURE", "FrameHeaderStyle", "PgrFrameData", "PgrFrameEntry",
-    "PgrHeader", "PgrLayout", "PgrStream", "PgrWriteOptions", "assemble_mosaic", "bayer_planes",
-    "frame_block_mosaics", "frame_jpegs", "jpeg_block", "write_pgr",
+    "DEFAULT_LAYOUT", "FINGERPRINT", "NUM_CAMERAS", "SIGNATURE", "CameraSet", "FrameHeaderStyle", "PgrFrameData",
+    "PgrFrameEntry", "PgrHeader", "PgrLayout", "PgrStream", "PgrWriteOptions", "assemble_mosaic", "bayer_planes",
+    "jpeg_block", "write_pgr",
 ]
 
 
@@ -144,7 +140,7 @@ class PgrStream:
     @property
     def _is_raw(self) -> bool:
         fmt = self.header.data_format
-        return fmt is not None and fmt.raw_bytes_per_pixel > 0
+        return fmt is not None and fmt.raw_bits > 0
 
     @property
     def _info_shift(self) -> int:
@@ -263,58 +259,37 @@ class PgrStream:
         return pattern
 
     def jpegs(self, index: int) -> list[list[bytes]]:
-        """The 6 x 4 JPEG channel images of frame ``index``; raises CorruptFrameError on a bad table entry."""
+        """The 6 x 4 JPEG channel images of frame ``index``; a CorruptFrameError naming every bad table entry."""
         entry = self.index[index]
         where = f"{self.path}: frame {index} (sequence {entry.sequence_id})"
-        return frame_jpegs(self._buf, entry.payload_offset, entry.end - entry.payload_offset, self.layout, where)
+        size = entry.end - entry.payload_offset
+        return block_jpegs(self._buf, entry.payload_offset, size, self.layout, where).complete(where)
 
-    def camera_images(self, index: int) -> list[NDArray[Any]]:
-        """The six demosaiced BGR images (raw sensor orientation) of frame ``index``: (H, W, 3) uint8, or uint16
-        for RAW16."""
+    def frame_images(self, index: int, min_cameras: int = NUM_CAMERAS) -> CameraSet:
+        """The demosaiced BGR images (raw sensor orientation) of frame ``index``: (H, W, 3) uint8, or uint16 with the
+        significant bits at the top (RAW12, RAW16, 12-bit JPEG); a camera whose channel JPEGs do not decode is None
+        (its faults listed). Fewer than ``min_cameras`` cameras: CorruptFrameError naming the faults."""
         fmt, pattern = self.data_format(), self.bayer_pattern()
         entry = self.index[index]
-        where = f"{self.path}: frame {index}"
-        if fmt is DataFormat.COLOR_SEP_JPEG8:
-            mosaics = [assemble_mosaic(p, self.layout, f"{where} camera {c}") for c, p in enumerate(self.jpegs(index))]
-            return [demosaic(m, pattern) for m in mosaics]
+        where = f"{self.path}: frame {index} (sequence {entry.sequence_id})"
+        if fmt.jpeg_bits:
+            block = block_jpegs(self._buf, entry.payload_offset, entry.end - entry.payload_offset, self.layout, where)
+            mosaics = frame_mosaics(block, self.layout, fmt.jpeg_bits).require(min_cameras, where)
+            return mosaics.map(lambda m: demosaic(m, pattern))
         if self.header.resolution is None:
             raise StreamFormatError(f"{self.path}: unknown resolution code {self.header.resolution_code}: the size of"
                                     " a RAW sensor image is not known")
         payload = bytes(self._buf[entry.payload_offset : entry.end])  # a copy: the mmap can close under it
-        return decode_raw(payload, fmt, SensorGeometry(*self.header.resolution), pattern, where)
+        geometry = SensorGeometry(*self.header.resolution)
+        return CameraSet(tuple(decode_raw(payload, fmt, geometry, pattern, where, self.layout.raw16_bits)))
+
+    def camera_images(self, index: int) -> list[NDArray[Any]]:
+        """All six images of frame ``index`` (:meth:`frame_images`); a camera missing is a CorruptFrameError."""
+        return [cast(NDArray[Any], image) for image in self.frame_images(index).arrays]
 
 
-def frame_jpegs(buf: bytes | mmap.mmap, offset: int, size: int, layout: PgrLayout, where: str) -> list[list[bytes]]:
-    """The 6 x 4 JPEG channel images of the JPEG frame block at ``buf[offset : offset + size]``."""
-    if size < layout.frame_header_size or u32be(buf, offset + layout.fingerprint) != FINGERPRINT:
-        raise CorruptFrameError(f"{where}: not a frame block (size {size}, no 0x{FINGERPRINT:X} fingerprint)")
-    out = []
-    for cam in range(NUM_CAMERAS):
-        row = []
-        for slot in range(JPEGS_PER_CAMERA):
-            at, length = struct.unpack_from(">2I", buf, offset + layout.jpeg_table + cam * 32 + slot * 8)
-            data = bytes(buf[offset + at : offset + at + length])
-            if at + length > size or not (data.startswith(JPEG_SOI) and data.endswith(JPEG_EOI)):
-                raise CorruptFrameError(f"{where} camera {cam} channel {slot}: no JPEG at offset {at} size {length}")
-            row.append(data)
-        out.append(row)
-    return out
-
-
-def frame_block_mosaics(block: bytes, layout: PgrLayout, where: str) -> list[NDArray[np.uint8]]:
-    """Six Bayer mosaics from one JPEG frame block (a .pgr frame's, or an SDK COLOR_SEP_JPEG8 buffer)."""
-    jpegs = frame_jpegs(block, 0, len(block), layout, where)
-    return [assemble_mosaic(p, layout, f"{where} camera {c}") for c, p in enumerate(jpegs)]
-
-
-def assemble_mosaic(planes: Sequence[bytes], layout: PgrLayout, where: str) -> NDArray[np.uint8]:
-    """Four JPEG Bayer-channel images (h, w) -> one (2h, 2w) uint8 mosaic (slot k to cell ``slot_cells[k]``)."""
-    maybe = [cv2.imdecode(np.frombuffer(p, np.uint8), cv2.IMREAD_GRAYSCALE) for p in planes]
-    decoded = [d for d in maybe if d is not None]
-    if len(decoded) != len(maybe) or len({d.shape for d in decoded}) != 1:
-        raise CorruptFrameError(f"{where}: a Bayer channel JPEG does not decode or sizes differ")
-    h, w = decoded[0].shape
-    mosaic = np.empty((2 * h, 2 * w), np.uint8)
-    for (r, c), plane in zip(layout.slot_cells, decoded, strict=True):
-        mosaic[r::2, c::2] = plane
-    return cast(NDArray[np.uint8], mosaic)
+def frame_block_mosaics(block: bytes, layout: PgrLayout, where: str, bits: int = 8,
+                        min_cameras: int = NUM_CAMERAS) -> CameraSet:
+    """The cameras' Bayer mosaics of one JPEG frame block (a .pgr frame's, or an SDK COLOR_SEP_JPEG buffer)."""
+    jpegs = block_jpegs(block, 0, len(block), layout, where)
+    return frame_mosaics(jpegs, layout, bits).require(min_cameras, where)

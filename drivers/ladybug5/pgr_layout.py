@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from drivers.ladybug5.formats import BayerPattern
+from drivers.ladybug5.raw import Raw16Bits
 
 SIGNATURE = b"PGRLADYBUGSTREAM"
 FINGERPRINT = 0xCAFEBABE
@@ -46,7 +47,8 @@ class PgrLayout:
     of a JPEG frame block, or of an INFO frame header): big-endian u32 relative to its start. The JPEG entry
     (offset, size) of camera c, slot k is at ``jpeg_table + c * 32 + k * 8``; slot k holds the Bayer cell
     ``slot_cells[k]`` (row, col) of the mosaic (:data:`BAYER_CELLS`; reader and writer both take it from here).
-    ``bayer_pattern`` overrides the stream's own (None: the head info's)."""
+    Decoding choices: ``bayer_pattern`` overrides the stream's own (None: the head info's); ``raw16_bits`` says where
+    RAW16 words hold their data (:class:`drivers.ladybug5.raw.Raw16Bits`)."""
 
     head_version: int = 0x00
     head_serial: int = 0x0C
@@ -69,6 +71,7 @@ class PgrLayout:
     jpeg_table: int = 0x340
     bayer_pattern: BayerPattern | None = None
     slot_cells: tuple[tuple[int, int], ...] = BAYER_CELLS
+    raw16_bits: Raw16Bits = Raw16Bits.AUTO
 
     @property
     def frame_header_size(self) -> int:

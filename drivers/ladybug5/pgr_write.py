@@ -38,7 +38,7 @@ _CHANNEL = {"B": 0, "G": 1, "R": 2}
 @dataclass(frozen=True)
 class PgrFrameData:
     """One frame to write: times, registers, and either the 6 x 4 JPEG channel images (COLOR_SEP_JPEG8) or
-    ``raw``, six full (rows, cols) Bayer mosaics (uint8 for RAW8, uint16 for RAW16)."""
+    ``raw``, six full (rows, cols) Bayer mosaics (uint8 for RAW8, uint16 for RAW16, packed uint8 bytes for RAW12)."""
 
     seconds: int
     microseconds: int
@@ -112,7 +112,8 @@ def jpeg_block(frame: PgrFrameData, layout: PgrLayout = DEFAULT_LAYOUT) -> bytes
 
 
 def _raw_payload(frame: PgrFrameData, fmt: DataFormat) -> bytes:
-    dtype = np.dtype(np.uint8) if fmt is DataFormat.RAW8 else np.dtype("<u2")
+    """The six mosaics as the format stores them; RAW12 mosaics are given packed (uint8, 3 bytes per 2 pixels)."""
+    dtype = np.dtype(np.uint8) if fmt in (DataFormat.RAW8, DataFormat.RAW12) else np.dtype("<u2")
     if len(frame.raw) != NUM_CAMERAS:
         raise StreamFormatError(f"a {fmt.value} frame needs {NUM_CAMERAS} mosaics, got {len(frame.raw)}")
     return b"".join(np.ascontiguousarray(m, dtype).tobytes() for m in frame.raw)
@@ -120,7 +121,7 @@ def _raw_payload(frame: PgrFrameData, fmt: DataFormat) -> bytes:
 
 def _frame_bytes(frame: PgrFrameData, layout: PgrLayout, options: PgrWriteOptions) -> bytes:
     size, style = options.frame_header_size, options.frame_header_style
-    raw = options.data_format.raw_bytes_per_pixel > 0
+    raw = options.data_format.raw_bits > 0
     if raw and (size == 0 or style is not FrameHeaderStyle.INFO):
         raise StreamFormatError("RAW frames carry their times in an INFO frame header: give frame_header_size")
     payload = _raw_payload(frame, options.data_format) if raw else jpeg_block(frame, layout)

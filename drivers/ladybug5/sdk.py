@@ -9,8 +9,8 @@ only one), loads its configuration (``ladybugLoadConfig``), reads its Bayer tile
 head calibration (:mod:`drivers.ladybug5.sdk_head`), and stops and destroys the context.
 
 Every number the binding needs from the SDK's headers comes from ``layout_probe.c`` (:mod:`sdk_layout`).
-Grabbed RAW8, RAW16 and COLOR_SEP_JPEG8 buffers are decoded here (slicing by the full sensor size, border
-crop, the SDK's Bayer pattern); other formats are named as unsupported. The frame sources are in
+Grabbed RAW8, RAW12, RAW16, COLOR_SEP_JPEG8 and COLOR_SEP_JPEG12 buffers are decoded here (slicing by the full
+sensor size, border crop, the SDK's Bayer pattern); other formats are named as unsupported. The frame sources are in
 :mod:`drivers.ladybug5.sdk_source`.
 """
 
@@ -21,7 +21,7 @@ import logging
 import time
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from drivers.ladybug5.errors import (
     CameraNotFoundError,
@@ -33,9 +33,9 @@ from drivers.ladybug5.errors import (
 from drivers.ladybug5.formats import BayerPattern, DataFormat, require_decoded
 from drivers.ladybug5.frames import Exposure
 from drivers.ladybug5.head import HeadCalibration
-from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrLayout, frame_block_mosaics
-from drivers.ladybug5.raw import SensorGeometry, decode_raw, demosaic, fit_mosaic
-from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, read_head
+from drivers.ladybug5.pgr import DEFAULT_LAYOUT, CameraSet, PgrLayout, frame_block_mosaics
+from drivers.ladybug5.raw import NUM_SENSORS, SensorGeometry, decode_raw, demosaic, fit_mosaic
+from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, LensSource, read_head
 from drivers.ladybug5.sdk_layout import PROBE_SOURCE, SdkLayout, probe_layout
 from drivers.ladybug5.sdk_library import (
     DEFAULT_LIBRARY,
@@ -47,7 +47,8 @@ from drivers.ladybug5.sdk_library import (
 
 __all__ = [
     "DEFAULT_GRAB_TIMEOUT_MS", "DEFAULT_LIBRARY", "PROBE_SOURCE", "CameraInfo", "DataFormat", "DeviceTimeField",
-    "GrabbedImage", "LadybugLibrary", "SdkCamera", "SdkLayout", "decode_grab", "enumerate_cameras", "frame_pattern",
+    "GrabbedImage", "LadybugLibrary", "SdkCamera", "SdkLayout", "decode_grab", "decode_grab_cameras",
+    "enumerate_cameras", "frame_pattern",
     "probe_layout", "read_camera_head", "sdk_status",
 ]
 
@@ -206,13 +207,14 @@ class SdkCamera:
         raise HeadCalibrationError(f"{self.describe}: no frame in {_SIZE_GRABS} grabs to learn the sensor size "
                                    f"({last})")
 
-    def read_head(self, size_px: tuple[int, int], step_px: int = DEFAULT_MAP_STEP_PX) -> HeadCalibration:
+    def read_head(self, size_px: tuple[int, int], step_px: int = DEFAULT_MAP_STEP_PX,
+                  lens: LensSource = LensSource.AUTO) -> HeadCalibration:
         """The factory calibration the SDK loaded for this camera; ``size_px`` the sensors' raw (width, height)."""
         self._require_started("read_head")
         where = "from the head" if self.config_path is None else f"from {self.config_path}"
         serial = self.info.serial if self.info else None
         return read_head(self.lib, self._context, size_px, f"{self.describe}, ladybugLoadConfig {where}", serial,
-                         step_px)
+                         step_px, lens)
 
     def close(self) -> None:
         """Stop and destroy, in that order, whatever was set up; safe to call twice."""
@@ -233,11 +235,11 @@ class SdkCamera:
 
 
 def read_camera_head(lib: LadybugLibrary, serial: int | None = None, size_px: tuple[int, int] | None = None,
-                     step_px: int = DEFAULT_MAP_STEP_PX) -> HeadCalibration:
+                     step_px: int = DEFAULT_MAP_STEP_PX, lens: LensSource = LensSource.AUTO) -> HeadCalibration:
     """Open a camera (``serial``, or the only one; RAW8: nothing to decode), learn its sensor size from a frame
     unless given, read its factory head calibration, close it."""
     with SdkCamera(lib, serial=serial, data_format=DataFormat.RAW8) as camera:
-        return camera.read_head(size_px or camera.sensor_size(), step_px)
+        return camera.read_head(size_px or camera.sensor_size(), step_px, lens)
 
 
 def _pattern_of(lib: LadybugLibrary, value: int) -> BayerPattern | None:
@@ -257,9 +259,11 @@ def frame_pattern(image: GrabbedImage, lib: LadybugLibrary, tile: BayerPattern |
     return pattern
 
 
-def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
-                pgr_layout: PgrLayout = DEFAULT_LAYOUT) -> list[Any]:
-    """Six (rows, cols, 3) BGR images (raw sensor orientation, border-cropped; uint8, uint16 for RAW16)."""
+def decode_grab_cameras(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
+                        pgr_layout: PgrLayout = DEFAULT_LAYOUT, min_cameras: int = NUM_SENSORS) -> CameraSet:
+    """The six (rows, cols, 3) BGR images of a grab (raw sensor orientation, border-cropped; uint8, or uint16 with the
+    significant bits at the top for RAW12, RAW16 and COLOR_SEP_JPEG12); a camera whose channel JPEGs do not decode
+    is None with its faults named. Fewer than ``min_cameras`` cameras: a CorruptFrameError naming the faults."""
     where = f"grabbed frame {image.sequence_id}"
     name = layout.format_name(image.data_format)
     if name is None or name not in DataFormat.__members__:
@@ -269,7 +273,14 @@ def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
     if (geometry.cols, geometry.rows) != (image.cols, image.rows):
         raise CorruptFrameError(f"{where}: {image.full_cols}x{image.full_rows} minus border {image.border} is not "
                                 f"the {image.cols}x{image.rows} the frame says")
-    if fmt is DataFormat.COLOR_SEP_JPEG8:
-        mosaics = frame_block_mosaics(image.data, pgr_layout, where)
-        return [demosaic(*fit_mosaic(m, geometry, pattern, f"{where} camera {c}")) for c, m in enumerate(mosaics)]
-    return decode_raw(image.data, fmt, geometry, pattern, where)
+    if not fmt.jpeg_bits:
+        return CameraSet(tuple(decode_raw(image.data, fmt, geometry, pattern, where, pgr_layout.raw16_bits)))
+    mosaics = frame_block_mosaics(image.data, pgr_layout, where, fmt.jpeg_bits, min_cameras)
+    return CameraSet(tuple(None if m is None else demosaic(*fit_mosaic(m, geometry, pattern, f"{where} camera {c}"))
+                           for c, m in enumerate(mosaics.arrays)), mosaics.faults)
+
+
+def decode_grab(image: GrabbedImage, layout: SdkLayout, pattern: BayerPattern,
+                pgr_layout: PgrLayout = DEFAULT_LAYOUT) -> list[Any]:
+    """All six images of a grab (:func:`decode_grab_cameras`); a camera missing is a CorruptFrameError."""
+    return [cast(Any, im) for im in decode_grab_cameras(image, layout, pattern, pgr_layout).arrays]

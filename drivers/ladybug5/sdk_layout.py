@@ -2,9 +2,10 @@
 
 ``rigd camera sdk-layout --include DIR`` compiles ``layout_probe.c`` against ``DIR/ladybug.h``,
 ``ladybuggeom.h`` and ``ladybugrenderer.h`` and saves its YAML: struct offsets and sizes of ``LadybugImage``,
-``LadybugCameraInfo`` and ``LadybugProcessedImage``, and the values of the enum members the binding uses (errors,
-data formats, properties, Bayer formats, output image types, pixel formats, colour processing methods). The SDK's
-enums are ordinal and grew between versions, so these numbers belong to the installed SDK, not to rigd.
+``LadybugCameraInfo``, ``LadybugProcessedImage``, ``LadybugImage3d`` and ``LadybugPoint3d``, and the values of the
+enum members the binding uses (errors, data formats, properties, Bayer formats, output image types, pixel formats,
+colour processing methods). The SDK's enums are ordinal and grew between versions, so these numbers belong to the
+installed SDK, not to rigd.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ IMAGE_FIELDS = ("cols", "rows", "full_cols", "full_rows", "border_top", "border_
                 "embedded_microseconds", "sequence_id", "data", "data_size")
 CAMERA_INFO_FIELDS = ("serial_head", "model_name")
 PROCESSED_IMAGE_FIELDS = ("cols", "rows", "data", "pixel_format")
+IMAGE3D_FIELDS = ("rows", "cols", "points")  # ladybugGet3dMap's result (ladybuggeom.h)
+POINT3D_FIELDS = ("x", "y", "z")
 # enum members the binding needs by name, per section (the probe prints more)
 REQUIRED_VALUES = {"output_images": ("ALL_RECTIFIED_IMAGES", "PANORAMIC"), "pixel_formats": ("BGR", "BGRU", "BGRU16"),
                    "color_methods": ("EDGE_SENSING", "NEAREST_NEIGHBOR_FAST", "RIGOROUS", "HQLINEAR")}
@@ -56,6 +59,9 @@ class SdkLayout:
     processed_image_fields: dict[str, tuple[int, int]]
     pixel_formats: dict[str, int]
     color_methods: dict[str, int]
+    image3d_fields: dict[str, tuple[int, int]]
+    point3d_size: int
+    point3d_fields: dict[str, tuple[int, int]]
 
     def format_name(self, code: int) -> str | None:
         """The data format's name of an SDK value (None when the probe did not list it)."""
@@ -74,12 +80,15 @@ class SdkLayout:
                          _fields(data, "camera_info_fields"), _values(data, "errors"), _values(data, "formats"),
                          _values(data, "properties"), _values(data, "stippled"), _values(data, "output_images"),
                          int(data["processed_image_size"]), _fields(data, "processed_image_fields"),
-                         _values(data, "pixel_formats"), _values(data, "color_methods"))
+                         _values(data, "pixel_formats"), _values(data, "color_methods"),
+                         _fields(data, "image3d_fields"), int(data["point3d_size"]), _fields(data, "point3d_fields"))
         except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
             raise Ladybug5Error(f"{where}: not a Ladybug SDK layout from layout_probe.c ({exc!r})") from exc
         absent = [f for f in IMAGE_FIELDS if f not in layout.image_fields]
         absent += [f for f in CAMERA_INFO_FIELDS if f not in layout.camera_info_fields]
         absent += [f for f in PROCESSED_IMAGE_FIELDS if f not in layout.processed_image_fields]
+        absent += [f"image3d.{f}" for f in IMAGE3D_FIELDS if f not in layout.image3d_fields]
+        absent += [f"point3d.{f}" for f in POINT3D_FIELDS if f not in layout.point3d_fields]
         absent += [f"{section}.{name}" for section, names in REQUIRED_VALUES.items() for name in names
                    if name not in getattr(layout, section)]
         if absent:

@@ -14,6 +14,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from drivers.ladybug5.errors import (
     CorruptFrameError,
     HeadCalibrationError,
@@ -51,6 +54,13 @@ FUNCTIONS: dict[str, list[Any]] = {
     "ladybugGetCameraUnitExtrinsics": [_CTX, ctypes.c_uint, _P_DOUBLE],
     "ladybugRectifyPixel": _PIXEL_MAP,
     "ladybugUnrectifyPixel": _PIXEL_MAP,
+    # the 3D mapping of raw pixels onto the stitching sphere (ladybuggeom.h): no rendering context involved
+    "ladybugGet3dMap": [_CTX, ctypes.c_uint, ctypes.c_uint, ctypes.c_uint, ctypes.c_uint, ctypes.c_uint,
+                        ctypes.c_bool, ctypes.POINTER(ctypes.c_void_p)],
+    "ladybugGet3dMapSphereSize": [_CTX, _P_DOUBLE],
+    "ladybugSet3dMapSphereSize": [_CTX, ctypes.c_double],
+    "ladybugGet3dMapRotation": [_CTX, _P_DOUBLE, _P_DOUBLE, _P_DOUBLE],
+    "ladybugSet3dMapRotation": [_CTX, ctypes.c_double, ctypes.c_double, ctypes.c_double],
     # the SDK's panorama renderer (ladybug.h, ladybugrenderer.h): enum arguments are int-sized
     "ladybugSetColorProcessingMethod": [_CTX, ctypes.c_int],
     "ladybugConfigureOutputImages": [_CTX, ctypes.c_uint],
@@ -58,6 +68,7 @@ FUNCTIONS: dict[str, list[Any]] = {
     "ladybugUpdateTextures": [_CTX, ctypes.c_uint, _BUFFERS, ctypes.c_int],
     "ladybugRenderOffScreenImage": [_CTX, ctypes.c_int, ctypes.c_int, ctypes.c_void_p],
 }
+POINT_AXES = ("x", "y", "z")  # LadybugPoint3d's fX, fY, fZ (float)
 _CORRUPT_FRAME_ERRORS = ("IMAGE_TOO_SMALL", "JPEG_ERROR", "JPEG_HEADER_ERROR", "JPEG_INCOMPLETE_COMPRESSION",
                          "JPEG_NO_IMAGE", "CORRUPTED_IMAGE_DATA")
 
@@ -195,6 +206,21 @@ class LadybugLibrary:
             raise CorruptFrameError(f"ladybugRenderOffScreenImage returned a {cols}x{rows} image without pixel data")
         data = ctypes.string_at(pointer, cols * rows * bytes_per_pixel)
         return ProcessedImage(cols, rows, _read_uint(raw, fields["pixel_format"]), data)
+
+    def read_3d_map(self, pointer: int, where: str) -> NDArray[np.float64]:
+        """(rows, cols, 3) x, y, z (m, Ladybug frame) of a ``LadybugImage3d`` the SDK returned (its memory)."""
+        fields = self.layout.image3d_fields
+        if not pointer:
+            raise HeadCalibrationError(f"{where}: ladybugGet3dMap returned no 3D map")
+        head = ctypes.string_at(pointer, max(offset + size for offset, size in fields.values()))
+        rows, cols, points = (_read_uint(head, fields[name]) for name in ("rows", "cols", "points"))
+        if not points or not rows or not cols:
+            raise HeadCalibrationError(f"{where}: ladybugGet3dMap returned a {cols}x{rows} map without points")
+        size, xyz = self.layout.point3d_size, self.layout.point3d_fields
+        dtype = np.dtype({"names": list(POINT_AXES), "formats": ["<f4"] * 3,
+                          "offsets": [xyz[a][0] for a in POINT_AXES], "itemsize": size})
+        raw = np.frombuffer(ctypes.string_at(points, rows * cols * size), dtype)
+        return np.stack([raw[a].astype(np.float64) for a in POINT_AXES], axis=-1).reshape(rows, cols, 3)
 
     def read_camera_infos(self, buf: ctypes.Array[ctypes.c_char], count: int) -> list[CameraInfo]:
         size, fields = self.layout.camera_info_size, self.layout.camera_info_fields

@@ -4,7 +4,7 @@
 calibration (rigd's projection and blending, docs/ladybug5.md). ``PanoramaBackend.SDK_RENDERER`` hands the grabbed
 ``LadybugImage`` to FLIR's library: ``ladybugSetColorProcessingMethod``, ``ladybugConfigureOutputImages(PANORAMIC)``
 and ``ladybugSetOffScreenImageSize(PANORAMIC, cols, rows)`` once per context, then per frame
-``ladybugConvertImage`` into six BGRU textures (BGRU16 for RAW16), ``ladybugUpdateTextures`` and
+``ladybugConvertImage`` into six BGRU textures (BGRU16 for RAW12, RAW16 and 12-bit JPEG), ``ladybugUpdateTextures`` and
 ``ladybugRenderOffScreenImage(PANORAMIC, BGR)``. The SDK renders with OpenGL: a rig computer without a GPU and an
 OpenGL context fails at the configuration, which is a :class:`RendererError` (the stream ends; every frame would fail
 alike); a render that fails later ends that frame only.
@@ -64,7 +64,8 @@ class StitcherBackend:
     def panorama(self, frame: SensorFrame) -> NDArray[np.uint8]:
         if self.stitcher is None:
             self.stitcher = Stitcher(frame.head.to_rig(), self.spec)
-        return self.stitcher.stitch([to_uint8(im) for im in frame.images])
+        return self.stitcher.stitch([None if c in frame.missing_cameras else to_uint8(im)
+                                     for c, im in enumerate(frame.images)])
 
 
 class SdkRendererBackend:
@@ -107,8 +108,11 @@ class SdkRendererBackend:
         self._configured = context.value
 
     def _texture_format(self, data_format: int) -> str:
-        """BGRU16 textures for a 16-bit camera (as FLIR's examples do), BGRU otherwise."""
-        return "BGRU16" if data_format == self.camera.lib.layout.formats["RAW16"] else "BGRU"
+        """BGRU16 textures for data wider than 8 bits (RAW12, RAW16, 12-bit JPEG: ladybugConvertImage's own default for
+        them, ladybug.h), BGRU otherwise."""
+        formats = self.camera.lib.layout.formats
+        wide = {formats[name] for name in ("RAW12", "RAW16", "COLOR_SEP_JPEG12") if name in formats}
+        return "BGRU16" if data_format in wide else "BGRU"
 
     def _texture_pointers(self, full_pixels: int, texture_format: str) -> ctypes.Array[ctypes.c_void_p]:
         """Six texture buffers of the sensors' full size (an upper bound of what ladybugConvertImage writes)."""

@@ -14,13 +14,17 @@ from collections.abc import Iterator
 from enum import Enum
 from typing import Any
 
+import numpy as np
+
 from drivers.ladybug5.clock import ClockSync
 from drivers.ladybug5.errors import CorruptFrameError, HeadCalibrationError, Ladybug5Error, RendererError, SdkError
 from drivers.ladybug5.formats import BayerPattern
 from drivers.ladybug5.frames import Exposure, PanoramaFrame, SensorFrame, SkipCounter, TimeBase
 from drivers.ladybug5.head import HeadCalibration, HeadSource
-from drivers.ladybug5.pgr import DEFAULT_LAYOUT, PgrLayout
-from drivers.ladybug5.sdk import CYCLE_PERIOD_S, DeviceTimeField, SdkCamera, decode_grab, frame_pattern
+from drivers.ladybug5.pgr import DEFAULT_LAYOUT, CameraSet, PgrLayout
+from drivers.ladybug5.raw import NUM_SENSORS
+from drivers.ladybug5.replay import PARTIAL_FRAME_CAMERAS
+from drivers.ladybug5.sdk import CYCLE_PERIOD_S, DeviceTimeField, SdkCamera, decode_grab_cameras, frame_pattern
 from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX
 from drivers.ladybug5.sdk_library import GrabbedImage
 from drivers.ladybug5.sdk_render import PanoramaBackend, PanoramaRenderer, StitcherBackend, panorama_renderer
@@ -69,12 +73,12 @@ class SdkSensorSource:
         if self._failures >= self.max_failures:
             raise error
 
-    def _grab(self) -> tuple[GrabbedImage, list[Any]] | None:
-        """A grabbed, decoded frame, or None after a failure that was counted."""
+    def _grab(self, min_cameras: int) -> tuple[GrabbedImage, CameraSet] | None:
+        """A grabbed, decoded frame (at least ``min_cameras`` cameras), or None after a failure that was counted."""
         try:
             image = self.camera.grab()
             pattern = frame_pattern(image, self.camera.lib, self.camera.tile_pattern, self.bayer_pattern)
-            return image, decode_grab(image, self.camera.lib.layout, pattern, self.pgr_layout)
+            return image, decode_grab_cameras(image, self.camera.lib.layout, pattern, self.pgr_layout, min_cameras)
         except (CorruptFrameError, SdkError) as exc:  # a timeout is an SdkError too
             self.failed(exc)
             return None
@@ -99,19 +103,25 @@ class SdkSensorSource:
             self.exposure_errors.record(exc)
             return Exposure()
 
-    def frames(self) -> Iterator[SensorFrame]:
+    def frames(self, min_cameras: int = NUM_SENSORS) -> Iterator[SensorFrame]:
+        """Frames with all six cameras; with ``min_cameras`` below six (panoramas only: rigd's head datasets need
+        every sensor) also frames that lost a camera, its image zero and its number in ``missing_cameras``."""
         with self.camera:
             while True:
-                grabbed = self._grab()
+                grabbed = self._grab(min_cameras)
                 if grabbed is None:
                     continue
-                image, images = grabbed
-                head = self._head_for(images)
+                image, cameras = grabbed
+                head = self._head_for([im for im in cameras.arrays if im is not None])
+                if cameras.faults:
+                    self.skipped.record_partial(f"grabbed frame {image.sequence_id}", cameras.faults)
+                images = tuple(np.zeros((h, w, 3), np.uint8) if im is None else im
+                               for im, (w, h) in zip(cameras.arrays, head.sizes, strict=True))
                 raw = image.cycle_time_s if self.time_field is DeviceTimeField.CYCLE else image.embedded_time_s
                 device_s = self.clock.add(raw, image.host_receive_s)
                 skipped = self.skipped.count
-                yield SensorFrame(tuple(images), head, device_s, self.clock.to_host(device_s), image.sequence_id,
-                                  self._exposure(), self.clock.time_base)
+                yield SensorFrame(images, head, device_s, self.clock.to_host(device_s), image.sequence_id,
+                                  self._exposure(), self.clock.time_base, cameras.missing)
                 if self.skipped.count == skipped:  # the consumer used it (a failed stitch is counted here too)
                     self._failures = 0
 
@@ -171,8 +181,12 @@ class SdkFrameSource:
                 yield pano, frame
 
     def frames(self) -> Iterator[PanoramaFrame]:
-        for pano, _ in self.frames_with_sensors():
-            yield pano
+        """Panoramas; with rigd's stitcher also of frames that lost one camera (its view left to its neighbours)."""
+        stitched = self.backend is PanoramaBackend.RIGD_STITCHER
+        for frame in self.sensors.frames(PARTIAL_FRAME_CAMERAS if stitched else NUM_SENSORS):
+            pano = self._panorama(frame)
+            if pano is not None:
+                yield pano
 
     def close(self) -> None:
         self.camera.close()

@@ -138,26 +138,45 @@ class Stitcher:
             )
         return tiles
 
-    def stitch(self, images: Sequence[NDArray[Any]]) -> NDArray[Any]:
-        """Panorama (H, W[, C]) in the images' dtype from one image per rig camera (raw orientation).
-
-        Pixels no camera sees (below the head) are 0; see ``coverage``.
-        """
+    def _check(self, images: Sequence[NDArray[Any] | None]) -> NDArray[Any]:
+        """The first image there is, after checking every image's size against its camera."""
         if len(images) != len(self.rig.cameras):
             raise Ladybug5Error(f"stitch needs {len(self.rig.cameras)} images, got {len(images)}")
         for image, camera in zip(images, self.rig.cameras, strict=True):
-            if image.shape[:2] != (camera.height, camera.width):
+            if image is not None and image.shape[:2] != (camera.height, camera.width):
                 raise Ladybug5Error(
                     f"{camera.name}: image is {image.shape[1]}x{image.shape[0]}, rig file says "
                     f"{camera.width}x{camera.height}"
                 )
-        channels = images[0].shape[2:]
+        first = next((im for im in images if im is not None), None)
+        if first is None:
+            raise Ladybug5Error("stitch needs at least one camera's image, got none")
+        return first
+
+    def stitch(self, images: Sequence[NDArray[Any] | None]) -> NDArray[Any]:
+        """Panorama (H, W[, C]) in the images' dtype from one image per rig camera (raw orientation); None for a
+        camera missing from the frame: its neighbours' weights fill its overlaps, the rest of its view is 0.
+
+        Pixels no camera sees (below the head) are 0; see ``coverage``.
+        """
+        first = self._check(images)
+        channels = first.shape[2:]
         out = np.zeros((self.spec.height, self.spec.width, *channels), dtype=np.float32)
+        missing = any(im is None for im in images)
+        total = np.zeros((self.spec.height, self.spec.width, 1), np.float32) if missing else None
         for tile in self._tiles:
-            warped = cv2.remap(images[tile.camera], tile.map1, tile.map2, cv2.INTER_LINEAR)
+            image = images[tile.camera]
+            if image is None:
+                continue
+            warped = cv2.remap(image, tile.map1, tile.map2, cv2.INTER_LINEAR)
             weight = tile.weight if channels else tile.weight[..., 0]
             out[tile.rows, tile.cols] += warped * weight
-        if np.issubdtype(images[0].dtype, np.integer):
-            info = np.iinfo(images[0].dtype)
-            return np.clip(np.rint(out), info.min, info.max).astype(images[0].dtype)
-        return out.astype(images[0].dtype)
+            if total is not None:
+                total[tile.rows, tile.cols] += tile.weight
+        if total is not None:  # the weights were normalised over all cameras: over those present instead
+            norm = np.where(total > 0, total, 1.0)
+            out /= norm if channels else norm[..., 0]
+        if np.issubdtype(first.dtype, np.integer):
+            info = np.iinfo(first.dtype)
+            return np.clip(np.rint(out), info.min, info.max).astype(first.dtype)
+        return out.astype(first.dtype)

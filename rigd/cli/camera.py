@@ -1,18 +1,23 @@
-"""``rigd camera``: the Ladybug5 -- USB presence and health, SDK layout probe, the factory head calibration
-(docs/ladybug5.md)."""
+"""``rigd camera``: the Ladybug5 -- USB presence and health, SDK layout probe, the factory head calibration, another
+panorama's orientation against rigd's (docs/ladybug5.md)."""
 
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
-from drivers.ladybug5.errors import HeadCalibrationError, UsbBackendError
+from drivers.ladybug5.errors import HeadCalibrationError, StreamFormatError, UsbBackendError
 from drivers.ladybug5.head import HeadCalibration
-from drivers.ladybug5.head_file import save_head
+from drivers.ladybug5.head_file import load_head, save_head
+from drivers.ladybug5.pano_check import panorama_alignment
 from drivers.ladybug5.pgr import PgrStream
+from drivers.ladybug5.raw import to_uint8
+from drivers.ladybug5.replay import PARTIAL_FRAME_CAMERAS
 from drivers.ladybug5.sdk import (
     DEFAULT_LIBRARY,
     LadybugLibrary,
@@ -21,7 +26,8 @@ from drivers.ladybug5.sdk import (
     read_camera_head,
     sdk_status,
 )
-from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, head_from_config_file, head_from_pgr
+from drivers.ladybug5.sdk_head import DEFAULT_MAP_STEP_PX, LensSource, head_from_config_file, head_from_pgr
+from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 from drivers.ladybug5.usb import (
     POINT_GREY_VENDOR_ID,
     UsbCamera,
@@ -89,6 +95,7 @@ def register(subparsers: Any) -> None:
     layout.add_argument("--compiler", default="c++", help="C or C++ compiler (default c++)")
     layout.set_defaults(func=run_sdk_layout)
     _register_export_head(sub)
+    _register_check_panorama(sub)
 
 
 def _register_export_head(sub: Any) -> None:
@@ -99,7 +106,8 @@ def _register_export_head(sub: Any) -> None:
         "length, image centre, pose in the head and rectification. This reads it from the camera (default), a "
         ".pgr stream's embedded configuration (--pgr) or a configuration file (--calibration), fits an OpenCV "
         "lens model to the rectification and writes OUT (the head dataset format's camera section, usable as "
-        "camera.sdk.rig_file) and the sampled rectification maps beside it. Exit 0, or 1 when a sensor's lens "
+        "camera.sdk.rig_file) and the sampled rectification maps beside it. On a rig without OpenGL the lens is "
+        "fitted to the SDK's 3D map of the raw pixels instead (no maps then). Exit 0, or 1 when a sensor's lens "
         "fit is poor (written anyway). Needs FLIR's SDK and the layout of `rigd camera sdk-layout`.",
     )
     export.add_argument("--out", type=Path, required=True, help="head file to write (YAML)")
@@ -112,11 +120,69 @@ def _register_export_head(sub: Any) -> None:
                         help="sensor size in px (default: a grabbed frame's, or the stream's resolution)")
     export.add_argument("--step", type=_positive, default=DEFAULT_MAP_STEP_PX, metavar="PX",
                         help=f"rectification sampled every PX px (default {DEFAULT_MAP_STEP_PX})")
+    export.add_argument("--lens-from", type=LensSource, choices=list(LensSource), default=LensSource.AUTO,
+                        metavar="{" + ",".join(s.value for s in LensSource) + "}",
+                        help="the lens from the SDK's rectification (may need OpenGL), from its 3D map of the raw "
+                        "pixels (no rendering context), or auto: the rectification, else the 3D map (default)")
     export.add_argument("--layout", type=Path, default=DEFAULT_LAYOUT_FILE,
                         help=f"SDK layout file from rigd camera sdk-layout (default {DEFAULT_LAYOUT_FILE})")
     export.add_argument("--sdk-library", default=DEFAULT_LIBRARY,
                         help=f"Ladybug SDK library (default {DEFAULT_LIBRARY})")
     export.set_defaults(func=run_export_head)
+
+
+def _register_check_panorama(sub: Any) -> None:
+    check = sub.add_parser(
+        "check-panorama",
+        help="measure how another panorama of a frame (FLIR's renderer or export) is oriented against rigd's",
+        description="Compares PANORAMA with rigd's panorama of the same frame: --reference (a panorama rigd wrote), "
+        "or stitched here from a .pgr frame (--pgr, --frame) with a head file (--head). Prints the turn about "
+        "the vertical, whether it is mirrored or upside down, and the edges' agreement. Exit 0 when it is in rigd's "
+        "convention (docs/conventions.md), 1 otherwise.",
+    )
+    check.add_argument("panorama", type=Path, help="the other panorama (2:1 image)")
+    ref = check.add_mutually_exclusive_group(required=True)
+    ref.add_argument("--reference", type=Path, help="rigd's panorama of the same frame (2:1 image)")
+    ref.add_argument("--pgr", type=Path, help="a .pgr stream: rigd stitches --frame with --head")
+    check.add_argument("--frame", type=int, default=0, help="the .pgr frame's index (default 0)")
+    check.add_argument("--head", type=Path, help="head file or rig camera file the .pgr frame is stitched with")
+    check.set_defaults(func=run_check_panorama)
+
+
+def _image(path: Path) -> Any:
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise StreamFormatError(f"{path}: missing, unreadable or not an image")
+    return image
+
+
+def _rigd_panorama(args: argparse.Namespace, size: tuple[int, int]) -> Any:
+    """rigd's panorama of the frame: the given one, or the .pgr frame stitched with the head at ``size``."""
+    if args.reference is not None:
+        return _image(args.reference)
+    if args.head is None:
+        raise StreamFormatError("--pgr needs the head its frames are stitched with (--head)")
+    stream = PgrStream(args.pgr)
+    try:
+        if not 0 <= args.frame < len(stream.index):
+            raise StreamFormatError(f"{args.pgr}: no frame {args.frame} (it holds {len(stream.index)})")
+        images = stream.frame_images(args.frame, PARTIAL_FRAME_CAMERAS).arrays
+    finally:
+        stream.close()
+    stitcher = Stitcher(load_head(args.head).to_rig(), PanoramaSpec(*size))
+    return stitcher.stitch([None if im is None else to_uint8(im) for im in images])
+
+
+def run_check_panorama(args: argparse.Namespace) -> int:
+    panorama = _image(args.panorama)
+    found = panorama_alignment(panorama, _rigd_panorama(args, (panorama.shape[1], panorama.shape[0])))
+    turns = [f"turned {found.yaw_deg:+.2f} deg (rigd's azimuth at its centre column)"]
+    turns += ["mirrored (azimuth runs the other way)"] * found.mirrored
+    turns += ["upside down"] * found.upside_down
+    print(f"{args.panorama}: {', '.join(turns)}; edges agree {found.score:.2f} (the next best orientation "
+          f"{found.runner_up:.2f})")
+    print("in rigd's convention" if found.same_convention else "NOT in rigd's convention (docs/conventions.md)")
+    return OK if found.same_convention else UNHEALTHY
 
 
 def _match(args: argparse.Namespace) -> UsbMatch:
@@ -179,15 +245,15 @@ def _read_head(args: argparse.Namespace) -> HeadCalibration:
     if args.pgr is not None:
         stream = PgrStream(args.pgr)
         try:
-            return head_from_pgr(lib, stream, args.size, args.step)
+            return head_from_pgr(lib, stream, args.size, args.step, args.lens_from)
         finally:
             stream.close()
     if args.calibration is not None:
         if args.size is None:
             raise HeadCalibrationError(f"{args.calibration}: a configuration file does not say the sensor size: "
                                        "give it (--size 2448x2048, Ladybug5+: 2464x2048)")
-        return head_from_config_file(lib, args.calibration, args.size, step_px=args.step)
-    return read_camera_head(lib, args.serial, args.size, args.step)
+        return head_from_config_file(lib, args.calibration, args.size, step_px=args.step, lens=args.lens_from)
+    return read_camera_head(lib, args.serial, args.size, args.step, args.lens_from)
 
 
 def run_export_head(args: argparse.Namespace) -> int:
@@ -196,9 +262,11 @@ def run_export_head(args: argparse.Namespace) -> int:
     print(f"wrote {args.out}: {head.summary()}")
     for s in head.sensors:
         rpy = np.degrees(s.extrinsics[:3])
-        print(f"  {s.name}: {s.width}x{s.height} px, f {s.focal_px:.2f} px, centre ({s.centre_px[0]:.2f}, "
-              f"{s.centre_px[1]:.2f}), Euler ZYX [{rpy[0]:.3f} {rpy[1]:.3f} {rpy[2]:.3f}] deg, at "
-              f"[{s.extrinsics[3]:.4f} {s.extrinsics[4]:.4f} {s.extrinsics[5]:.4f}] m; lens fit rms "
+        pinhole = (f"raw f {s.lens.K[0, 0]:.2f} px, centre ({s.lens.K[0, 2]:.2f}, {s.lens.K[1, 2]:.2f})"
+                   if math.isnan(s.focal_px) else
+                   f"f {s.focal_px:.2f} px, centre ({s.centre_px[0]:.2f}, {s.centre_px[1]:.2f})")
+        print(f"  {s.name}: {s.width}x{s.height} px, {pinhole}, Euler ZYX [{rpy[0]:.3f} {rpy[1]:.3f} {rpy[2]:.3f}] "
+              f"deg, at [{s.extrinsics[3]:.4f} {s.extrinsics[4]:.4f} {s.extrinsics[5]:.4f}] m; lens fit rms "
               f"{s.lens.rms_px:.3f} px, max {s.lens.max_px:.3f} px")
     poor = head.poor_sensors()
     if poor:

@@ -6,6 +6,7 @@ import cv2
 import numpy as np
 
 from drivers.ladybug5.rig import RigCamera, RigCameras
+from drivers.ladybug5.stitch import panorama_rays
 
 
 def scaled_rig(rig: RigCameras, scale: float) -> RigCameras:
@@ -66,3 +67,26 @@ def documented_channel_jpegs(pattern: str, rows: int, cols: int) -> list[bytes]:
         assert ok
         planes.append(data.tobytes())
     return planes
+
+
+def scene(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """A known, asymmetric scene as a function of direction (theta azimuth, phi from up; rad): a wall brightening
+    from 0 to 60 deg and ending there, a lamp at (-100 deg, 30 deg from up), a band below the horizon at 120-170 deg."""
+    t, p = np.degrees(theta), np.degrees(phi)
+
+    def inside(x: np.ndarray, low: float, high: float) -> np.ndarray:  # 0..1 with 1-degree soft edges: no aliasing
+        return 1 / (1 + np.exp(-(x - low))) / (1 + np.exp(x - high))
+
+    wall = 3 * t * inside(t, 0, 60) * inside(p, 50, 999)
+    lamp = 220 * np.exp(-((t + 100) ** 2 + (p - 30) ** 2) / 18)
+    band = 120 * inside(p, 95, 110) * inside(t, 120, 170)
+    return np.clip(30 + wall + lamp + band, 0, 255).astype(np.uint8)
+
+
+def render_scene(width: int, yaw_deg: float = 0.0, mirrored: bool = False, upside_down: bool = False) -> np.ndarray:
+    """The scene as a panorama whose centre column looks at ``yaw_deg`` (rigd's theta), theta running the other way
+    when ``mirrored`` and phi when ``upside_down``."""
+    rays = panorama_rays(width, width // 2)
+    theta, phi = np.arctan2(rays[..., 1], rays[..., 0]), np.arccos(np.clip(rays[..., 2], -1, 1))
+    theta = np.angle(np.exp(1j * (np.radians(yaw_deg) + (-theta if mirrored else theta))))  # in (-pi, pi]
+    return scene(theta, np.pi - phi if upside_down else phi)

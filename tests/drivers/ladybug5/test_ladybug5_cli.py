@@ -3,8 +3,10 @@
 
 from __future__ import annotations
 
+import ctypes
 import shutil
 
+import cv2
 import numpy as np
 import pytest
 import usb.backend.libusb0
@@ -13,11 +15,15 @@ import usb.backend.openusb
 import yaml
 from fake_ladybug_sdk import COMPILER, build
 from ladybug5_fakes import FakeDevice, FakeUsbBackend, ladybug
+from ladybug5_helpers import render_scene
 
 import rigd.cli
-from drivers.ladybug5.head import HeadSource
-from drivers.ladybug5.head_file import load_head
+from drivers.ladybug5.formats import STREAM_RESOLUTIONS
+from drivers.ladybug5.head import HeadCalibration, HeadSource
+from drivers.ladybug5.head_file import load_head, save_head
 from drivers.ladybug5.pgr import PgrFrameData, PgrWriteOptions, bayer_planes, write_pgr
+from drivers.ladybug5.rig import scaled_ladybug5_rig
+from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 from rigd.dataset.records import HeadConfig
 from rigd.ladybug_head import head_config
 
@@ -122,3 +128,56 @@ def test_export_head_without_the_sdk_is_a_clear_error(tmp_path, capsys):
     code = rigd.cli.main(["camera", "export-head", "--out", str(tmp_path / "h.yaml"), "--layout",
                           str(tmp_path / "absent.yaml")])
     assert code == 2 and "cannot read SDK layout file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("map_error", [0, 1])
+def test_export_head_on_a_headless_rig(fake_sdk, tmp_path, capsys, map_error):
+    copy = tmp_path / "libfakeladybug.so"
+    shutil.copy(fake_sdk[0], copy)
+    handle = ctypes.CDLL(str(copy))  # the same instance the command loads: steer it
+    ctypes.c_int.in_dll(handle, "fake_headless").value = 1
+    ctypes.c_int.in_dll(handle, "fake_map_error").value = map_error
+    code = export(fake_sdk, tmp_path, "--size", "16x12")
+    captured = capsys.readouterr()
+    if map_error:
+        assert code == 2 and "rigd: error: cannot read the head calibration" in captured.err
+        assert "xvfb-run rigd camera export-head" in captured.err and not (tmp_path / "head.yaml").exists()
+        return
+    assert code == 0 and "lens from ladybugGet3dMap" in captured.out
+    assert "cam0: 16x12 px, raw f 10.00 px" in captured.out
+    head = load_head(tmp_path / "head.yaml")
+    assert head.source is HeadSource.FACTORY and head.sensors[0].maps is None
+    np.testing.assert_allclose(head.sensors[0].lens.K[0, 0], 10.0, atol=1e-3)
+
+
+def test_check_panorama_says_whether_another_panorama_is_in_rigds_convention(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(rigd.cli, "COMMAND_MODULES", ("camera",))
+    cv2.imwrite(str(tmp_path / "rigd.png"), render_scene(720))
+    cv2.imwrite(str(tmp_path / "same.png"), render_scene(1024))
+    cv2.imwrite(str(tmp_path / "flipped.png"), render_scene(1024, 72.0, mirrored=True))
+    assert rigd.cli.main(["camera", "check-panorama", str(tmp_path / "same.png"), "--reference",
+                          str(tmp_path / "rigd.png")]) == 0
+    assert "turned +0.00 deg" in capsys.readouterr().out
+    assert rigd.cli.main(["camera", "check-panorama", str(tmp_path / "flipped.png"), "--reference",
+                          str(tmp_path / "rigd.png")]) == 1
+    out = capsys.readouterr().out
+    assert "turned +72.00 deg" in out and "mirrored" in out and "NOT in rigd's convention" in out
+
+
+def test_check_panorama_stitches_a_pgr_frame_as_the_reference(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(rigd.cli, "COMMAND_MODULES", ("camera",))
+    monkeypatch.setitem(STREAM_RESOLUTIONS, 97, (24, 20))  # a resolution code for these tests' sensors
+    rig = scaled_ladybug5_rig(24)
+    head = HeadCalibration.from_rig(rig, HeadSource.FACTORY, "test")
+    save_head(head, tmp_path / "head.yaml")
+    images = [np.full((c.height, c.width, 3), 40 * i + 20, np.uint8) for i, c in enumerate(rig.cameras)]
+    write_pgr(tmp_path / "s.pgr", [PgrFrameData(5, 0, 1, [bayer_planes(im) for im in images])],
+              options=PgrWriteOptions(resolution=(24, 20)))
+    stitched = Stitcher(rig, PanoramaSpec(128, 64)).stitch(images)
+    cv2.imwrite(str(tmp_path / "pano.png"), stitched)
+    code = rigd.cli.main(["camera", "check-panorama", str(tmp_path / "pano.png"), "--pgr", str(tmp_path / "s.pgr"),
+                          "--head", str(tmp_path / "head.yaml")])
+    assert code == 0 and "in rigd's convention" in capsys.readouterr().out
+    assert rigd.cli.main(["camera", "check-panorama", str(tmp_path / "pano.png"), "--pgr", str(tmp_path / "s.pgr"),
+                          "--frame", "3", "--head", str(tmp_path / "head.yaml")]) == 2
+    assert "no frame 3 (it holds 1)" in capsys.readouterr().err

@@ -130,14 +130,15 @@ def test_a_stream_without_a_bayer_pattern_says_so(tmp_path):
     assert PgrStream(tmp_path / "s.pgr", PgrLayout(bayer_pattern=BayerPattern.RGGB)).camera_images(0)
 
 
-def test_12_bit_jpeg_is_named_unsupported_not_corrupt(tmp_path):
-    write_pgr(tmp_path / "s.pgr", jpeg_frames(2), options=PgrWriteOptions(data_format=DataFormat.COLOR_SEP_JPEG12))
+def test_half_height_is_named_unsupported_not_corrupt(tmp_path):
+    options = PgrWriteOptions(data_format=DataFormat.COLOR_SEP_HALF_HEIGHT_JPEG12)
+    write_pgr(tmp_path / "s.pgr", jpeg_frames(2), options=options)
     stream = PgrStream(tmp_path / "s.pgr")
     assert len(stream.index) == 2  # the frames are found; their pixels are not decoded
-    with pytest.raises(UnsupportedFormatError, match="COLOR_SEP_JPEG12 is not supported.*COLOR_SEP_JPEG8"):
+    with pytest.raises(UnsupportedFormatError, match="COLOR_SEP_HALF_HEIGHT_JPEG12 is not supported.*COLOR_SEP_JPEG8"):
         stream.camera_images(0)
     rig = default_ladybug5_rig((COLS, ROWS))
-    with pytest.raises(UnsupportedFormatError, match="COLOR_SEP_JPEG12"):
+    with pytest.raises(UnsupportedFormatError, match="HALF_HEIGHT"):
         PgrFrameSource(tmp_path / "s.pgr", Stitcher(rig, PanoramaSpec(32, 16)))
 
 

@@ -108,19 +108,25 @@ def test_bayer_reassembly_puts_colours_in_the_right_channels(pattern):
     assert centre[..., 2].min() > 240 and centre[..., :2].max() < 15
 
 
-def test_pgr_replay_skips_a_corrupt_jpeg_and_counts_it(tmp_path, images, even_rig):
+def test_pgr_replay_keeps_a_frame_that_lost_one_camera_and_counts_it(tmp_path, images, even_rig):
     write_stream(tmp_path / "s.pgr", images)
     stream = PgrStream(tmp_path / "s.pgr")
     entry = stream.index[1]
-    jpeg_at = int.from_bytes(stream._buf[entry.offset + 0x340 + 3 * 32 : entry.offset + 0x340 + 3 * 32 + 4], "big")
     raw = bytearray((tmp_path / "s.pgr").read_bytes())
-    raw[entry.offset + jpeg_at : entry.offset + jpeg_at + 2] = b"\x00\x00"  # destroy camera 3's JPEG SOI
+    for camera in (3, 4):  # frame 1 loses camera 3's channel 0; frame 2 cameras 3 and 4
+        if camera == 4:
+            entry = stream.index[2]
+        table = entry.offset + 0x340 + camera * 32
+        jpeg_at = int.from_bytes(raw[table : table + 4], "big")
+        raw[entry.offset + jpeg_at : entry.offset + jpeg_at + 2] = b"\x00\x00"  # destroy the JPEG's SOI
+    raw[stream.index[2].offset + 0x340 + 3 * 32 + 4 : stream.index[2].offset + 0x340 + 3 * 32 + 8] = bytes(4)
     (tmp_path / "bad.pgr").write_bytes(bytes(raw))
     source = PgrFrameSource(tmp_path / "bad.pgr", Stitcher(even_rig, PanoramaSpec(*PANO)))
     frames = list(source.frames())
-    assert [f.sequence_id for f in frames] == [7, 9]
-    assert source.skipped.count == 1 and "frame 1" in source.skipped.reasons[0]
-    assert "camera 3" in source.skipped.reasons[0]
+    assert [f.sequence_id for f in frames] == [7, 8]
+    assert (source.skipped.count, source.skipped.partial, source.skipped.channels) == (1, 1, 1)
+    assert "frame 1: kept without a camera: camera 3 channel 0: no JPEG start marker" in source.skipped.reasons[0]
+    assert "frame 2" in source.skipped.reasons[1] and "4 of 6 cameras decode (5 needed)" in source.skipped.reasons[1]
     assert frames[0].host_time_s is None and frames[0].device_time_s == pytest.approx(100.25)
     assert frames[0].image.shape == (PANO[1], PANO[0], 3)
 

@@ -18,6 +18,7 @@ from ladybug5_helpers import BLUE, RED, documented_channel_jpegs, scaled_rig
 
 from drivers.ladybug5.errors import (
     CameraNotFoundError,
+    CorruptFrameError,
     HeadCalibrationError,
     InterfaceSpeedError,
     Ladybug5Error,
@@ -41,7 +42,7 @@ from drivers.ladybug5.sdk import (
     frame_pattern,
     sdk_status,
 )
-from drivers.ladybug5.sdk_head import head_from_pgr
+from drivers.ladybug5.sdk_head import LensSource, head_from_pgr
 from drivers.ladybug5.sdk_source import HeadPolicy, SdkFrameSource, SdkSensorSource
 from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
 
@@ -175,12 +176,12 @@ def test_error_codes_map_to_named_errors(fake):
 
 
 def test_unsupported_formats_are_named_not_corrupt(fake):
-    with pytest.raises(UnsupportedFormatError, match="COLOR_SEP_JPEG12 is not supported.*12-bit JPEG"):
-        SdkCamera(fake.library, data_format=DataFormat.COLOR_SEP_JPEG12)
+    with pytest.raises(UnsupportedFormatError, match="HALF_HEIGHT_RAW16 is not supported.*row layout is not public"):
+        SdkCamera(fake.library, data_format=DataFormat.HALF_HEIGHT_RAW16)
     layout = fake.library.layout
-    image = GrabbedImage(COLS, ROWS, COLS, ROWS, Border(), layout.formats["RAW12"], layout.stippled["RGGB"], 0.0,
-                         0.0, 7, b"\0" * 1000, 0.0)
-    with pytest.raises(UnsupportedFormatError, match="grabbed frame 7: data format RAW12 is not supported"):
+    image = GrabbedImage(COLS, ROWS, COLS, ROWS, Border(), layout.formats["HALF_HEIGHT_RAW12"],
+                         layout.stippled["RGGB"], 0.0, 0.0, 7, b"\0" * 1000, 0.0)
+    with pytest.raises(UnsupportedFormatError, match="grabbed frame 7: data format HALF_HEIGHT_RAW12 is not supported"):
         decode_grab(image, layout, BayerPattern.RGGB)
 
 
@@ -294,7 +295,7 @@ def test_the_rectified_images_are_configured_before_their_size_and_geometry(fake
     assert head.sensors[0].focal_px == pytest.approx(10.0)
 
 
-def test_a_refused_configuration_is_named_when_the_geometry_is_refused_too(fake, caplog):
+def test_a_refused_configuration_is_logged_and_the_geometry_read_anyway(fake, caplog):
     fake.set(configure_error=1)  # LADYBUG_FAILED, as perhaps on a rig without OpenGL
     with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera:
         # This SDK gives the geometry without the configuration: a warning, no error.
@@ -303,7 +304,35 @@ def test_a_refused_configuration_is_named_when_the_geometry_is_refused_too(fake,
         fake.set(size_needs_configure=1, rect_cols=0)  # an SDK that needs it, and no size set yet
         with pytest.raises(HeadCalibrationError, match=r"ladybugGetCameraUnitFocalLength failed with Ladybug error "
                            r"\d+ .*\(after ladybugConfigureOutputImages failed with Ladybug error 1"):
-            camera.read_head((COLS, ROWS), step_px=2)
+            camera.read_head((COLS, ROWS), step_px=2, lens=LensSource.RECTIFIED)
+
+
+def test_a_headless_rig_reads_the_lens_from_the_3d_map(fake, caplog):
+    """Every renderer call refused (no OpenGL context): the lens comes from ladybugGet3dMap, the same lens the
+    rectification gives, with the SDK's sphere size and mesh rotation as they were."""
+    fake.set_double(sphere=20.0, map_rx=0.002, map_ry=-0.001, map_rz=0.0)  # a factory levelling of the mesh
+    with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera:
+        rectified = camera.read_head((COLS, ROWS), step_px=1)
+        fake.set(headless=1)
+        head = camera.read_head((COLS, ROWS), step_px=1)
+    assert "INVALID_OPENGL_RENDERING_CONTEXT" in caplog.text or "ladybugSetOffScreenImageSize failed" in caplog.text
+    assert "lens from ladybugGet3dMap" in head.description and head.source is HeadSource.FACTORY
+    for cam, (a, b) in enumerate(zip(rectified.sensors, head.sensors, strict=True)):
+        k, d = fake.lens(cam)
+        np.testing.assert_allclose(b.lens.K, k, atol=2e-3)
+        np.testing.assert_allclose(b.lens.D, d, atol=2e-4)
+        assert b.lens.rms_px < 1e-3 and b.maps is None and np.isnan(b.focal_px)
+        assert b.extrinsics == a.extrinsics
+    values = [ctypes.c_double.in_dll(fake.handle, f"fake_{n}").value for n in ("sphere", "map_rx", "map_ry")]
+    assert values == [20.0, 0.002, -0.001]  # put back
+
+
+def test_a_headless_rig_without_a_3d_map_says_why_and_what_to_do(fake):
+    fake.set(headless=1, map_error=1)
+    with SdkCamera(fake.library, data_format=DataFormat.RAW8) as camera, pytest.raises(
+            HeadCalibrationError, match=r"the rectified geometry failed \(.*ladybugSetOffScreenImageSize failed .*"
+            r"ladybugGet3dMap failed with Ladybug error 1.*software renderer is not for Ladybug3 or newer.*xvfb-run"):
+        camera.read_head((COLS, ROWS), step_px=2)
 
 
 def craig_matrix(rx: float, ry: float, rz: float) -> np.ndarray:
@@ -395,3 +424,27 @@ def test_the_head_of_a_pgr_streams_embedded_configuration(fake, tmp_path):
     write_pgr(tmp_path / "none.pgr", [frame])
     with pytest.raises(HeadCalibrationError, match="holds no configuration"):
         head_from_pgr(fake.library, PgrStream(tmp_path / "none.pgr"))
+
+
+def test_a_live_frame_that_lost_a_camera_still_makes_a_panorama_but_no_head_frame(fake, tmp_path):
+    image = np.full((ROWS, COLS, 3), 128, np.uint8)
+    write_pgr(tmp_path / "one.pgr", [PgrFrameData(5, 0, 1, [bayer_planes(image)] * 6)])
+    stream = PgrStream(tmp_path / "one.pgr")
+    entry = stream.index[0]
+    block = bytearray(stream._buf[entry.offset : entry.offset + entry.size])
+    at = int.from_bytes(block[0x340 + 4 * 32 + 8 : 0x340 + 4 * 32 + 12], "big")  # camera 4, channel 1
+    block[at : at + 2] = b"\0\0"
+    (tmp_path / "block.bin").write_bytes(bytes(block))
+    assert fake.handle.fake_load_block(str(tmp_path / "block.bin").encode()) == 0
+    source = SdkFrameSource(SdkCamera(fake.library, data_format=DataFormat.COLOR_SEP_JPEG8),
+                            Stitcher(tiny_rig(), PanoramaSpec(64, 32, math.inf)), max_consecutive_failures=3)
+    frames = source.frames()
+    panoramas = [next(frames) for _ in range(3)]
+    frames.close()
+    assert len(panoramas) == 3 and (source.skipped.count, source.skipped.partial, source.skipped.channels) == (0, 3, 3)
+    assert "kept without a camera: camera 4 channel 1: no JPEG start marker" in source.skipped.reasons[0]
+    heads = SdkFrameSource(SdkCamera(fake.library, data_format=DataFormat.COLOR_SEP_JPEG8),
+                           Stitcher(tiny_rig(), PanoramaSpec(64, 32, math.inf)), max_consecutive_failures=3)
+    with pytest.raises(CorruptFrameError, match="5 of 6 cameras decode \\(6 needed\\): camera 4 channel 1"):
+        next(heads.frames_with_sensors())  # a head frame needs all six: three in a row end the stream
+    assert heads.skipped.count == 3

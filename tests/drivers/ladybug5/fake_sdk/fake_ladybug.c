@@ -15,7 +15,10 @@
  * ladybugRenderOffScreenImage places the six textures side by side (camera c in the c-th sixth of the columns,
  * nearest-neighbour resampled) in a BGR image of the panoramic off-screen size; fake_render_log records the
  * configuration, geometry and renderer calls in order (M method, C configure, S off-screen size, F focal length,
- * V convert, U update textures, R render).
+ * V convert, U update textures, R render, G 3D map).
+ * 3D map: each sampled raw pixel's ray (the same lens, from the camera centre) meets the sphere of the set radius
+ * around the head centre, rotated by the set mesh rotation; fake_headless refuses every renderer call (configure,
+ * off-screen size) as an SDK without an OpenGL context might, fake_map_error makes ladybugGet3dMap fail.
  */
 #include <math.h>
 #include <stdio.h>
@@ -49,6 +52,9 @@ int fake_color_method = -1, fake_configured = 0, fake_texture_format = -1;
 int fake_configure_error = 0;        /* returned by ladybugConfigureOutputImages when non-zero */
 int fake_render_error_at = -1;       /* this render call (0-based) returns LADYBUG_GPU_ERROR */
 int fake_renders = 0;
+int fake_headless = 0;               /* configure and off-screen size return LADYBUG_INVALID_OPENGL_RENDERING_CONTEXT */
+int fake_map_error = 0;              /* returned by ladybugGet3dMap when non-zero */
+double fake_sphere = 20.0, fake_map_rx = 0.0, fake_map_ry = 0.0, fake_map_rz = 0.0; /* the SDK's defaults */
 char fake_render_log[256] = "";
 
 struct fake_context {
@@ -293,6 +299,7 @@ LadybugError ladybugSetOffScreenImageSize(LadybugContext context, LadybugOutputI
 {
     (void)context;
     log_call('S');
+    if (fake_headless) return LADYBUG_INVALID_OPENGL_RENDERING_CONTEXT;
     int rectified = (fake_configured & LADYBUG_ALL_RECTIFIED_IMAGES) == LADYBUG_ALL_RECTIFIED_IMAGES;
     if ((type & LADYBUG_ALL_RECTIFIED_IMAGES) && (rectified || !fake_size_needs_configure)) {
         fake_rect_cols = (int)width;
@@ -387,6 +394,88 @@ LadybugError ladybugUnrectifyPixel(LadybugContext context, unsigned int cam, dou
     return LADYBUG_OK;
 }
 
+static void craig(const double e[3], double r[9])
+{
+    double cx = cos(e[0]), sx = sin(e[0]), cy = cos(e[1]), sy = sin(e[1]), cz = cos(e[2]), sz = sin(e[2]);
+    double m[9] = {cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx,
+                   sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx,
+                   -sy,     cy * sx,                cy * cx};
+    memcpy(r, m, sizeof m);
+}
+
+LadybugError ladybugSet3dMapSphereSize(LadybugContext context, double radius)
+{
+    (void)context;
+    fake_sphere = radius;
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugGet3dMapSphereSize(LadybugContext context, double *radius)
+{
+    (void)context;
+    *radius = fake_sphere;
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugSet3dMapRotation(LadybugContext context, double rx, double ry, double rz)
+{
+    (void)context;
+    fake_map_rx = rx, fake_map_ry = ry, fake_map_rz = rz;
+    return LADYBUG_OK;
+}
+
+LadybugError ladybugGet3dMapRotation(LadybugContext context, double *rx, double *ry, double *rz)
+{
+    (void)context;
+    *rx = fake_map_rx, *ry = fake_map_ry, *rz = fake_map_rz;
+    return LADYBUG_OK;
+}
+
+static LadybugImage3d map3d[6];
+
+/* the point on the sphere of the ray of raw pixel (col, row) of camera cam, mesh-rotated */
+static void sphere_point(unsigned int cam, double col, double row, LadybugPoint3d *out)
+{
+    double xd = (col - centre_x(cam)) / fake_focal, yd = (row - centre_y(cam)) / fake_focal, x = xd, y = yd;
+    for (int i = 0; i < 100; i++) {
+        double r = radial(x, y);
+        x = xd / r;
+        y = yd / r;
+    }
+    double e[6], r[9], mesh[9], rot[3] = {fake_map_rx, fake_map_ry, fake_map_rz}, d[3], p[3];
+    ladybugGetCameraUnitExtrinsics(NULL, cam, e);
+    craig(e, r);
+    craig(rot, mesh);
+    double n = sqrt(x * x + y * y + 1.0);
+    for (int k = 0; k < 3; k++) d[k] = (r[3 * k] * x + r[3 * k + 1] * y + r[3 * k + 2]) / n;
+    double td = e[3] * d[0] + e[4] * d[1] + e[5] * d[2], tt = e[3] * e[3] + e[4] * e[4] + e[5] * e[5];
+    double s = -td + sqrt(td * td - (tt - fake_sphere * fake_sphere));
+    for (int k = 0; k < 3; k++) p[k] = e[3 + k] + s * d[k];
+    out->fX = (float)(mesh[0] * p[0] + mesh[1] * p[1] + mesh[2] * p[2]);
+    out->fY = (float)(mesh[3] * p[0] + mesh[4] * p[1] + mesh[5] * p[2]);
+    out->fZ = (float)(mesh[6] * p[0] + mesh[7] * p[1] + mesh[8] * p[2]);
+}
+
+LadybugError ladybugGet3dMap(LadybugContext context, unsigned int cam, unsigned int grid_cols, unsigned int grid_rows,
+                             unsigned int src_cols, unsigned int src_rows, bool centre, const LadybugImage3d **image)
+{
+    (void)context;
+    log_call('G');
+    if (fake_map_error) return (LadybugError)fake_map_error;
+    if (cam >= 6 || !grid_cols || !grid_rows || grid_cols != src_cols || grid_rows != src_rows || !centre)
+        return LADYBUG_INVALID_ARGUMENT; /* the fake samples pixel centres of the source image only */
+    LadybugImage3d *m = &map3d[cam];
+    free(m->ppoints);
+    m->uiCols = grid_cols, m->uiRows = grid_rows;
+    m->ppoints = calloc((size_t)grid_cols * grid_rows, sizeof(LadybugPoint3d));
+    for (unsigned int i = 0; i < grid_rows; i++)
+        for (unsigned int j = 0; j < grid_cols; j++)
+            sphere_point(cam, (j + 0.5) * fake_cols / src_cols - 0.5, (i + 0.5) * fake_rows / src_rows - 0.5,
+                         &m->ppoints[i * grid_cols + j]);
+    *image = m;
+    return LADYBUG_OK;
+}
+
 /* -- renderer ------------------------------------------------------------------------------------------------ */
 
 LadybugError ladybugSetColorProcessingMethod(LadybugContext context, LadybugColorProcessingMethod method)
@@ -401,6 +490,7 @@ LadybugError ladybugConfigureOutputImages(LadybugContext context, unsigned int t
 {
     (void)context;
     log_call('C');
+    if (fake_headless) return LADYBUG_INVALID_OPENGL_RENDERING_CONTEXT;
     if (fake_configure_error) return (LadybugError)fake_configure_error;
     fake_configured = (int)types;
     return LADYBUG_OK;
