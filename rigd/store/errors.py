@@ -21,3 +21,8 @@ class DataDirLockedError(StoreError):
 
 class StoreUnavailableError(StoreError):
     """The database file is gone or was replaced under the running service: nothing can be read or stored."""
+
+
+class StorageError(StoreError):
+    """The data directory takes no write: its file system is full or read-only (the message names the path and
+    the free space). Nothing was stored; the same request succeeds once there is room again."""
