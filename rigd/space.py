@@ -45,3 +45,10 @@ def write_failure(path: Path, reason: str) -> str:
 
 def os_reason(exc: OSError) -> str:
     return exc.strerror or str(exc)
+
+
+def os_error_text(exc: OSError) -> str:
+    """``PATH: REASON``, with the free space when the file system refused a write."""
+    where = Path(exc.filename) if exc.filename else Path.cwd()
+    text = f"{where}: {os_reason(exc)}"
+    return f"{text}; {megabytes(free_bytes(where))} free on its file system" if is_storage_error(exc) else text

@@ -61,7 +61,7 @@ from rigd.capture.specs import CameraKind as SourceKind
 from rigd.capture.specs import LidarKind, parse_camera, parse_lidar
 from rigd.dataset import Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
 from rigd.dataset.lock import DatasetLock
-from rigd.dataset.store import read_yaml
+from rigd.dataset.store import pair_folders, read_yaml
 from rigd.errors import DatasetError
 from rigd.version import software_version
 
@@ -242,14 +242,7 @@ def _validate(request: CaptureRequest) -> None:
 
 def existing_pairs(out: Path) -> list[Path]:
     """Complete pairs of the dataset ``out`` in index order (a leftover ``.NNNN.tmp`` is not one)."""
-    pairs_dir = Path(out) / "pairs"
-    if not pairs_dir.is_dir():
-        return []
-    try:
-        entries = list(pairs_dir.iterdir())
-    except OSError as exc:
-        raise DatasetError(f"{pairs_dir}: cannot list the pairs ({exc.strerror})") from exc
-    return sorted((p for p in entries if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
+    return pair_folders(out)
 
 
 def _lock(out: Path) -> DatasetLock:

@@ -18,6 +18,7 @@ import rigd.cli
 from drivers.ladybug5.head import HeadSource
 from drivers.ladybug5.head_file import load_head
 from drivers.ladybug5.pgr import PgrFrameData, PgrWriteOptions, bayer_planes, write_pgr
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset.records import HeadConfig
 from rigd.ladybug_head import head_config
 
@@ -67,7 +68,7 @@ def test_info_without_libusb_still_reports_the_rest(monkeypatch, capsys):
 
 
 def test_reset_without_a_camera_is_a_clean_error(usb_devices, capsys):
-    assert rigd.cli.main(["camera", "info", "--reset"]) == 2
+    assert rigd.cli.main(["camera", "info", "--reset"]) == ERROR
     assert "rigd: error: reset needs exactly one matching camera, found 0" in capsys.readouterr().err
 
 
@@ -114,11 +115,11 @@ def test_export_head_from_a_stream_and_from_a_configuration_file(fake_sdk, tmp_p
     (tmp_path / "folding.cal").write_text("FAKECAL -0.9 0.0 10.0")
     code = export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal"), "--size", "16x12")
     assert code == 1 and "warning: the OpenCV lens model does not hold" in capsys.readouterr().out
-    assert export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal")) == 2
+    assert export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal")) == ERROR
     assert "does not say the sensor size: give it (--size" in capsys.readouterr().err
 
 
 def test_export_head_without_the_sdk_is_a_clear_error(tmp_path, capsys):
     code = rigd.cli.main(["camera", "export-head", "--out", str(tmp_path / "h.yaml"), "--layout",
                           str(tmp_path / "absent.yaml")])
-    assert code == 2 and "cannot read SDK layout file" in capsys.readouterr().err
+    assert code == ERROR and "cannot read SDK layout file" in capsys.readouterr().err
