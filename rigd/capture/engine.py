@@ -609,9 +609,10 @@ class _Capture:
             free = shutil.disk_usage(self.out).free
         except OSError as exc:
             raise DatasetError(f"{self.out}: cannot read the free space ({exc.strerror})") from exc
-        if free < 2 * needed:
-            raise DiskFullError(f"{self.out}: only {free / 1e6:.1f} MB free, a pair needs up to {needed / 1e6:.1f} "
-                                f"MB; free some space and rerun (the {self.done} pairs written are complete)")
+        if free < 2 * needed:  # twice: the pair's temporary folder, and room left for what comes after it
+            raise DiskFullError(f"{self.out}: {free / 1e6:.1f} MB free, a capture needs {2 * needed / 1e6:.1f} MB "
+                                f"(twice a pair's {needed / 1e6:.1f} MB); free some space and rerun (the "
+                                f"{self.done} pairs written are complete)")
 
     def _write(self, index: int, frame: CameraFrame, cloud: Cloud, meta: dict[str, Any]) -> Path:
         image, extras = pair_images(frame)

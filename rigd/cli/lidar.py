@@ -153,7 +153,7 @@ def _summary_lines(replay: PcapReplay, sweeps: list[Sweep]) -> list[str]:
             for fault in PacketFault
             if fault in stats.faults
         ),
-        *(f"  {note}" for note in stats.notes),
+        *(f"  {note}" for note in (*stats.notes, *([replay.summary.unread] if replay.summary.unread else []))),
         f"return mode:     {modes}",
         f"product id:      {products}",
         f"rpm:             {rpm:.1f}" if sweeps else "rpm:             n/a",

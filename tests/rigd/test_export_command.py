@@ -76,6 +76,9 @@ def test_errors_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     assert "none.yaml" in capsys.readouterr().err
     assert main(["export", "3", "--format", "urdf", "--data-dir", str(tmp_path)]) == ERROR
     assert "no rigd store" in capsys.readouterr().err
+    (tmp_path / "rigd.db").write_bytes(b"SQLite format 3\x00" + b"\x00" * 84)  # truncated after its header
+    assert main(["export", "3", "--format", "urdf", "--data-dir", str(tmp_path)]) == ERROR
+    assert "rigd.db: cannot open the database: the file is damaged" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(("fmt", "name"), [("urdf", "extrinsics-v7-urdf.urdf"),
