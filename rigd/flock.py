@@ -21,6 +21,19 @@ def _read_holder(fd: int) -> str:
         return ""
 
 
+def _lock(fd: int, operation: int) -> None:
+    """``flock(fd, operation)`` without waiting; LockHeldError naming the holder, ``fd`` closed on any failure."""
+    try:
+        fcntl.flock(fd, operation | fcntl.LOCK_NB)
+    except BlockingIOError:
+        text = _read_holder(fd)
+        os.close(fd)
+        raise LockHeldError(text) from None
+    except OSError:
+        os.close(fd)
+        raise
+
+
 def take_shared(path: Path) -> int | None:
     """A shared ``flock`` on ``path`` (created if it can be): many readers hold it at once, a writer's
     exclusive lock excludes them and they it. None when the file can neither be created nor opened (a dataset
@@ -33,15 +46,7 @@ def take_shared(path: Path) -> int | None:
             fd = os.open(path, os.O_RDONLY)
         except OSError:
             return None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-    except BlockingIOError:
-        text = _read_holder(fd)
-        os.close(fd)
-        raise LockHeldError(text) from None
-    except OSError:
-        os.close(fd)
-        raise
+    _lock(fd, fcntl.LOCK_SH)
     return fd
 
 
@@ -50,15 +55,7 @@ def take(path: Path, holder: str) -> int:
     names the live holder); returns the descriptor, not inherited by child processes: closing it releases.
     Raises :class:`LockHeldError` when another process has the lock, OSError when the file cannot be used."""
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        text = _read_holder(fd)
-        os.close(fd)
-        raise LockHeldError(text) from None
-    except OSError:
-        os.close(fd)
-        raise
+    _lock(fd, fcntl.LOCK_EX)
     try:
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{holder}\n".encode(), 0)

@@ -92,7 +92,7 @@ def _put_in_place(partial: Path, target: Path) -> None:
             old = target.with_name(f"{partial.name[:-len(PARTIAL)]}.replaced")
             target.rename(old)
         partial.rename(target)  # over an empty folder, or into a free name
-        _fsync(target.parent)
+        fsync_path(target.parent)
     except OSError as exc:
         if old is not None and not target.exists():
             with contextlib.suppress(OSError):
@@ -124,8 +124,9 @@ def write_output_file(target: Path, text: str, *, inputs: Sequence[Path] = (), o
         raise write_error(target, exc) from exc
 
 
-def _fsync(folder: Path) -> None:
-    fd = os.open(folder, os.O_RDONLY)
+def fsync_path(path: Path) -> None:
+    """Flush a file's or a folder's data and metadata to disk (a folder: the renames in it)."""
+    fd = os.open(path, os.O_RDONLY)
     try:
         os.fsync(fd)
     finally:

@@ -35,6 +35,7 @@ from rigd.dataset.records import (
 from rigd.dataset.reference import Reference, reference_from_yaml
 from rigd.dataset.working import halvings, working_camera, working_image, working_mask
 from rigd.errors import DatasetError
+from rigd.outdir import fsync_path
 
 IMAGE_NAMES = ("image.png", "image.jpg", "image.jpeg")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -299,12 +300,12 @@ def _write_pair(root: Path, index: int, image: NDArray[np.uint8] | Path | Mappin
         # Data on disk before the rename makes the pair visible, and the rename itself on disk after:
         # a power cut then leaves either no pair or a complete one (the rig runs on batteries).
         for name in (*images, "cloud.pcd"):
-            _fsync(tmp / name)
+            fsync_path(tmp / name)
         if (tmp / "images").is_dir():
-            _fsync(tmp / "images")
-        _fsync(tmp)
+            fsync_path(tmp / "images")
+        fsync_path(tmp)
         tmp.rename(final)
-        _fsync(pairs_dir)
+        fsync_path(pairs_dir)
     except BaseException as exc:
         with contextlib.suppress(OSError):  # ours (under the lock), and space a full disk needs back
             shutil.rmtree(tmp)
@@ -313,11 +314,3 @@ def _write_pair(root: Path, index: int, image: NDArray[np.uint8] | Path | Mappin
         raise
     return final
 
-
-def _fsync(path: Path) -> None:
-    """Flush a file's or a directory's data and metadata to disk."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
