@@ -135,14 +135,26 @@ class JobStore:
         """Job ``job_id``'s folder with an empty log, inside the transaction that creates its row."""
         folder = self.job_dir(job_id)
         try:
-            if folder.exists():  # no row has this id: a create that never committed left it
-                shutil.rmtree(folder)
+            if folder.exists():  # no row has this id: a create that never committed left it (an empty log)
+                self._clear_leftover(folder)
             folder.mkdir(parents=True)
             (folder / "job.log").touch()
         except OSError as exc:
             message = write_failure(folder, os_reason(exc)) + "; nothing was started"
             raise (StorageError(message) if is_storage_error(exc) else StoreError(message)) from exc
         faults.at("jobs.create:folder")
+
+    @staticmethod
+    def _clear_leftover(folder: Path) -> None:
+        """Remove the folder of a create that never committed; one holding more than an empty log (a restored
+        database's missing job) is kept aside as ``N.orphaned.STAMP`` rather than deleted."""
+        log = folder / "job.log"
+        if [p.name for p in folder.iterdir()] == ["job.log"] and log.stat().st_size == 0:
+            shutil.rmtree(folder)
+            return
+        aside = folder.with_name(f"{folder.name}.orphaned.{utc_now().replace(':', '')}")
+        folder.rename(aside)
+        LOG.warning("rigd: %s held files of a job the database does not have: moved to %s", folder, aside)
 
     def get(self, job_id: int) -> Job:
         with self.db.read() as conn:

@@ -109,6 +109,17 @@ def test_a_calibration_passes_the_boundaries_of_its_records(boundaries):
     assert "jobs.start:commit" in seen and "jobs.progress:commit" in seen
 
 
+def test_a_jobs_folder_the_database_does_not_know_is_kept_aside(tmp_path):
+    db, jobs, _ = open_store(tmp_path)
+    (tmp_path / "jobs" / "1" / "calibration").mkdir(parents=True)  # a restored database lost job 1's row
+    (tmp_path / "jobs" / "1" / "calibration" / "extrinsics.yaml").write_text("T_camera_lidar: {}\n")
+    job = jobs.create(JobKind.CHECK, {})
+    assert job.id == 1 and os.listdir(jobs.job_dir(1)) == ["job.log"]
+    aside = [p for p in (tmp_path / "jobs").iterdir() if p.name.startswith("1.orphaned.")]
+    assert len(aside) == 1 and (aside[0] / "calibration" / "extrinsics.yaml").is_file()
+    db.close()
+
+
 def test_a_kill_at_any_boundary_leaves_whole_records(boundaries, tmp_path):
     base, seen = boundaries
     for k, point in enumerate(dict.fromkeys(seen)):
@@ -123,8 +134,5 @@ def test_a_kill_at_any_boundary_leaves_whole_records(boundaries, tmp_path):
         if stored:
             assert versions.active().number == 2 and jobs.get(1).status is JobStatus.SUCCEEDED
         # A create that never committed leaves its folder: the next job of that id starts in an empty one.
-        orphan = jobs.job_dir(len(jobs.list()) + 1)
-        if orphan.is_dir():
-            (orphan / "job.log").write_text("a line of a job that never was\n")
         again = jobs.create(JobKind.CHECK, {})
         assert jobs.log_tail(again.id) == [] and os.listdir(jobs.job_dir(again.id)) == ["job.log"]
