@@ -126,7 +126,7 @@ def test_unreachable_or_malformed_address_is_a_clear_error(small_dataset, capsys
         port = s.getsockname()[1]
     address = f"tcp://127.0.0.1:{port}"
     assert main(["evaluate", "convergence", str(small_dataset), "--trials", "1", "--cluster", address,
-                 "--cluster-timeout", "1"]) == 2
+                 "--cluster-timeout", "1"]) == ERROR
     err = capsys.readouterr().err
     assert address in err and "no Dask scheduler" in err
     assert main(["evaluate", "precision", str(small_dataset), "--size", "1", "--cluster", "tcp://127.0.0.1"]) == ERROR

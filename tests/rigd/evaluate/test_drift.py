@@ -49,7 +49,7 @@ def test_drift_on_random_subsets(dataset, tmp_path):
 
 def test_drift_refuses_a_subset_larger_than_the_dataset(dataset, tmp_path, capsys):
     assert main(["evaluate", "drift", str(dataset), "--trials", "3", "--workers", "1", "--size", "4",
-                 "--out", str(tmp_path)]) == 2
+                 "--out", str(tmp_path)]) == ERROR
     assert "--size" in capsys.readouterr().err
 
 
