@@ -2,7 +2,17 @@
 
 
 class RigdError(Exception):
-    """Base of every error raised by :mod:`rigd`; the CLI turns it into exit code 2."""
+    """Base of every error raised by :mod:`rigd`; the CLI prints it and exits 65 (rigd.cli.exit_codes)."""
+
+
+class DiskError(RigdError):
+    """A write found its file system full, over quota or read-only; the message names the path and the free
+    space (the CLI exits 74, the service answers 507)."""
+
+
+class OutputError(RigdError):
+    """An output is refused before anything is written: it is one of the command's inputs, or it holds what
+    another run wrote and ``--overwrite`` was not given (the CLI exits 73)."""
 
 
 class DatasetError(RigdError):

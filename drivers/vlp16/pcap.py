@@ -14,7 +14,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from operator import itemgetter
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import dpkt
 import numpy as np
@@ -46,15 +46,35 @@ class Ports:
     position: int = POSITION_PORT
 
 
+class _ShortReads:
+    """A capture file that remembers the first read it could not fill, as (bytes asked, bytes got).
+
+    dpkt's pcap reader takes a record's length (``incl_len``) on trust: a corrupt one (0xFFFFFFF0) makes it read
+    the rest of the file as one frame, and every packet in it would be lost without a word."""
+
+    def __init__(self, fh: BinaryIO) -> None:
+        self.fh = fh
+        self.short: tuple[int, int] | None = None
+
+    def read(self, n: int = -1) -> bytes:
+        data = self.fh.read(n)
+        if 0 < n and len(data) < n and self.short is None and data:
+            self.short = (n, len(data))
+        return data
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.fh, name)
+
+
 @contextmanager
-def _open_reader(path: Path) -> Iterator[tuple[Iterable[tuple[float, bytes]], int]]:
-    """Yield (record iterator, link type); CaptureFileError if the file is not pcap/pcapng."""
+def _open_reader(path: Path) -> Iterator[tuple[Iterable[tuple[float, bytes]], int, _ShortReads]]:
+    """Yield (record iterator, link type, the file read); CaptureFileError if the file is not pcap/pcapng."""
     path = Path(path)
     try:
-        fh: BinaryIO = path.open("rb")
+        fh = _ShortReads(path.open("rb"))
     except OSError as exc:
         raise CaptureFileError(f"{path}: cannot open capture ({exc.strerror})") from exc
-    with fh:
+    with fh.fh:
         head = fh.read(4)
         magic_le = struct.unpack("<I", head)[0] if len(head) == 4 else None
         fh.seek(0)
@@ -75,7 +95,7 @@ def _open_reader(path: Path) -> Iterator[tuple[Iterable[tuple[float, bytes]], in
                 f"{path}: unsupported link type {linktype} (Ethernet, Linux cooked, "
                 "loopback and raw IP are supported)"
             )
-        yield reader, linktype
+        yield reader, linktype, fh
 
 
 def _u16(rows: NDArray[np.uint8], offset: int) -> NDArray[np.int64]:
@@ -229,6 +249,7 @@ class CaptureSummary:
 
     records: int = 0
     truncated_tail: bool = False
+    unread: str = ""  # what of the file was not read, when a record was cut short (the file's end, or its length)
 
 
 def read_batches(
@@ -241,13 +262,19 @@ def read_batches(
     """
     summary = summary if summary is not None else CaptureSummary()
     ports = ports or Ports()
-    with _open_reader(path) as (reader, linktype):
+    with _open_reader(path) as (reader, linktype, source):
         iterator = iter(reader)
         while True:
             frames: list[bytes] = []
             stamps: list[float] = []
             try:
                 for stamp, frame in iterator:
+                    if source.short is not None:  # the record claims more than the file holds: it is not one
+                        summary.truncated_tail = True
+                        asked, got = source.short
+                        summary.unread = (f"record {summary.records + len(frames)} claims {asked} bytes, the file "
+                                          f"holds {got} more: they were not read")
+                        break
                     stamps.append(float(stamp))
                     frames.append(frame)
                     if len(frames) == chunk_records:

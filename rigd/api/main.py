@@ -25,7 +25,7 @@ from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
 from rigd.calibration.request import MAX_NESTING
 from rigd.errors import DatasetError, RigdError
-from rigd.store import ConflictError, NotFoundError, StoreError, StoreUnavailableError
+from rigd.store import ConflictError, NotFoundError, StorageError, StoreError, StoreUnavailableError
 from rigd.store.jsonsafe import json_safe
 from rigd.web import install as install_page
 
@@ -34,6 +34,7 @@ ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
     (NotFoundError, HTTPStatus.NOT_FOUND),
     (ConflictError, HTTPStatus.CONFLICT),
     (StoreUnavailableError, HTTPStatus.SERVICE_UNAVAILABLE),
+    (StorageError, HTTPStatus.INSUFFICIENT_STORAGE),
     (StoreError, HTTPStatus.INTERNAL_SERVER_ERROR),
     (DatasetError, HTTPStatus.UNPROCESSABLE_ENTITY),
     (DriverError, HTTPStatus.SERVICE_UNAVAILABLE),

@@ -29,18 +29,22 @@ from calib.geometry import Transform
 from drivers.errors import DriverError
 from rigd.api.errors import QueueFullError
 from rigd.calibration.request import CalibrationRequest
+from rigd.dataset.lock import reading
 from rigd.dataset.records import transform_to_yaml
-from rigd.errors import RigdError
+from rigd.errors import DatasetLockedError, RigdError
 from rigd.report import CalibrationReport, StoredQuality, stored_quality, verdict_of
 from rigd.results import AutoActivation, CalibrateJobResult, CaptureJobResult, CheckReport
+from rigd.space import os_reason, write_failure
 from rigd.store import (
     Change,
     ConflictError,
+    ExtrinsicsVersion,
     Job,
     JobKind,
     JobStatus,
     JobStore,
     NewVersion,
+    StorageError,
     StoreError,
     VersionStore,
 )
@@ -260,14 +264,33 @@ class JobRunner:
             job = self.jobs.get(job_id)
             if job.status is not JobStatus.QUEUED or self._stopping:
                 return
-            job = self.jobs.start(job_id, "starting the worker")
+            try:
+                job = self._start(job_id)
+            except StorageError as exc:  # the disk filled while it waited: it cannot run, nor stay queued
+                self.jobs.finish(job_id, JobStatus.FAILED, "failed", error=f"not started: {exc}")
+                return
         try:
-            self._run_in_worker(job)
+            with reading(self.datasets.path(job.params["dataset"])):  # no capture into it meanwhile
+                self._run_in_worker(job)
+        except StorageError as exc:  # its end is kept until the database takes it (rigd.store.jobs)
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=str(exc))
         except StoreError:
             raise
+        except DatasetLockedError as exc:  # a capture from a shell writes the dataset
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"not started: {exc}")
+        except OSError as exc:  # its log or output folder: the file system is full or read-only
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed",
+                             error=write_failure(Path(exc.filename or self.jobs.job_dir(job.id)), os_reason(exc)))
         except Exception as exc:  # a bug must fail its job, not stop every later calibration or check
             self.jobs.log(job.id, traceback.format_exc())
             self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"internal error: {exc!r}")
+
+    def _start(self, job_id: int) -> Job:
+        """queued -> running, unless the data directory is short of space (StorageError)."""
+        problem = self.jobs.space_problem()
+        if problem is not None:
+            raise StorageError(problem)
+        return self.jobs.start(job_id, "starting the worker")
 
     def _payload(self, job: Job) -> dict[str, Any]:
         """The worker's job line: ``kind`` selects what it runs (absent: calibrate)."""
@@ -405,17 +428,21 @@ class JobRunner:
             dataset_hash=result["dataset_hash"],
             job_id=job.id,
         )
-        version = self.versions.add(new, policy)
+
+        def result_of(version: ExtrinsicsVersion) -> CalibrateJobResult:
+            change = version.change
+            return {"version": version.number, "status": version.status.value,
+                    "change": {"against": change.against, "rotation_deg": change.rotation_deg,
+                               "translation_cm": change.translation_cm} if change else None,
+                    "auto_activate": decision}
+
+        try:  # the version and the job's end in one transaction: a crash leaves both or neither
+            version = self.versions.add(new, policy, job_result=result_of)
+        except StorageError as exc:
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"its result could not be stored: {exc} "
+                             f"(its files are in {self.jobs.job_dir(job.id) / 'calibration'})")
+            return
         self.jobs.log(job.id, f"stored extrinsics version {version.number} ({version.status.value})")
-        change = version.change
-        done: CalibrateJobResult = {
-            "version": version.number,
-            "status": version.status.value,
-            "change": {"against": change.against, "rotation_deg": change.rotation_deg,
-                       "translation_cm": change.translation_cm} if change else None,
-            "auto_activate": decision,
-        }
-        self.jobs.finish(job.id, JobStatus.SUCCEEDED, "done", result=done)
 
     # -- captures -----------------------------------------------------------------------------------------------
     def capturing(self) -> set[str]:
@@ -429,11 +456,15 @@ class JobRunner:
         with self._lock:
             if self._stopping:
                 raise ConflictError("the service is stopping")
-            busy = self.jobs.unfinished(JobKind.CAPTURE)
-            if busy:
-                raise ConflictError(f"the sensors are in use by capture job {busy[0].id}")
-            job = self.jobs.create(JobKind.CAPTURE, {"dataset": dataset_id, **params})
-            job = self.jobs.start(job.id, "opening the sensors")
+            if self._captures:  # the runner's own, not the database's: a job it never ran holds no sensor
+                raise ConflictError(f"the sensors are in use by capture job {min(self._captures)}")
+            readers = [j for j in self.jobs.unfinished()
+                       if j.kind in WORKER_KINDS and j.params.get("dataset") == dataset_id]
+            if readers:
+                raise ConflictError(f"dataset {dataset_id} has a {readers[0].kind.value} job ({readers[0].id}, "
+                                    f"{readers[0].status.value}): capture into it when that has finished, or cancel it")
+            job = self.jobs.create(JobKind.CAPTURE, {"dataset": dataset_id, **params}, "opening the sensors",
+                                   running=True)
             stop = threading.Event()
             thread = threading.Thread(target=self._run_capture, args=(job, stop, work), name=f"rigd-capture-{job.id}",
                                       daemon=True)
@@ -458,6 +489,10 @@ class JobRunner:
         except (RigdError, DriverError) as exc:  # sensors, rig file, disk: the job fails with the reason
             self.jobs.log(job.id, f"failed: {exc}")
             self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=str(exc))
+        except OSError as exc:  # a write no layer named: the path and the OS's reason, as for the dataset's
+            error = write_failure(Path(exc.filename or self.datasets.root), os_reason(exc))
+            self.jobs.log(job.id, f"failed: {error}")
+            self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=error)
         except Exception as exc:  # a bug: fail the job with its traceback in the log, keep the service up
             self.jobs.log(job.id, traceback.format_exc())
             self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"internal error: {exc!r}")

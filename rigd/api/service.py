@@ -90,7 +90,7 @@ def build_service(settings: Settings) -> Service:
 
 def _open_service(settings: Settings, rig: RigSettings, lock: DataDirLock) -> Service:
     db = Database(settings.data_dir / "rigd.db")
-    jobs = JobStore(db, settings.data_dir / "jobs")
+    jobs = JobStore(db, settings.data_dir / "jobs", min_free_bytes=int(settings.min_free_mb * 1e6))
     jobs.fail_unfinished("interrupted: the service stopped while the job was queued or running")
     versions = VersionStore(db)
     datasets = DatasetCatalog(settings.data_dir / "datasets")

@@ -46,6 +46,8 @@ class Settings(BaseSettings):
                                  "open-file limit)")
     max_queued_jobs: int = Field(4, ge=1, le=1000, description="calibrations that may wait behind the running "
                                  "one; more get 429")
+    min_free_mb: float = Field(64.0, ge=0, le=1e9, description="MB the data directory's file system must have "
+                               "free for a capture, calibration or check to start (less: 507, nothing queued)")
     workers: int = Field(2, ge=1, le=64, description="processes a calibration job works in (its pairs' edges and "
                          "independent solves side by side; 1: the least memory and no process start-ups)")
     log_level: str = Field("info", description="uvicorn log level")

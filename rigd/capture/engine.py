@@ -61,7 +61,7 @@ from rigd.capture.specs import CameraKind as SourceKind
 from rigd.capture.specs import LidarKind, parse_camera, parse_lidar
 from rigd.dataset import Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
 from rigd.dataset.lock import DatasetLock
-from rigd.dataset.store import read_yaml
+from rigd.dataset.store import pair_folders, read_yaml
 from rigd.errors import DatasetError
 from rigd.version import software_version
 
@@ -242,14 +242,7 @@ def _validate(request: CaptureRequest) -> None:
 
 def existing_pairs(out: Path) -> list[Path]:
     """Complete pairs of the dataset ``out`` in index order (a leftover ``.NNNN.tmp`` is not one)."""
-    pairs_dir = Path(out) / "pairs"
-    if not pairs_dir.is_dir():
-        return []
-    try:
-        entries = list(pairs_dir.iterdir())
-    except OSError as exc:
-        raise DatasetError(f"{pairs_dir}: cannot list the pairs ({exc.strerror})") from exc
-    return sorted((p for p in entries if p.is_dir() and p.name.isdigit()), key=lambda p: int(p.name))
+    return pair_folders(out)
 
 
 def _lock(out: Path) -> DatasetLock:
@@ -616,9 +609,10 @@ class _Capture:
             free = shutil.disk_usage(self.out).free
         except OSError as exc:
             raise DatasetError(f"{self.out}: cannot read the free space ({exc.strerror})") from exc
-        if free < 2 * needed:
-            raise DiskFullError(f"{self.out}: only {free / 1e6:.1f} MB free, a pair needs up to {needed / 1e6:.1f} "
-                                f"MB; free some space and rerun (the {self.done} pairs written are complete)")
+        if free < 2 * needed:  # twice: the pair's temporary folder, and room left for what comes after it
+            raise DiskFullError(f"{self.out}: {free / 1e6:.1f} MB free, a capture needs {2 * needed / 1e6:.1f} MB "
+                                f"(twice a pair's {needed / 1e6:.1f} MB); free some space and rerun (the "
+                                f"{self.done} pairs written are complete)")
 
     def _write(self, index: int, frame: CameraFrame, cloud: Cloud, meta: dict[str, Any]) -> Path:
         image, extras = pair_images(frame)

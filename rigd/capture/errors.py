@@ -1,6 +1,6 @@
-"""Errors of the capture daemon; all are RigdError, so the CLI prints them and exits with code 2."""
+"""Errors of the capture daemon; all are RigdError, so the CLI prints them and exits with an error code."""
 
-from rigd.errors import RigdError
+from rigd.errors import DiskError, RigdError
 
 
 class CaptureError(RigdError):
@@ -29,7 +29,7 @@ class SourceEndedError(CaptureError):
     """A recorded source (pcap, replay directory) ran out before the dataset had all its pairs."""
 
 
-class DiskFullError(CaptureError):
+class DiskFullError(CaptureError, DiskError):
     """Not enough free space for the next pair; the pairs already written are complete."""
 
 

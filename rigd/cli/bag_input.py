@@ -117,6 +117,13 @@ def report_import(summary: ImportSummary, out: TextIO) -> None:
             print(f"{span}  not kept ({d.verdict.value}): {d.reason}", file=out)
     print(f"written: {summary.out} ({summary.pairs} pairs; frames camera {summary.camera_frame!r}, lidar "
           f"{summary.lidar_frame!r} in {summary.out / BAG_FILE})", file=out)
+    from rigd.importers.bag.importer import ros_frame
+
+    for role, frame, option in (("camera", summary.camera_frame, "--parent-frame"),
+                                ("lidar", summary.lidar_frame, "--child-frame")):
+        if frame and ros_frame(frame) is None:
+            print(f"  the {role} frame id {frame!r} is not a ROS name: not recorded (rigd export needs {option})",
+                  file=out)
 
 
 def _imported(bag: Path, out: Path, args: argparse.Namespace) -> Path:

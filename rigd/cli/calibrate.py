@@ -19,7 +19,9 @@ from rigd.calibration.request import PriorIn, ToleranceIn, TransformIn
 from rigd.cli.args import ExpertHelp, expert, numbers, parse_init, print_progress, validated
 from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Calibrate
+from rigd.dataset.lock import reading
 from rigd.dataset.working import WORKING_WIDTH_PX
+from rigd.outdir import claim_output_dir
 from rigd.report import (
     CalibrationReport,
     ElevationOffset,
@@ -68,6 +70,9 @@ def register(subparsers: Any) -> None:
                         "panorama or a head; about 1.5 times the time (docs/method.md item 18)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/calibration; for a "
                         "bag BAG_calibration beside it, or DIR/calibration with --keep-dataset DIR)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace what --out holds (default: refused unless it is empty or this command's own "
+                        "DATASET/calibration)")
     parser.add_argument("--json", action="store_true", help="print one JSON object with the result on stdout")
     parser.add_argument("--no-visuals", action="store_true", help="skip overlays and PLY clouds")
     add_bag_options(parser)
@@ -138,15 +143,19 @@ def _on_iter(level: int, iteration: int, cost: float) -> None:
 
 def run(args: argparse.Namespace) -> int:
     with dataset_input(args) as data:
+        target = args.out or data.default_out("calibration")
         request = request_of(args, data)
-        outcome = run_calibration(request, print_progress, _on_iter)
-        assert outcome.out_dir is not None
-        data.record_bag(outcome.out_dir)
+        # Written beside, then put in place whole: no overlays of an earlier run stay beside this one's; the default
+        # folder is this command's own, a folder named with --out is replaced only with --overwrite.
+        with reading(data.path), claim_output_dir(target, inputs=[data.path / "rig.yaml", data.path / "pairs"],
+                                                  overwrite=args.overwrite or args.out is None) as out_dir:
+            outcome = run_calibration(request.model_copy(update={"out_dir": out_dir}), print_progress, _on_iter)
+            data.record_bag(out_dir)
     report = outcome.report
     if args.json:
         print(json.dumps(report))
     else:
-        print_report(report, outcome.out_dir / "extrinsics.yaml")
+        print_report(report, target / "extrinsics.yaml")
     return Calibrate[Status(report["verdict"]["status"]).name]
 
 

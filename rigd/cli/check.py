@@ -14,6 +14,7 @@ from rigd.cli.args import parse_tolerance, print_progress
 from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
+from rigd.dataset.lock import reading
 from rigd.errors import RigdError
 from rigd.results import CheckReport
 from rigd.store.jsonsafe import json_safe
@@ -22,12 +23,12 @@ from rigd.store.jsonsafe import json_safe
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "check",
-        help="is an existing calibration still right for new pairs? (exit 0 ok, 1 drifted, 2 unknown or error)",
+        help="is an existing calibration still right for new pairs? (exit 0 ok, 1 drifted, 2 unknown)",
         description="Searches the finest levels of the calibration from the given extrinsics on the dataset's "
         "pairs and judges the rotation and the translation change by their length: ok (both within their "
         "thresholds at 95 % confidence), drifted (one moved beyond its threshold, and the change is real at 95 % "
-        "confidence) or unknown (the pairs cannot tell; at least 4 places are needed). Exit code 0, 1, 2 (2 is "
-        "also any error, with a message). See docs/check.md.",
+        "confidence) or unknown (the pairs cannot tell; at least 4 places are needed). Exit code 0, 1, 2; an error "
+        "exits 65 with a message (docs/reliability.md). See docs/check.md.",
     )
     parser.add_argument("dataset", type=Path, metavar="DATASET", help="a dataset folder, or a bag (below)")
     source = parser.add_mutually_exclusive_group()
@@ -68,7 +69,7 @@ def _options(text: str | None) -> DriftOptions:
 
 def run(args: argparse.Namespace) -> int:
     opts = _options(args.threshold)
-    with dataset_input(args) as dataset:
+    with dataset_input(args) as dataset, reading(dataset.path):  # no capture into it meanwhile
         outcome = run_check(dataset.path, _checked(args, dataset), opts, print_progress)
     rep = outcome.report
     if args.json:

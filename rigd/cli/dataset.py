@@ -30,7 +30,9 @@ def register(subparsers: Any) -> None:
         "pair's meta.yaml records what was kept. The clouds must carry rings (rigd import writes them). The grid "
         "cannot reach beyond the source's elevations: an HDL-64E covers +2 to -25 deg, a VLP-16 +-15 deg.")
     thin.add_argument("src", type=Path, metavar="DATASET", help="the dataset to thin")
-    thin.add_argument("out", type=Path, metavar="OUT", help="new (or empty) dataset folder")
+    thin.add_argument("out", type=Path, metavar="OUT", help="new (or empty) dataset folder, not inside DATASET; "
+                      "written beside it and renamed into place when complete")
+    thin.add_argument("--overwrite", action="store_true", help="replace OUT as a whole when it holds anything")
     thin.add_argument("--ring-spacing-deg", type=positive_float, default=2.0, metavar="DEG",
                       help="elevation between kept rings (default 2: a VLP-16)")
     thin.add_argument("--phase-deg", type=_finite, default=0.0, metavar="DEG",
@@ -47,7 +49,7 @@ def _thin(args: argparse.Namespace) -> int:
     options = ThinOptions(args.ring_spacing_deg, args.phase_deg, args.azimuth_step_deg)
     bar, progress = progress_bar("thin", "pair")
     with bar:
-        summary = thin_dataset(args.src, args.out, options, progress)
+        summary = thin_dataset(args.src, args.out, options, progress, overwrite=args.overwrite)
     rings = ", ".join(f"{e:+.2f}" for e in summary.choice.elevations_deg)
     print(f"written: {summary.out} ({summary.pairs} pairs; {len(summary.choice.source_rings)} rings kept at "
           f"{rings} deg; {summary.points_kept} of {summary.points_source} points, "

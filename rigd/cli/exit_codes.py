@@ -1,10 +1,13 @@
-"""Every exit code of ``rigd``, in this one table (the README's command table, docs/trust.md, docs/check.md and
-docs/doctor.md give the same numbers).
+"""Every exit code of ``rigd``, in this one table (docs/reliability.md#exit-codes gives the same numbers; the
+README's command table, docs/trust.md and docs/check.md link to it).
 
 ``rigd calibrate`` and ``rigd check`` exit with their verdict, a member of calib.assess.Status or
 calib.check.DriftStatus, looked up here by its name (``Calibrate[status.name]``): rigd.cli imports this module for
 every command, and importing those two calib modules costs about a second (numba, OpenCV, SciPy) that
 ``rigd lidar`` has no use for. tests/rigd/test_exit_codes.py holds the names against the enums.
+
+Errors exit with codes of their own, BSD's sysexits.h (64 and up), which no verdict uses: a script reading
+``rigd check``'s 1 (drifted) or 2 (unknown) can never be reading a crash or a refused file.
 """
 
 from __future__ import annotations
@@ -13,10 +16,14 @@ import signal
 from enum import IntEnum
 
 OK = 0
-ERROR = 2  # a RigdError, DriverError or CalibError ("rigd: error: ..."), and argparse's usage errors
 UNHEALTHY = 1  # rigd doctor: a check failed; rigd camera info: no Ladybug found, or a health warning;
 #               rigd camera export-head: written, but a sensor's lens fit is poor
 NOT_STARTED = 3  # rigd serve could not start, as uvicorn.run exits (e.g. the port is taken)
+USAGE = 64  # EX_USAGE: the command line is wrong (an unknown option, a value its type refuses), argparse's error
+ERROR = 65  # EX_DATAERR: a RigdError, DriverError or CalibError, "rigd: error: ..." naming the thing refused
+SOFTWARE = 70  # EX_SOFTWARE: an error rigd did not foresee (a bug): "rigd: internal error: ..." and its traceback
+CANT_CREATE = 73  # EX_CANTCREAT: an output refused: it is an input, or holds what another run wrote (--overwrite)
+IO_ERROR = 74  # EX_IOERR: a write failed: the file system is full or read-only (the path and its free space named)
 SIGNALLED = 128  # plus the signal's number: rigd capture stopped by SIGTERM exits 143
 INTERRUPTED = SIGNALLED + signal.SIGINT  # Ctrl-C: 130
 
@@ -31,7 +38,7 @@ class Calibrate(IntEnum):
 
 
 class Check(IntEnum):
-    """``rigd check`` by its answer, calib.check.DriftStatus (docs/check.md); an error also exits 2."""
+    """``rigd check`` by its answer, calib.check.DriftStatus (docs/check.md); an error exits with its own code."""
 
     OK = 0
     DRIFTED = 1

@@ -35,7 +35,10 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--dataset", type=Path, default=None, help="the dataset whose bag.yaml names the frames")
     parser.add_argument("--data-dir", type=Path, default=Path("rigd-data"),
                         help="the service's data directory for a version number (default rigd-data)")
-    parser.add_argument("--out", type=Path, default=None, metavar="FILE", help="write here (default: stdout)")
+    parser.add_argument("--out", type=Path, default=None, metavar="FILE",
+                        help="write here (default: stdout); never over the extrinsics read, nor over an existing "
+                        "file without --overwrite")
+    parser.add_argument("--overwrite", action="store_true", help="replace --out FILE if it exists")
     parser.set_defaults(func=run)
 
 
@@ -56,9 +59,17 @@ def _frames_of(dataset: Path | None) -> tuple[str, str] | None:
 
     if dataset is None or not (dataset / BAG_FILE).is_file():
         return None
+    from rigd.exports import ExportError, check_frames
+
     frames = read_yaml_mapping(dataset / BAG_FILE).get("frames") or {}
     camera, lidar = frames.get("camera"), frames.get("lidar")
-    return (str(camera), str(lidar)) if camera and lidar else None
+    if not (camera and lidar):
+        return None
+    try:
+        check_frames(camera_frame=str(camera), lidar_frame=str(lidar))
+    except ExportError as exc:
+        raise ExportError(f"{dataset / BAG_FILE}: {exc}: give --parent-frame and --child-frame") from exc
+    return str(camera), str(lidar)
 
 
 def _datasets(args: argparse.Namespace, file: Path | None) -> list[Path]:
@@ -77,9 +88,12 @@ def _datasets(args: argparse.Namespace, file: Path | None) -> list[Path]:
 
 def run(args: argparse.Namespace) -> int:
     from rigd.calibration.check import extrinsics_from_file, extrinsics_from_store
-    from rigd.exports import ExportFormat, render_transform
+    from rigd.exports import ExportFormat, check_frames, render_transform
+    from rigd.outdir import write_output_file
 
-    if args.source.isdigit():
+    check_frames(parent_frame=args.parent_frame or "camera", child_frame=args.child_frame or "velodyne")
+
+    if args.source.isascii() and args.source.isdigit():
         file, number = None, int(args.source)
         T, label = extrinsics_from_store(args.data_dir, number), f"extrinsics version {number}"
     else:
@@ -95,9 +109,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         sys.stdout.write(body)
         return 0
-    try:
-        args.out.write_text(body)
-    except OSError as exc:
-        raise RigdError(f"{args.out}: cannot write ({exc.strerror or exc})") from exc
+    read = file if file is not None else args.data_dir / "rigd.db"
+    write_output_file(args.out, body, inputs=[read], overwrite=args.overwrite)
     print(f"written: {args.out} ({args.format}, {camera} -> {lidar})", file=sys.stderr)
     return 0

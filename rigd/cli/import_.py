@@ -135,7 +135,7 @@ def _pairs(args: argparse.Namespace) -> int:
         read_reference(args.reference, parse_convention(args.reference_convention))
     source = PairsSource(args.images, args.clouds, (args.image_glob,) if args.image_glob else IMAGE_GLOBS,
                          args.cloud_glob, args.by_order)
-    options = PairsOptions(args.camera_info, args.lidar_model, parse_init(args.init) if args.init else None,
+    options = PairsOptions(args.camera_info, args.lidar_model, parse_init(args.init).transform if args.init else None,
                            reference, args.mask)
     bar, progress = progress_bar("import pairs", "pair")
     with bar:

@@ -90,7 +90,10 @@ def register(subparsers: Any) -> None:
         description="Write sweep_NNNN.pcd (x y z intensity ring, LiDAR frame) per sweep.",
     )
     _add_common(export)
-    export.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
+    export.add_argument("--out", type=Path, required=True, metavar="DIR",
+                        help="output directory: new or empty (written beside it, then renamed into place)")
+    export.add_argument("--overwrite", action="store_true",
+                        help="replace --out DIR as a whole when it holds anything (an earlier export's sweeps)")
     export.add_argument(
         "--complete-only", action="store_true", help="skip the partial first and last sweep of the capture"
     )
@@ -150,7 +153,7 @@ def _summary_lines(replay: PcapReplay, sweeps: list[Sweep]) -> list[str]:
             for fault in PacketFault
             if fault in stats.faults
         ),
-        *(f"  {note}" for note in stats.notes),
+        *(f"  {note}" for note in (*stats.notes, *([replay.summary.unread] if replay.summary.unread else []))),
         f"return mode:     {modes}",
         f"product id:      {products}",
         f"rpm:             {rpm:.1f}" if sweeps else "rpm:             n/a",
@@ -179,22 +182,21 @@ def sweep_cloud(sweep: Sweep) -> Cloud:
 
 
 def run_export(args: argparse.Namespace) -> int:
+    from rigd.outdir import claim_output_dir, write_error
+
     replay = _replay(args)
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RigdError(f"{args.out}: cannot create output directory ({exc.strerror})") from exc
     written = 0
-    for sweep in tqdm(replay, desc="sweeps", unit=" sweeps", disable=not sys.stderr.isatty()):
-        if args.complete_only and not sweep.complete:
-            continue
-        path = args.out / f"sweep_{sweep.index:04d}.pcd"
-        try:
-            write_pcd(path, sweep_cloud(sweep))
-        except OSError as exc:
-            raise RigdError(f"{path}: cannot write ({exc.strerror})") from exc
-        written += 1
-    if written == 0:
-        raise RigdError(f"{args.file}: no sweeps to export{_product_hint(replay.stats)}")
+    with claim_output_dir(args.out, inputs=[args.file], overwrite=args.overwrite) as folder:
+        for sweep in tqdm(replay, desc="sweeps", unit=" sweeps", disable=not sys.stderr.isatty()):
+            if args.complete_only and not sweep.complete:
+                continue
+            path = folder / f"sweep_{sweep.index:04d}.pcd"
+            try:
+                write_pcd(path, sweep_cloud(sweep))
+            except OSError as exc:
+                raise write_error(args.out / path.name, exc) from exc
+            written += 1
+        if written == 0:  # nothing is put in place
+            raise RigdError(f"{args.file}: no sweeps to export{_product_hint(replay.stats)}")
     print(f"wrote {written} sweeps to {args.out}")
     return 0

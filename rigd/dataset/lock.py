@@ -1,8 +1,11 @@
-"""One writer per dataset: an exclusive ``flock`` on ``DATASET/.rigd.lock`` while a process writes it.
+"""One writer or many readers per dataset: a ``flock`` on ``DATASET/.rigd.lock``, exclusive while a process
+writes the dataset, shared while one calibrates or checks it.
 
 Two captures into one folder would both take the next pair index from the folder and delete each other's
-``pairs/.NNNN.tmp`` as a leftover. A capture holds the lock for its whole run; :func:`writing` lets
-``write_pair`` run under the lock its caller holds, or take it for the one write. The kernel drops a
+``pairs/.NNNN.tmp`` as a leftover; a capture into a dataset being calibrated would change the pairs under the
+calibration, whose version would then claim data it was not made from. A capture holds the exclusive lock for
+its whole run; :func:`writing` lets ``write_pair`` run under the lock its caller holds, or take it for the one
+write; :func:`reading` holds the shared one for a calibration or a check. The kernel drops a
 ``flock`` when its process dies, however it dies, so a stale lock file never blocks a rerun; the file is
 never deleted (a process could be locking the inode being unlinked).
 """
@@ -16,7 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from rigd.errors import DatasetError, DatasetLockedError, LockHeldError
-from rigd.flock import take
+from rigd.flock import take, take_shared
 
 LOCK_FILE = ".rigd.lock"
 
@@ -30,6 +33,17 @@ def _describe_self() -> str:
     except OSError:  # not Linux: the pid alone
         return f"pid {os.getpid()}"
     return f"pid {os.getpid()}: {' '.join(a.decode('utf-8', 'replace') for a in argv if a)}"[:400]
+
+
+def _only_readers(path: Path) -> bool:
+    """Whether the holders of ``path``'s lock share it (calibrations, checks) rather than one writer having it."""
+    try:
+        fd = take_shared(path)
+    except (LockHeldError, OSError):
+        return False
+    if fd is not None:
+        os.close(fd)
+    return fd is not None
 
 
 class DatasetLock:
@@ -52,6 +66,10 @@ class DatasetLock:
         try:
             fd = take(path, _describe_self())
         except LockHeldError as held:
+            if _only_readers(path):
+                raise DatasetLockedError(
+                    f"dataset {root} is being calibrated or checked: write into it when that has finished, or "
+                    "into another folder") from held
             raise DatasetLockedError(
                 f"dataset {root} is being written by another process ({held.holder or 'pid unknown'}): wait for "
                 "it to finish, stop it, or write into another folder") from held
@@ -88,3 +106,24 @@ def writing(root: Path) -> Iterator[None]:
         return
     with DatasetLock.acquire(root):
         yield
+
+
+@contextmanager
+def reading(root: Path) -> Iterator[None]:
+    """Hold ``root``'s lock shared while the block reads the dataset (a calibration, a check): DatasetLockedError
+    at once while a process writes it, and a capture into it is refused until the block ends. A dataset whose
+    lock file cannot be made (read-only medium) is read without it: nothing can write it either."""
+    path = Path(root) / LOCK_FILE
+    try:
+        fd = take_shared(path) if Path(root).is_dir() else None
+    except LockHeldError as held:
+        raise DatasetLockedError(
+            f"dataset {root} is being written by another process ({held.holder or 'pid unknown'}): calibrate or "
+            "check it when that has finished") from held
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot lock the dataset for reading ({exc.strerror})") from exc
+    try:
+        yield
+    finally:
+        if fd is not None:
+            os.close(fd)

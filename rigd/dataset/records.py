@@ -87,10 +87,10 @@ class CameraConfig:
     def from_yaml(cls, data: Any, where: str) -> CameraConfig:
         try:
             kind = CameraKind(str(data["model"]))
-            width, height = int(data["width"]), int(data["height"])
+            width, height = _pixels(data["width"], "width", where), _pixels(data["height"], "height", where)
             k = np.asarray(data["K"], dtype=np.float64) if "K" in data else None
             d = np.asarray(data.get("D", []), dtype=np.float64) if k is not None else None
-            mask = None if data.get("mask") is None else str(data["mask"])
+            mask = None if data.get("mask") is None else _inside(str(data["mask"]), "mask", where)
             pp_sigma = None if data.get("principal_point_sigma_px") is None \
                 else float(data["principal_point_sigma_px"])
         except (KeyError, TypeError, ValueError) as exc:
@@ -208,8 +208,29 @@ def transform_to_yaml(transform: Transform) -> TransformYaml:
     }
 
 
+MAX_PIXELS = 65535  # a side of any image rigd reads (OpenCV's own limit on a whole image is 2^30 pixels)
+
+
+def _pixels(value: Any, name: str, where: str) -> int:
+    """A camera's width or height: a whole number of pixels (``true`` is no number, though Python reads it as 1)."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_PIXELS:
+        raise DatasetError(f"{where}: camera {name} must be a whole number of pixels, 1 .. {MAX_PIXELS}, got {value!r}")
+    return value
+
+
+def _inside(path: str, name: str, where: str) -> str:
+    """A file of the dataset named in rig.yaml: relative, and inside the dataset's folder."""
+    if path.startswith("/") or ".." in path.split("/"):
+        raise DatasetError(f"{where}: {name} {path!r} must be a file inside the dataset, named relative to it")
+    return path
+
+
 def transform_from_yaml(data: Any, where: str) -> Transform:
     """Read a transform given as ``matrix`` (4x4) or ``rpy_deg`` + ``xyz_m``."""
+    if not isinstance(data, dict) or not ("matrix" in data or {"rpy_deg", "xyz_m"} <= set(data)):
+        found = (f"it has {', '.join(map(str, data))}" if data else "it is empty") if isinstance(data, dict) \
+            else f"got {type(data).__name__}"
+        raise DatasetError(f"{where}: no transform: T_camera_lidar needs matrix (4x4) or rpy_deg and xyz_m ({found})")
     try:
         if "matrix" in data:
             return Transform.from_matrix(np.asarray(data["matrix"], dtype=np.float64))

@@ -35,6 +35,7 @@ from rigd.dataset.records import (
 from rigd.dataset.reference import Reference, reference_from_yaml
 from rigd.dataset.working import halvings, working_camera, working_image, working_mask
 from rigd.errors import DatasetError
+from rigd.outdir import fsync_path
 
 IMAGE_NAMES = ("image.png", "image.jpg", "image.jpeg")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -97,7 +98,13 @@ def write_yaml(path: Path, data: Any) -> None:
 def read_image(path: Path) -> NDArray[np.uint8]:
     if not path.is_file():
         raise DatasetError(f"{path}: image file is missing")
-    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    try:
+        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:  # e.g. a header claiming 60000x30000 px: OpenCV refuses to allocate it
+        reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV refused it"
+        raise DatasetError(f"{path}: not a readable PNG/JPEG image ({reason})") from exc
+    except MemoryError as exc:
+        raise DatasetError(f"{path}: the image is too large to load") from exc
     if image is None or image.size == 0:
         raise DatasetError(f"{path}: not a readable PNG/JPEG image")
     if image.dtype != np.uint8:
@@ -194,9 +201,7 @@ def open_dataset(root: Path, max_width: int | None = None) -> Dataset:
     if not root.is_dir():
         raise DatasetError(f"{root}: dataset directory does not exist")
     rig = RigConfig.from_yaml(read_yaml(root / "rig.yaml"), str(root / "rig.yaml"))
-    pairs_dir = root / "pairs"
-    entries = list(pairs_dir.iterdir()) if pairs_dir.is_dir() else []
-    dirs = sorted(p for p in entries if p.is_dir() and p.name.isdigit())  # .NNNN.tmp: unfinished pairs
+    dirs = pair_folders(root)
     gt_path = root / "ground_truth.yaml"
     gt = None
     if gt_path.is_file():
@@ -220,12 +225,40 @@ def write_ground_truth(root: Path, transform: Transform) -> None:
     write_yaml(Path(root) / "ground_truth.yaml", {"T_camera_lidar": transform_to_yaml(transform)})
 
 
-def next_pair_index(root: Path) -> int:
+def pair_number(name: str) -> int | None:
+    """The number of the pair folder ``name`` (``0007``), None for a name that is no pair's (``.0007.tmp``, an
+    unfinished pair; ``notes``); DatasetError for a number in another form (``7``, ``00007``, ``²``): two folders
+    could then hold one pair, and the pair numbers of versions and overlays would be ambiguous."""
+    if not name.isdigit():  # Unicode digits too: '²'.isdigit() is True
+        return None
+    number = int(name) if name.isascii() else None
+    if number is None or name != f"{number:04d}":
+        canonical = f" (pairs/{number:04d})" if number is not None else ""
+        raise DatasetError(f"pairs/{name}: a pair folder is named by its number in ASCII digits, at least 4 "
+                           f"(0007, 0123, 12345){canonical}: rename it")
+    return number
+
+
+def pair_folders(root: Path) -> list[Path]:
+    """The complete pairs' folders of dataset ``root``, by number (DatasetError for a wrongly named one)."""
     pairs_dir = Path(root) / "pairs"
-    if not pairs_dir.is_dir():
-        return 0
-    done = [int(p.name) for p in pairs_dir.iterdir() if p.is_dir() and p.name.isdigit()]
-    return max(done, default=-1) + 1
+    try:
+        entries = list(pairs_dir.iterdir()) if pairs_dir.is_dir() else []
+    except OSError as exc:
+        raise DatasetError(f"{pairs_dir}: cannot list the pairs ({exc.strerror})") from exc
+    numbered = []
+    for entry in entries:
+        try:
+            number = pair_number(entry.name)
+        except DatasetError as exc:
+            raise DatasetError(f"{root}/{exc}") from None
+        if number is not None and entry.is_dir():
+            numbered.append((number, entry))
+    return [entry for _, entry in sorted(numbered)]
+
+
+def next_pair_index(root: Path) -> int:
+    return max((int(p.name) for p in pair_folders(root)), default=-1) + 1
 
 
 def write_pair(root: Path, index: int, image: NDArray[np.uint8] | Path | Mapping[str, NDArray[np.uint8] | Path],
@@ -267,12 +300,12 @@ def _write_pair(root: Path, index: int, image: NDArray[np.uint8] | Path | Mappin
         # Data on disk before the rename makes the pair visible, and the rename itself on disk after:
         # a power cut then leaves either no pair or a complete one (the rig runs on batteries).
         for name in (*images, "cloud.pcd"):
-            _fsync(tmp / name)
+            fsync_path(tmp / name)
         if (tmp / "images").is_dir():
-            _fsync(tmp / "images")
-        _fsync(tmp)
+            fsync_path(tmp / "images")
+        fsync_path(tmp)
         tmp.rename(final)
-        _fsync(pairs_dir)
+        fsync_path(pairs_dir)
     except BaseException as exc:
         with contextlib.suppress(OSError):  # ours (under the lock), and space a full disk needs back
             shutil.rmtree(tmp)
@@ -281,11 +314,3 @@ def _write_pair(root: Path, index: int, image: NDArray[np.uint8] | Path | Mappin
         raise
     return final
 
-
-def _fsync(path: Path) -> None:
-    """Flush a file's or a directory's data and metadata to disk."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)

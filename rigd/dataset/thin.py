@@ -17,16 +17,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
 from rigd.dataset.pcd import Cloud, read_pcd
 from rigd.dataset.records import SINGLE_VIEW
-from rigd.dataset.store import open_dataset, read_yaml_mapping, write_pair
+from rigd.dataset.store import open_dataset, read_yaml_mapping, write_pair, write_yaml
 from rigd.errors import DatasetError
+from rigd.outdir import claim_output_dir, write_error
 
 COPIED = ("reference.yaml", "ground_truth.yaml", "masks")  # what the thinned dataset shares with its source
 MIN_RING_POINTS = 10  # a ring with fewer points in a pair gives that pair no elevation for it
+MIN_AZIMUTH_STEP_DEG = 1e-3  # a VLP-16 resolves 0.1 deg, an HDL-64E 0.08 deg; finer keeps every point
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,9 @@ class ThinOptions:
             raise DatasetError(f"the grid's phase must be a number of degrees, got {self.phase_deg}")
         if not (math.isfinite(self.azimuth_step_deg) and 0 <= self.azimuth_step_deg < 90):
             raise DatasetError(f"the azimuth step must be 0 to 90 degrees, got {self.azimuth_step_deg}")
+        if 0 < self.azimuth_step_deg < MIN_AZIMUTH_STEP_DEG:
+            raise DatasetError(f"the azimuth step {self.azimuth_step_deg:g} deg is finer than any LiDAR resolves "
+                               f"(at least {MIN_AZIMUTH_STEP_DEG:g} deg, or 0 to keep every point)")
 
 
 @dataclass(frozen=True)
@@ -94,7 +98,8 @@ def _azimuth_kept(azimuth_deg: NDArray[np.float64], step_deg: float) -> NDArray[
     order = np.argsort(azimuth_deg, kind="stable")
     ordered = azimuth_deg[order]
     kept = [0]
-    while (nxt := int(np.searchsorted(ordered, ordered[kept[-1]] + step_deg))) < len(ordered):
+    # The next index is always past the last one kept, even where ``+ step_deg`` is lost to rounding.
+    while (nxt := max(int(np.searchsorted(ordered, ordered[kept[-1]] + step_deg)), kept[-1] + 1)) < len(ordered):
         kept.append(nxt)
     while len(kept) > 1 and ordered[kept[-1]] > ordered[0] + 360.0 - step_deg:
         kept.pop()
@@ -147,49 +152,49 @@ def _dataset_elevations(source: Path, pair_dirs: tuple[Path, ...]) -> dict[int, 
 
 
 def _prepare_out(source: Path, out: Path, lidar_note: str) -> None:
-    """``out`` (new or empty) with the source's rig.yaml (its LiDAR model noted) and shared files."""
-    if out.resolve() == source.resolve():
-        raise DatasetError(f"{out}: the thinned dataset must go to another folder than its source")
-    if out.exists() and any(out.iterdir()):
-        raise DatasetError(f"{out}: folder is not empty; nothing written")
-    out.mkdir(parents=True, exist_ok=True)
+    """``out`` (a new folder) with the source's rig.yaml (its LiDAR model noted) and shared files."""
     rig = read_yaml_mapping(source / "rig.yaml")
     lidar: dict[str, Any] = rig["lidar"] if isinstance(rig.get("lidar"), dict) else {}
     rig["lidar"] = {**lidar, "model": f"{lidar.get('model', 'VLP-16')} ({lidar_note})"}
-    (out / "rig.yaml").write_text(yaml.safe_dump(rig, sort_keys=False))
-    for name in COPIED:
-        if (source / name).is_dir():
-            shutil.copytree(source / name, out / name)
-        elif (source / name).is_file():
-            shutil.copyfile(source / name, out / name)
+    write_yaml(out / "rig.yaml", rig)
+    try:
+        for name in COPIED:
+            if (source / name).is_dir():
+                shutil.copytree(source / name, out / name)
+            elif (source / name).is_file():
+                shutil.copyfile(source / name, out / name)
+    except OSError as exc:
+        raise write_error(out / name, exc) from exc
 
 
 def thin_dataset(source: Path, out: Path, options: ThinOptions,
-                 progress: Callable[[int, int], None] | None = None) -> ThinSummary:
+                 progress: Callable[[int, int], None] | None = None, *, overwrite: bool = False) -> ThinSummary:
     """Write ``out``: ``source`` with every pair's cloud thinned by ``options`` (images, masks, rig, reference and
     ground truth as they are); each pair's meta.yaml records what was kept under ``thinned``. ``progress(done,
-    total)`` after each pair."""
+    total)`` after each pair. ``out`` must be new or empty (``overwrite``: replaced as a whole), and neither the
+    source nor inside it; it appears complete or not at all (rigd.outdir)."""
     source, out = Path(source), Path(out)
     dataset = open_dataset(source)
     if not len(dataset):
         raise DatasetError(f"{source}: no pairs to thin")
     choice = choose_rings(_dataset_elevations(source, dataset.pair_dirs), options)
     note = f"{len(choice.source_rings)} rings {options.ring_spacing_deg:g} deg apart, thinned by rigd"
-    _prepare_out(source, out, note)
     record: dict[str, Any] = {"source": str(source), "ring_spacing_deg": options.ring_spacing_deg,
                               "phase_deg": options.phase_deg, "azimuth_step_deg": options.azimuth_step_deg,
                               "source_rings": list(choice.source_rings),
                               "elevations_deg": list(choice.elevations_deg), "grid_deg": list(choice.grid_deg)}
     kept = total = 0
-    for i, folder in enumerate(dataset.pair_dirs):
-        cloud = read_pcd(folder / "cloud.pcd")
-        thinned = thin_cloud(cloud, choice, options.azimuth_step_deg)
-        meta = read_yaml_mapping(folder / "meta.yaml") if (folder / "meta.yaml").is_file() else {}
-        meta["thinned"] = {**record, "points": len(thinned), "points_source": len(cloud)}
-        images = {view: dataset.image_path(i, view) for view in dataset.views}
-        single = dataset.views == (SINGLE_VIEW,)
-        write_pair(out, int(folder.name), images[SINGLE_VIEW] if single else images, thinned, meta)
-        kept, total = kept + len(thinned), total + len(cloud)
-        if progress is not None:
-            progress(i + 1, len(dataset))
+    with claim_output_dir(out, inputs=[source], overwrite=overwrite) as folder:
+        _prepare_out(source, folder, note)
+        for i, pair_dir in enumerate(dataset.pair_dirs):
+            cloud = read_pcd(pair_dir / "cloud.pcd")
+            thinned = thin_cloud(cloud, choice, options.azimuth_step_deg)
+            meta = read_yaml_mapping(pair_dir / "meta.yaml") if (pair_dir / "meta.yaml").is_file() else {}
+            meta["thinned"] = {**record, "points": len(thinned), "points_source": len(cloud)}
+            images = {view: dataset.image_path(i, view) for view in dataset.views}
+            single = dataset.views == (SINGLE_VIEW,)
+            write_pair(folder, int(pair_dir.name), images[SINGLE_VIEW] if single else images, thinned, meta)
+            kept, total = kept + len(thinned), total + len(cloud)
+            if progress is not None:
+                progress(i + 1, len(dataset))
     return ThinSummary(out, len(dataset), choice, kept, total)

@@ -8,6 +8,7 @@ from rigd.store.errors import (
     ConflictError,
     DataDirLockedError,
     NotFoundError,
+    StorageError,
     StoreError,
     StoreUnavailableError,
 )
@@ -38,6 +39,7 @@ __all__ = [
     "JobStore",
     "NewVersion",
     "NotFoundError",
+    "StorageError",
     "StoreError",
     "StoreUnavailableError",
     "VersionStatus",

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from rigd.dataset import Dataset, open_dataset
+from rigd.dataset.records import HeadConfig
 from rigd.dataset.store import read_yaml_mapping
 from rigd.errors import DatasetError
 from rigd.store.errors import NotFoundError
@@ -87,16 +88,25 @@ class DatasetCatalog:
         return infos
 
 
+def _files_of(dataset: Dataset) -> list[Path]:
+    """Every file a calibration of ``dataset`` reads: rig.yaml, the masks it names, and each complete pair's files
+    at any depth (a head's ``images/``), in a fixed order; hidden ones (``.rigd.lock``) left out."""
+    cameras = [s.camera for s in dataset.source_camera.sensors] if isinstance(dataset.source_camera, HeadConfig) \
+        else [dataset.source_camera]
+    files = [dataset.root / "rig.yaml", *(dataset.root / c.mask for c in cameras if c.mask is not None)]
+    for folder in dataset.pair_dirs:
+        inside = {p.relative_to(folder).as_posix(): p for p in folder.rglob("*") if p.is_file()}
+        files.extend(inside[name] for name in sorted(inside) if not any(n.startswith(".") for n in name.split("/")))
+    return files
+
+
 def content_hash(dataset: Dataset) -> str:
-    """sha256 over rig.yaml and every complete pair's files (names and bytes), in a fixed order.
+    """sha256 over every file a calibration of ``dataset`` reads (names and bytes, :func:`_files_of`).
 
     Two datasets with the same hash calibrate identically; unfinished ``.NNNN.tmp`` pairs are left out.
     """
-    files = [dataset.root / "rig.yaml"]
-    for folder in dataset.pair_dirs:
-        files.extend(sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")))
     digest = hashlib.sha256()
-    for path in files:
+    for path in _files_of(dataset):
         name = path.relative_to(dataset.root).as_posix().encode()
         digest.update(len(name).to_bytes(4, "little") + name)
         try:

@@ -14,7 +14,9 @@ from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 
-from rigd.store.errors import StoreError, StoreUnavailableError
+from rigd.space import free_bytes, megabytes
+from rigd.store import faults
+from rigd.store.errors import StorageError, StoreError, StoreUnavailableError
 
 _VERSION_COLUMNS = ("number", "created_at", "transform", "quality", "dataset_id", "dataset_hash", "method",
                     "parameters", "code_version", "supersedes", "change", "job_id")
@@ -83,12 +85,28 @@ class Database:
             raise StoreError(f"{self.path.parent}: cannot create the data directory ({exc.strerror})") from exc
         self._conn = self._connect(check_same_thread=False)
         self._identity = self._file_identity()
-        mode = self._conn.execute("PRAGMA journal_mode=WAL").fetchone()[0]
+        try:
+            mode = self._conn.execute("PRAGMA journal_mode=WAL").fetchone()[0]
+            # FULL: a committed version survives a power cut too (the rig runs on batteries); writes are rare.
+            self._conn.execute("PRAGMA synchronous=FULL")
+        except sqlite3.Error as exc:  # e.g. a truncated or overwritten rigd.db: "file is not a database"
+            self._conn.close()
+            raise self._error("cannot open the database", exc) from exc
         if mode.lower() != "wal":
             raise StoreError(f"{self.path}: the file system does not support SQLite's WAL mode (got {mode})")
-        # FULL: a committed version survives a power cut too (the rig runs on batteries); writes are rare.
-        self._conn.execute("PRAGMA synchronous=FULL")
         self._migrate()
+
+    def _error(self, what: str, exc: sqlite3.Error) -> StoreError:
+        """``exc`` as the store's error: StorageError when the file system is full or read-only (with the free
+        space), a damaged file named as such, else StoreError with SQLite's message."""
+        code = getattr(exc, "sqlite_errorcode", 0) & 0xFF  # the primary code of an extended one
+        if code in (sqlite3.SQLITE_FULL, sqlite3.SQLITE_READONLY, sqlite3.SQLITE_IOERR, sqlite3.SQLITE_CANTOPEN):
+            return StorageError(f"{self.path}: {what} ({exc}); {megabytes(free_bytes(self.path))} free on its file "
+                                "system: free some space (or make it writable); nothing was stored")
+        if code in (sqlite3.SQLITE_NOTADB, sqlite3.SQLITE_CORRUPT):
+            return StoreError(f"{self.path}: {what}: the file is damaged or not rigd's database ({exc}); restore it "
+                              "from a backup, or move it away to start an empty store")
+        return StoreError(f"{self.path}: {what} ({exc})")
 
     def _file_identity(self) -> tuple[int, int]:
         try:
@@ -123,7 +141,10 @@ class Database:
 
     def _migrate(self) -> None:
         with self._lock:
-            current = self._conn.execute("PRAGMA user_version").fetchone()[0]
+            try:
+                current = self._conn.execute("PRAGMA user_version").fetchone()[0]
+            except sqlite3.Error as exc:
+                raise self._error("cannot read the schema version", exc) from exc
             if current > len(MIGRATIONS):
                 raise StoreError(f"{self.path}: schema version {current} is newer than this rigd "
                                  f"({len(MIGRATIONS)}); upgrade rigd")
@@ -135,7 +156,7 @@ class Database:
                 except sqlite3.Error as exc:
                     if self._conn.in_transaction:
                         self._conn.execute("ROLLBACK")
-                    raise StoreError(f"{self.path}: migration to schema {number} failed ({exc})") from exc
+                    raise self._error(f"migration to schema {number} failed", exc) from exc
 
     @contextmanager
     def read(self) -> Iterator[sqlite3.Connection]:
@@ -147,26 +168,32 @@ class Database:
         try:
             yield conn
         except sqlite3.Error as exc:
-            raise StoreError(f"{self.path}: query failed ({exc})") from exc
+            raise self._error("query failed", exc) from exc
 
     @contextmanager
-    def write(self) -> Iterator[sqlite3.Connection]:
+    def write(self, label: str = "write") -> Iterator[sqlite3.Connection]:
         """One transaction: committed when the block ends, rolled back if it raises; StoreUnavailableError when
-        the database file is gone before or after it (so that no caller acknowledges a write that is lost)."""
+        the database file is gone before or after it (so that no caller acknowledges a write that is lost),
+        StorageError when the file system is full or read-only. ``label`` names the transaction's fault points
+        (``LABEL:commit`` just before the commit, ``LABEL:committed`` just after: rigd.store.faults)."""
         with self._lock:
             self.check()
             try:
                 self._conn.execute("BEGIN IMMEDIATE")
             except sqlite3.Error as exc:
-                raise StoreError(f"{self.path}: cannot start a transaction ({exc})") from exc
+                raise self._error("cannot start a transaction", exc) from exc
             try:
                 yield self._conn
+                faults.at(f"{label}:commit")
                 self._conn.execute("COMMIT")
             except BaseException as exc:
-                self._conn.execute("ROLLBACK")
+                # SQLite itself rolls back after some errors (a full disk): a second ROLLBACK would fail.
+                if self._conn.in_transaction:
+                    self._conn.execute("ROLLBACK")
                 if isinstance(exc, sqlite3.Error):
-                    raise StoreError(f"{self.path}: write failed ({exc})") from exc
+                    raise self._error("write failed", exc) from exc
                 raise
+            faults.at(f"{label}:committed")
             self.check()  # deleted while the transaction ran: it committed into a file nobody will read
 
     def close(self) -> None:

@@ -1,6 +1,6 @@
 """Errors of the store layer; the HTTP layer maps them to status codes (the store knows nothing of HTTP)."""
 
-from rigd.errors import RigdError
+from rigd.errors import DiskError, RigdError
 
 
 class StoreError(RigdError):
@@ -21,3 +21,8 @@ class DataDirLockedError(StoreError):
 
 class StoreUnavailableError(StoreError):
     """The database file is gone or was replaced under the running service: nothing can be read or stored."""
+
+
+class StorageError(StoreError, DiskError):
+    """The data directory takes no write: its file system is full or read-only (the message names the path and
+    the free space). Nothing was stored; the same request succeeds once there is room again."""

@@ -13,10 +13,12 @@ import numpy as np
 from calib.geometry import Transform, rotation_angle_deg
 from rigd.dataset.records import transform_to_yaml
 from rigd.report import verdict_of
+from rigd.results import JobResult
 from rigd.store.db import Database, utc_now
-from rigd.store.errors import NotFoundError
+from rigd.store.errors import ConflictError, NotFoundError, StoreError
+from rigd.store.jobs import JobEnd, finish_in
 from rigd.store.jsonsafe import json_safe
-from rigd.store.records import Change, ExtrinsicsVersion, NewVersion, VersionStatus
+from rigd.store.records import Change, ExtrinsicsVersion, JobStatus, NewVersion, VersionStatus
 
 # Decides, inside the storing transaction, whether a new version becomes active, from its change against
 # the active one (None when there is none; the first version is activated unless its verdict distrusts it).
@@ -61,11 +63,14 @@ class VersionStore:
     def __init__(self, db: Database) -> None:
         self.db = db
 
-    def add(self, new: NewVersion, activate: ActivationPolicy) -> ExtrinsicsVersion:
+    def add(self, new: NewVersion, activate: ActivationPolicy,
+            job_result: Callable[[ExtrinsicsVersion], JobResult] | None = None) -> ExtrinsicsVersion:
         """Store ``new`` as the next version; make it active if ``activate`` says so, or if none is active and
         ``new`` is not a calibration its own verdict distrusts (docs/trust.md: an untrusted result is never
-        activated without a person asking for it)."""
-        with self.db.write() as conn:
+        activated without a person asking for it). ``job_result``: the job ``new.job_id`` succeeds with this
+        result of the stored version in the same transaction, so a crash leaves both or neither (ConflictError,
+        and nothing stored, when that job has ended already)."""
+        with self.db.write("versions.add") as conn:
             active = self._active(conn)
             change = change_between(active, new.T_camera_lidar) if active else None
             cursor = conn.execute(
@@ -81,7 +86,13 @@ class VersionStore:
             trusted = verdict is None or verdict["status"] == "trusted"  # a manual version has no verdict
             if (active is None and trusted) or activate(change):
                 self._activate(conn, number)
-            return self._get(conn, number)
+            version = self._get(conn, number)
+            if job_result is not None:
+                if new.job_id is None:
+                    raise StoreError("a version without a job cannot end one")
+                if not finish_in(conn, new.job_id, JobEnd(JobStatus.SUCCEEDED, "done", job_result(version))):
+                    raise ConflictError(f"job {new.job_id} has ended already: its version is not stored")
+            return version
 
     def get(self, number: int) -> ExtrinsicsVersion:
         with self.db.read() as conn:
@@ -121,7 +132,7 @@ class VersionStore:
 
     def activate(self, number: int) -> ExtrinsicsVersion:
         """Make ``number`` the active version (the previous one becomes superseded); idempotent."""
-        with self.db.write() as conn:
+        with self.db.write("versions.activate") as conn:
             version = self._get(conn, number)
             if version.status is not VersionStatus.ACTIVE:
                 self._activate(conn, number)

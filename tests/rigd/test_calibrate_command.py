@@ -7,6 +7,7 @@ import pytest
 import yaml
 
 from rigd.cli import main
+from rigd.cli.exit_codes import CANT_CREATE, ERROR, USAGE
 from rigd.dataset import open_dataset, write_pair
 from rigd.dataset.pcd import Cloud
 from rigd.simulate import write_simulated_dataset
@@ -56,13 +57,13 @@ def test_featureless_scene_is_refused_with_exit_2(small_dataset, tmp_path, capsy
     pts = np.random.default_rng(0).normal(size=(500, 3)) + [5.0, 0.0, 0.0]
     write_pair(root, 0, np.full((256, 512), 128, np.uint8), Cloud(pts), {})
     # --workers 1 where the pool is not what is tested: it would only add two interpreters' imports (~2 s CPU)
-    assert main(["calibrate", str(root), "--init", "0,0,0,0,0,0", "--no-visuals", "--workers", "1"]) == 2
+    assert main(["calibrate", str(root), "--init", "0,0,0,0,0,0", "--no-visuals", "--workers", "1"]) == ERROR
     assert "featureless" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("init", ["1,2,3", "a,b,c,d,e,f", "nan,0,0,0,0,0"])
 def test_bad_initial_guess_text_is_refused(small_dataset, init, capsys):
-    assert main(["calibrate", str(small_dataset), "--init", init, "--no-visuals"]) == 2
+    assert main(["calibrate", str(small_dataset), "--init", init, "--no-visuals"]) == ERROR
     assert "--init" in capsys.readouterr().err
 
 
@@ -70,12 +71,12 @@ def test_initial_guess_that_sees_nothing_is_refused(small_dataset, tmp_path, cap
     # Translate the LiDAR 1 km away: no edge point can land near the camera's image.
     code = main(["calibrate", str(small_dataset), "--init", "0,0,0,1000,0,0", "--out", str(tmp_path), "--no-visuals",
                  "--workers", "1"])
-    assert code == 2
+    assert code == ERROR
     assert "initial guess" in capsys.readouterr().err
 
 
 def test_missing_dataset_names_the_path(tmp_path, capsys):
-    assert main(["calibrate", str(tmp_path / "nope")]) == 2
+    assert main(["calibrate", str(tmp_path / "nope")]) == ERROR
     assert "nope" in capsys.readouterr().err
 
 
@@ -105,7 +106,7 @@ def test_bad_prior_tolerance_workers_or_width_is_refused(small_dataset, args, wo
         code = main(["calibrate", str(small_dataset), "--init", "0,0,0,0,0,0", "--no-visuals", *args])
     except SystemExit as exc:  # argparse's own refusal (a bad --workers)
         code = exc.code
-    assert code == 2
+    assert code in (USAGE, ERROR)
     assert words in capsys.readouterr().err
 
 
@@ -115,7 +116,7 @@ def test_a_lever_arm_no_rig_has_is_refused_naming_its_unit(small_dataset, tmp_pa
     code = main(["calibrate", str(small_dataset), "--lever-arm-m", "9.34,6.24,-15.68", "--out", str(out),
                  "--no-visuals"])
     err = capsys.readouterr().err
-    assert code == 2 and "--lever-arm-m" in err
+    assert code == ERROR and "--lever-arm-m" in err
     assert "19.29 m from the camera, more than the 5 m any rig has: it is in metres" in err
     assert "[0.0934, 0.0624, -0.1568] m" in err and not out.exists()
 
@@ -148,5 +149,24 @@ def test_bad_search_range_in_rig_yaml_is_refused(small_dataset, tmp_path, capsys
     rig = yaml.safe_load((small_dataset / "rig.yaml").read_text())
     rig["search"] = {"tilt_deg": "steep"}
     (root / "rig.yaml").write_text(yaml.safe_dump(rig))
-    assert main(["calibrate", str(root), "--no-visuals"]) == 2
+    assert main(["calibrate", str(root), "--no-visuals"]) == ERROR
     assert "search" in capsys.readouterr().err
+
+
+def test_a_second_run_into_one_out_replaces_it_whole_only_when_told(small_dataset, tmp_path, capsys):
+    """A folder given with --out that holds another run's files is refused before any work (exit 73); with
+    --overwrite it is replaced as a whole: no overlay of the first run stays beside the second's."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "0007_after.png").write_bytes(b"an earlier run's overlay")
+    args = ["calibrate", str(small_dataset), "--init", "0,0,0,0,0,0", "--no-visuals", "--workers", "1", "--out",
+            str(out), "--sigmas-deg", "3.5"]
+    assert main(args) == CANT_CREATE and "--overwrite" in capsys.readouterr().err
+    assert (out / "0007_after.png").exists()
+    code = main([*args, "--overwrite", "--init", _truth_init(small_dataset)])
+    assert code in (0, 3, 4) and sorted(p.name for p in out.iterdir()) == ["extrinsics.yaml"]
+
+
+def _truth_init(dataset) -> str:
+    truth = open_dataset(dataset).ground_truth
+    return ",".join(map(str, [*truth.rpy_deg, *truth.translation_m]))

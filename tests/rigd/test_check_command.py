@@ -9,6 +9,7 @@ import yaml
 from calib.check import DriftOptions
 from calib.geometry import Transform
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import open_dataset
 from rigd.dataset.records import transform_to_yaml
 from rigd.simulate import write_simulated_dataset
@@ -76,10 +77,10 @@ def test_version_from_the_store_and_missing_sources(dataset, tmp_path, capsys):
     code = main(["check", str(dataset), "--version", "1", "--data-dir", str(tmp_path / "data"), "--json"])
     assert code in (0, 2) and json.loads(capsys.readouterr().out)["checked"]["xyz_m"] == pytest.approx(
         truth.translation_m.tolist())
-    assert main(["check", str(dataset), "--version", "9", "--data-dir", str(tmp_path / "data")]) == 2
+    assert main(["check", str(dataset), "--version", "9", "--data-dir", str(tmp_path / "data")]) == ERROR
     assert "9" in capsys.readouterr().err
-    assert main(["check", str(dataset), "--version", "1", "--data-dir", str(tmp_path / "nothing")]) == 2
+    assert main(["check", str(dataset), "--version", "1", "--data-dir", str(tmp_path / "nothing")]) == ERROR
     assert "no rigd store" in capsys.readouterr().err
-    assert main(["check", str(dataset)]) == 2  # simulated datasets carry no initial_guess
+    assert main(["check", str(dataset)]) == ERROR  # simulated datasets carry no initial_guess
     assert "--against" in capsys.readouterr().err
 

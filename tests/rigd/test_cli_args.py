@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from rigd.cli import build_parser, main
+from rigd.cli.exit_codes import ERROR, USAGE
 
 NEGATIVE_INIT = "-3.5,2,-2.5,0.1,0,0"
 FAR_AWAY = "-3.5,2,-2.5,1000,0,0"  # the LiDAR 1 km off: the calibration refuses it, after parsing it
@@ -16,7 +17,7 @@ def test_calibrate_accepts_an_initial_guess_with_a_negative_first_angle(form: st
     args = build_parser().parse_args(["calibrate", str(tmp_path), *init])
     assert args.init == FAR_AWAY
     # Through the whole command: the value gets to the calibration, which names the dataset as missing.
-    assert main(["calibrate", str(tmp_path / "absent"), *init]) == 2
+    assert main(["calibrate", str(tmp_path / "absent"), *init]) == ERROR
     err = capsys.readouterr().err
     assert "expected one argument" not in err and "absent" in err
 
@@ -66,7 +67,7 @@ def test_negative_values_reach_every_option_that_takes_numbers(argv, option, val
 def test_options_that_refuse_negatives_say_so_about_the_value(argv, option, capsys) -> None:
     with pytest.raises(SystemExit) as exit_info:
         build_parser().parse_args([*argv, option, "-2.5e-1"])
-    assert exit_info.value.code == 2
+    assert exit_info.value.code == USAGE
     err = capsys.readouterr().err
     assert f"argument {option}: " in err and "-2.5e-1" in err  # the type refused the value itself
     assert "expected one argument" not in err

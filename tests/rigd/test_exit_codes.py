@@ -1,8 +1,10 @@
-"""rigd.cli.exit_codes: every verdict of calib has its exit code, found by the member's name."""
+"""rigd.cli.exit_codes: every verdict of calib has its exit code, found by the member's name, and no error shares
+a verdict's code."""
 
 from calib.assess import Status
 from calib.check import DriftStatus
-from rigd.cli.exit_codes import ERROR, Calibrate, Check
+from rigd.cli import exit_codes
+from rigd.cli.exit_codes import Calibrate, Check
 
 
 def test_every_verdict_has_an_exit_code():
@@ -11,8 +13,11 @@ def test_every_verdict_has_an_exit_code():
 
 
 def test_the_documented_codes():
-    # The README's command table and docs/trust.md, docs/check.md.
+    # docs/reliability.md's table (the README, docs/trust.md and docs/check.md link to it).
     assert {s.value: int(Calibrate[s.name]) for s in Status} == {"trusted": 0, "weak": 3, "failed": 4,
                                                                  "not_assessed": 5}
     assert {s.value: int(Check[s.name]) for s in DriftStatus} == {"ok": 0, "drifted": 1, "unknown": 2}
-    assert ERROR == 2
+    errors = {exit_codes.USAGE, exit_codes.ERROR, exit_codes.SOFTWARE, exit_codes.CANT_CREATE, exit_codes.IO_ERROR}
+    assert errors == {64, 65, 70, 73, 74}
+    verdicts = {int(c) for c in (*Calibrate, *Check)} | {exit_codes.UNHEALTHY, exit_codes.NOT_STARTED}
+    assert not errors & verdicts

@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from calib.geometry import Transform
 from rigd.cli import main
+from rigd.cli.exit_codes import CANT_CREATE, ERROR
 from rigd.dataset.records import transform_to_yaml
 
 T = Transform.from_rpy_xyz(np.array([-0.18, 15.47, -55.14]), np.array([0.0934, 0.0597, -0.1659]))
@@ -71,10 +72,13 @@ def test_frames_default_without_a_bag(tmp_path: Path, capsys: pytest.CaptureFixt
 
 
 def test_errors_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["export", str(tmp_path / "none.yaml"), "--format", "urdf"]) == 2
+    assert main(["export", str(tmp_path / "none.yaml"), "--format", "urdf"]) == ERROR
     assert "none.yaml" in capsys.readouterr().err
-    assert main(["export", "3", "--format", "urdf", "--data-dir", str(tmp_path)]) == 2
+    assert main(["export", "3", "--format", "urdf", "--data-dir", str(tmp_path)]) == ERROR
     assert "no rigd store" in capsys.readouterr().err
+    (tmp_path / "rigd.db").write_bytes(b"SQLite format 3\x00" + b"\x00" * 84)  # truncated after its header
+    assert main(["export", "3", "--format", "urdf", "--data-dir", str(tmp_path)]) == ERROR
+    assert "rigd.db: cannot open the database: the file is damaged" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(("fmt", "name"), [("urdf", "extrinsics-v7-urdf.urdf"),
@@ -86,3 +90,51 @@ def test_service_download_names_end_as_their_format(fmt: str, name: str) -> None
     from rigd.exports import ExportFormat
 
     assert download_name(7, ExportFormat(fmt)) == name
+
+
+INJECTION = 'x"""\nimport os;os.system("id")\n"""'
+
+
+@pytest.mark.parametrize("frame", [INJECTION, "cam -->", "0cam", "/camera", "cam//optical", "a" * 129])
+def test_a_frame_that_is_no_ros_name_is_refused(calibration: Path, frame: str,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    for option in ("--parent-frame", "--child-frame"):
+        assert main(["export", str(calibration), "--format", "ros2-launch", option, frame]) == ERROR
+        err = capsys.readouterr().err
+        assert f"rigd: error: the {option[2:].replace('-', ' ')} {frame!r} " in err and "Traceback" not in err
+
+
+def test_a_bags_frame_that_is_no_ros_name_is_refused(calibration: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (calibration.parent.parent / "bag.yaml").write_text(yaml.safe_dump({"frames": {"camera": INJECTION,
+                                                                                   "lidar": "vlp16"}}))
+    assert main(["export", str(calibration), "--format", "urdf"]) == ERROR
+    assert "bag.yaml: the camera frame" in capsys.readouterr().err
+
+
+def test_a_label_cannot_leave_its_comment(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The label names the file read, whose path may hold anything: it stays inside its comment or string."""
+    folder = tmp_path / 'a"""\nimport os -->\n<evil>'
+    folder.mkdir()
+    path = folder / "extrinsics.yaml"
+    path.write_text(yaml.safe_dump({"T_camera_lidar": transform_to_yaml(T)}))
+    launch = ast.parse(_export(capsys, str(path), "--format", "ros2-launch"))
+    assert [type(n).__name__ for n in launch.body] == ["Expr", "ImportFrom", "ImportFrom", "FunctionDef"]
+    joint = ET.fromstring(_export(capsys, str(path), "--format", "urdf"))  # one element, no other
+    assert joint.tag == "joint" and [c.tag for c in joint] == ["parent", "child", "origin"]
+    for fmt in ("ros-tf", "kalibr"):
+        assert yaml.safe_load(_export(capsys, str(path), "--format", fmt))
+
+
+def test_the_record_read_is_never_overwritten(calibration: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    before = calibration.read_bytes()
+    for extra in ((), ("--overwrite",)):
+        code = main(["export", str(calibration), "--format", "kalibr", "--out", str(calibration), *extra])
+        assert code == CANT_CREATE
+        assert "it is the input" in capsys.readouterr().err and calibration.read_bytes() == before
+    other = calibration.parent / "kalibr.yaml"
+    other.write_text("someone's file")
+    assert main(["export", str(calibration), "--format", "kalibr", "--out", str(other)]) == CANT_CREATE
+    assert "--overwrite" in capsys.readouterr().err and other.read_text() == "someone's file"
+    assert main(["export", str(calibration), "--format", "kalibr", "--out", str(other), "--overwrite"]) == 0
+    assert "cam0" in yaml.safe_load(other.read_text())
+    assert sorted(p.name for p in calibration.parent.iterdir()) == ["extrinsics.yaml", "kalibr.yaml"]  # no .partial

@@ -12,6 +12,7 @@ import pytest
 import rigd.simulate
 from drivers.sim import PinholeSpec, SimConfig, simulate_pair
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR, USAGE
 from rigd.dataset import CameraKind, open_dataset
 
 REPO = Path(__file__).resolve().parents[2]
@@ -59,7 +60,7 @@ def test_simulate_refuses_a_non_empty_directory(tmp_path, capsys):
     out = tmp_path / "taken"
     out.mkdir()
     (out / "notes.txt").write_text("someone's data")
-    assert main(["simulate", str(out), "--pairs", "1", "--width", "64"]) == 2
+    assert main(["simulate", str(out), "--pairs", "1", "--width", "64"]) == ERROR
     err = capsys.readouterr().err
     assert "rigd: error:" in err and "refusing to overwrite" in err and str(out) in err
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
@@ -68,10 +69,10 @@ def test_simulate_refuses_a_non_empty_directory(tmp_path, capsys):
 def test_simulate_rejects_bad_arguments(tmp_path):
     with pytest.raises(SystemExit) as exc:
         main(["simulate", str(tmp_path / "a"), "--scene", "forest"])
-    assert exc.value.code == 2
+    assert exc.value.code == USAGE
     with pytest.raises(SystemExit) as exc:
         main(["simulate", str(tmp_path / "b"), "--pairs", "0"])
-    assert exc.value.code == 2
+    assert exc.value.code == USAGE
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
@@ -116,7 +117,7 @@ def test_simulate_trees_are_recorded_and_add_to_the_same_place(tmp_path):
 
 
 def test_simulate_trees_indoors_is_refused(tmp_path, capsys):
-    assert main(["simulate", str(tmp_path / "d"), "--scene", "indoor", "--trees", "--pairs", "1"]) == 2
+    assert main(["simulate", str(tmp_path / "d"), "--scene", "indoor", "--trees", "--pairs", "1"]) == ERROR
     assert "--trees needs --scene outdoor" in capsys.readouterr().err
 
 

@@ -14,6 +14,7 @@ from rigd.api.exports import ExportFormat, download_name, render
 from rigd.api.images import image_response
 from rigd.api.models import ChangeOut, ErrorOut, ManualVersionIn, TransformOut, VersionOut
 from rigd.api.service import Service
+from rigd.exports import MAX_NAME_LENGTH, ROS_NAME_PATTERN
 from rigd.report import uncertainty_of, verdict_of
 from rigd.store import ExtrinsicsVersion, NewVersion, NotFoundError
 
@@ -21,7 +22,8 @@ router = APIRouter(prefix="/extrinsics", tags=["extrinsics"])
 
 VersionNumber = Annotated[int, Path(ge=1, le=2**31 - 1)]
 Format = Annotated[ExportFormat | None, Query(description="export format; absent: the version record (JSON)")]
-FrameName = Annotated[str, Query(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_/]{0,63}$")]
+FrameName = Annotated[str, Query(pattern=ROS_NAME_PATTERN, max_length=MAX_NAME_LENGTH,
+                                  description="a frame id: a ROS name (rigd.exports.frame_problem)")]
 EXPORTS: dict[int | str, dict[str, Any]] = {
     200: {"content": {"application/yaml": {"schema": {"type": "string"}}},
           "description": "the version record, or its export in the requested format"},

@@ -6,4 +6,4 @@ from rigd.errors import RigdError
 class BagError(RigdError):
     """A bag that cannot be imported as asked: a missing or wrong topic (the message lists the bag's topics), an
     unknown image encoding or point layout, a truncated or corrupt file, topics that do not overlap in time, or
-    no still moment. The CLI prints it as ``rigd: error: ...`` and exits 2."""
+    no still moment. The CLI prints it as ``rigd: error: ...`` and exits 65."""

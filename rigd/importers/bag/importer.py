@@ -31,6 +31,7 @@ from rigd.dataset.pcd import Cloud
 from rigd.dataset.records import CameraConfig, CameraKind, RigConfig
 from rigd.dataset.store import read_yaml, write_pair, write_rig, write_yaml
 from rigd.errors import DatasetError
+from rigd.exports import frame_problem
 from rigd.importers.bag.clouds import velodyne_scan_vlp16
 from rigd.importers.bag.errors import BagError
 from rigd.importers.bag.images import decode_compressed, decode_image
@@ -344,13 +345,20 @@ def import_bag(bag_path: Path, out: Path, *, options: BagImportOptions,
         write_yaml(out / BAG_FILE, {
             "bag": str(bag.path),
             "topics": {role: {"name": t.name, "type": t.kind.value} for role, t in topics.items()},
-            "frames": {"camera": scan.camera_frame, "lidar": scan.lidar_frame},
+            "frames": {"camera": ros_frame(scan.camera_frame), "lidar": ros_frame(scan.lidar_frame)},
             "options": dataclasses.asdict(options.still),
             "motion_thresholds": dataclasses.asdict(options.motion),
             "moving": intervals_yaml(moving_intervals(samples=scan.motion, thresholds=options.motion)),
             "stretches": _decisions_yaml(decisions),
         })
     return summary
+
+
+def ros_frame(frame_id: str) -> str | None:
+    """A header's frame id as the exports may write it (a ROS 1 leading '/' dropped), None when it is no ROS name:
+    it reaches generated code and XML (rigd.exports), and a recording's headers are anyone's text."""
+    name = frame_id[1:] if frame_id.startswith("/") else frame_id
+    return name if frame_problem(name) is None else None
 
 
 def no_still_moment(path: Path, decisions: list[Decision], options: StillOptions) -> str:

@@ -24,6 +24,7 @@ from drivers.ladybug5.head_file import load_head, save_head
 from drivers.ladybug5.pgr import PgrFrameData, PgrWriteOptions, bayer_planes, write_pgr
 from drivers.ladybug5.rig import scaled_ladybug5_rig
 from drivers.ladybug5.stitch import PanoramaSpec, Stitcher
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset.records import HeadConfig
 from rigd.ladybug_head import head_config
 
@@ -73,7 +74,7 @@ def test_info_without_libusb_still_reports_the_rest(monkeypatch, capsys):
 
 
 def test_reset_without_a_camera_is_a_clean_error(usb_devices, capsys):
-    assert rigd.cli.main(["camera", "info", "--reset"]) == 2
+    assert rigd.cli.main(["camera", "info", "--reset"]) == ERROR
     assert "rigd: error: reset needs exactly one matching camera, found 0" in capsys.readouterr().err
 
 
@@ -120,14 +121,14 @@ def test_export_head_from_a_stream_and_from_a_configuration_file(fake_sdk, tmp_p
     (tmp_path / "folding.cal").write_text("FAKECAL -0.9 0.0 10.0")
     code = export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal"), "--size", "16x12")
     assert code == 1 and "warning: the OpenCV lens model does not hold" in capsys.readouterr().out
-    assert export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal")) == 2
+    assert export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal")) == ERROR
     assert "does not say the sensor size: give it (--size" in capsys.readouterr().err
 
 
 def test_export_head_without_the_sdk_is_a_clear_error(tmp_path, capsys):
     code = rigd.cli.main(["camera", "export-head", "--out", str(tmp_path / "h.yaml"), "--layout",
                           str(tmp_path / "absent.yaml")])
-    assert code == 2 and "cannot read SDK layout file" in capsys.readouterr().err
+    assert code == ERROR and "cannot read SDK layout file" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("map_error", [0, 1])
@@ -140,7 +141,7 @@ def test_export_head_on_a_headless_rig(fake_sdk, tmp_path, capsys, map_error):
     code = export(fake_sdk, tmp_path, "--size", "16x12")
     captured = capsys.readouterr()
     if map_error:
-        assert code == 2 and "rigd: error: cannot read the head calibration" in captured.err
+        assert code == ERROR and "rigd: error: cannot read the head calibration" in captured.err
         assert "xvfb-run rigd camera export-head" in captured.err and not (tmp_path / "head.yaml").exists()
         return
     assert code == 0 and "lens from ladybugGet3dMap" in captured.out
@@ -179,5 +180,5 @@ def test_check_panorama_stitches_a_pgr_frame_as_the_reference(tmp_path, capsys, 
                           "--head", str(tmp_path / "head.yaml")])
     assert code == 0 and "in rigd's convention" in capsys.readouterr().out
     assert rigd.cli.main(["camera", "check-panorama", str(tmp_path / "pano.png"), "--pgr", str(tmp_path / "s.pgr"),
-                          "--frame", "3", "--head", str(tmp_path / "head.yaml")]) == 2
+                          "--frame", "3", "--head", str(tmp_path / "head.yaml")]) == ERROR
     assert "no frame 3 (it holds 1)" in capsys.readouterr().err

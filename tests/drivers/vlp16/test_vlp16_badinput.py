@@ -59,6 +59,22 @@ def test_truncated_last_record_is_reported_and_the_rest_decodes(tmp_path: Path) 
         assert np.array_equal(points, full[: len(points)]) and 0 < len(full) - len(points) <= 384
 
 
+def test_a_record_claiming_more_than_the_file_holds_is_reported(tmp_path: Path) -> None:
+    """incl_len 0xFFFFFFF0 in the second record: dpkt would read the rest of the file as one frame, and the 83
+    packets in it were lost while the summary said "bad packets: 0"."""
+    data = bytearray(SMALL_PCAP.read_bytes())
+    second = 24 + 16 + struct.unpack_from("<I", data, 24 + 8)[0]  # the file header, the first record
+    struct.pack_into("<I", data, second + 8, 0xFFFFFFF0)
+    path = tmp_path / "corrupt.pcap"
+    path.write_bytes(bytes(data))
+    replay = PcapReplay(path)
+    list(replay)
+    assert replay.stats.faults == {PacketFault.TRUNCATED: 1} and replay.stats.first_fault[PacketFault.TRUNCATED] == 1
+    assert replay.stats.data_packets == 1
+    assert re.fullmatch(r"record 1 claims 4294967280 bytes, the file holds \d+ more: they were not read",
+                        replay.summary.unread)
+
+
 @pytest.mark.parametrize(
     "content",
     [b"", b"hello, not a capture at all\n", b"\xd4\xc3\xb2\xa1\x02"],

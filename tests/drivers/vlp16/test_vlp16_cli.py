@@ -10,6 +10,7 @@ from vlp16_helpers import ELEVATION_DEG, LEGACY_PCAP, MANUAL_OFFSET_M, SMALL_PCA
 
 import rigd.cli
 from drivers.vlp16 import PcapReplay, Vlp16Config
+from rigd.cli.exit_codes import CANT_CREATE, ERROR
 from rigd.dataset import read_pcd
 
 LASER_OF_RING = np.argsort(ELEVATION_DEG)  # ring 0 is the lowest laser
@@ -119,23 +120,38 @@ def test_export_complete_only_and_legacy_without_flag(
     assert code == 0 and "wrote 50 sweeps" in out
     assert len(list((tmp_path / "legacy").glob("*.pcd"))) == 50
     code, _, err = run(capsys, "lidar", "export", str(LEGACY_PCAP), "--out", str(tmp_path / "none"))
-    assert code == 2 and "no sweeps to export" in err and "--any-product" in err
+    assert code == ERROR and "no sweeps to export" in err and "--any-product" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["legacy"]  # nothing of the failed export is left
 
 
-def test_non_pcap_file_is_a_clear_error_with_exit_code_2(
+def test_a_second_export_never_mixes_with_the_first(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    assert run(capsys, "lidar", "export", str(SMALL_PCAP), "--out", str(out))[0] == 0
+    first = sorted(p.name for p in out.iterdir())
+    code, _, err = run(capsys, "lidar", "export", "--any-product", str(LEGACY_PCAP), "--out", str(out))
+    assert code == CANT_CREATE and "--overwrite" in err and sorted(p.name for p in out.iterdir()) == first
+    code, _, _ = run(capsys, "lidar", "export", "--any-product", "--complete-only", str(LEGACY_PCAP), "--out",
+                     str(out), "--overwrite")
+    assert code == 0 and len(list(out.iterdir())) == 50  # replaced as a whole: no sweep of the first is left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    code, _, err = run(capsys, "lidar", "export", str(SMALL_PCAP), "--out", str(SMALL_PCAP.parent), "--overwrite")
+    assert code == CANT_CREATE and "is inside it" in err  # replacing it would delete the capture read
+
+
+def test_non_pcap_file_is_a_clear_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     text = tmp_path / "notes.txt"
     text.write_text("not a capture\n")
     for action in (["info"], ["export", "--out", str(tmp_path / "x")]):
         code, out, err = run(capsys, "lidar", *action, str(text))
-        assert code == 2
+        assert code == ERROR
         assert err.startswith("rigd: error: ") and "notes.txt: not a pcap or pcapng file" in err
         assert "Traceback" not in err
     code, _, err = run(capsys, "lidar", "info", "--calibration", str(text), str(SMALL_PCAP))
-    assert code == 2 and "notes.txt" in err
+    assert code == ERROR and "notes.txt" in err
 
 
 def test_bad_cut_azimuth_is_a_clear_error(capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run(capsys, "lidar", "info", "--cut-azimuth", "nan", str(SMALL_PCAP))
-    assert code == 2 and "cut azimuth must be a finite angle" in err
+    assert code == ERROR and "cut azimuth must be a finite angle" in err

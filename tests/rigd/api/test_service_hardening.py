@@ -32,6 +32,7 @@ from hypothesis import strategies as st
 from rigd.api.main import json_nesting
 from rigd.api.models import CalibrateIn
 from rigd.calibration.request import MAX_NESTING, PriorIn, ToleranceIn, body_problem
+from rigd.cli.exit_codes import ERROR
 
 JSON = {"Content-Type": "application/json"}
 IDENTITY = {"rpy_deg": [0, 0, 0], "xyz_m": [0, 0, 0]}
@@ -254,7 +255,7 @@ def test_a_second_service_on_the_same_data_dir_exits(server):
         job = client.post("/calibrate", json={"dataset": "ds", "init": guess}).json()
         second = subprocess.run([sys.executable, "-m", "rigd", "serve", "--port", str(free_port())],
                                 env=server.env, cwd=REPO, capture_output=True, text=True, timeout=30)
-        assert second.returncode == 2, second.stderr
+        assert second.returncode == ERROR, second.stderr
         assert f"rigd: error: data directory {data} is in use by another rigd serve (pid {server.proc.pid})" in (
             second.stderr)
         assert "Traceback" not in second.stderr

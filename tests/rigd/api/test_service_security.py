@@ -10,6 +10,7 @@ import pytest
 from api_helpers import REPO, Server, free_port, simulated_dataset
 
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 
 TOKEN = "correct-horse-battery-staple"
 
@@ -50,16 +51,16 @@ def serve_here(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[st
 # cases run the same code (rigd.cli.main -> rigd.cli.serve.run) in this process.
 def test_refuses_a_public_address_without_a_token(tmp_path):
     code, stderr = serve("--host", "0.0.0.0", "--data-dir", str(tmp_path))
-    assert code == 2
+    assert code == ERROR
     assert "rigd: error: refusing to listen on 0.0.0.0 without an API token" in stderr
     assert "Traceback" not in stderr
 
 
 def test_refuses_a_short_token_and_bad_settings(tmp_path, serve_here):
     code, stderr = serve_here("--data-dir", str(tmp_path), env={"RIGD_TOKEN": "short"})
-    assert code == 2 and "at least 16 characters" in stderr
+    assert code == ERROR and "at least 16 characters" in stderr
     code, stderr = serve_here("--data-dir", str(tmp_path), env={"RIGD_AUTO_ACTIVATE_MIN_PAIRS": "zero"})
-    assert code == 2 and "auto_activate_min_pairs" in stderr
+    assert code == ERROR and "auto_activate_min_pairs" in stderr
 
 
 @pytest.mark.parametrize("token", ["", " ", " " * 20, "\t\n"])
@@ -67,7 +68,7 @@ def test_refuses_an_empty_token(tmp_path, token, serve_here):
     # An empty RIGD_TOKEN= (a placeholder left in rigd.env) must not mean "no token": refuse to start.
     run = serve if token == "" else serve_here
     code, stderr = run("--data-dir", str(tmp_path), env={"RIGD_TOKEN": token})
-    assert code == 2, stderr
+    assert code == ERROR, stderr
     assert "rigd: error: the API token (RIGD_TOKEN) is empty" in stderr
     assert "Traceback" not in stderr
 
@@ -76,7 +77,7 @@ def test_refuses_an_empty_token_in_the_rig_file(tmp_path, serve_here):
     rig = tmp_path / "rig.yaml"
     rig.write_text("service:\n  token:\n")
     code, stderr = serve_here("--data-dir", str(tmp_path / "data"), "--config", str(rig))
-    assert code == 2, stderr
+    assert code == ERROR, stderr
     assert "the API token (RIGD_TOKEN) is empty" in stderr
 
 
@@ -88,7 +89,7 @@ def test_refuses_an_empty_token_in_the_rig_file(tmp_path, serve_here):
 ])
 def test_refuses_a_token_a_client_cannot_send(tmp_path, token, problem, serve_here):
     code, stderr = serve_here("--data-dir", str(tmp_path), env={"RIGD_TOKEN": token})
-    assert code == 2, stderr
+    assert code == ERROR, stderr
     assert "the API token (RIGD_TOKEN)" in stderr and problem in stderr
 
 

@@ -13,7 +13,7 @@ from calib.geometry import Transform
 from calib.methods import Method
 from rigd.calibration.request import CalibrationRequest, Decision, Options, PriorIn, Start, TransformIn, resolve
 from rigd.cli import main
-from rigd.cli.exit_codes import Calibrate
+from rigd.cli.exit_codes import ERROR, Calibrate
 from rigd.dataset import Dataset, open_dataset
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
 from rigd.evaluate.trials import EvaluationSettings, open_for
@@ -99,6 +99,6 @@ def test_calibrate_without_a_method_reports_the_one_it_chose(pinhole, tmp_path, 
 
 def test_an_elevation_fit_on_one_pinhole_camera_is_refused_by_name(pinhole, tmp_path, capsys):
     code = main(["calibrate", str(pinhole), "--fit-elevation-offset", "--no-visuals", "--out", str(tmp_path / "o")])
-    assert code == 2
+    assert code == ERROR
     assert "one pinhole camera cannot tell it from a tilt: declare it in rig.yaml" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()  # refused before any work

@@ -16,6 +16,7 @@ from rigd.capture.engine import settings_for
 from rigd.capture.specs import CameraKind, LidarKind, parse_camera, parse_lidar
 from rigd.cli import build_parser, main
 from rigd.cli.capture import StatusPrinter, request_from_args
+from rigd.cli.exit_codes import ERROR
 
 DEPLOY_RIG = REPO / "deploy" / "config" / "rig.yaml"
 PANORAMA = {"model": "equirectangular", "width": 64, "height": 32}
@@ -121,11 +122,11 @@ def test_cli_errors_are_one_line_and_exit_2(tmp_path: Path, capsys: pytest.Captu
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("RIGD_CONFIG", raising=False)
     monkeypatch.setattr(capture_config, "SEARCH_PATHS", ())
-    assert main(["capture", "--n", "2"]) == 2
+    assert main(["capture", "--n", "2"]) == ERROR
     assert "rigd: error: give the dataset directory with --out" in capsys.readouterr().err
-    assert main(["capture", "--out", str(tmp_path / "ds"), "--lidar", "sim", "--camera", "sdk"]) == 2
+    assert main(["capture", "--out", str(tmp_path / "ds"), "--lidar", "sim", "--camera", "sdk"]) == ERROR
     assert "use --camera sim" in capsys.readouterr().err
-    assert main(["capture", "--out", str(tmp_path / "ds"), "--lidar", "udp:127.0.0.1:9", "--camera", "sim"]) == 2
+    assert main(["capture", "--out", str(tmp_path / "ds"), "--lidar", "udp:127.0.0.1:9", "--camera", "sim"]) == ERROR
     assert "--camera sim:FILE" in capsys.readouterr().err
 
 

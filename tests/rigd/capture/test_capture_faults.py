@@ -32,6 +32,7 @@ from rigd.capture import CaptureRequest, CaptureStatus, SensorSilenceError, run_
 from rigd.capture import engine as capture_engine
 from rigd.capture import sources as capture_sources
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR, IO_ERROR
 
 REPO = Path(__file__).resolve().parents[3]
 Session = tuple[Path, Path, Trajectory]  # a recorded session: pcap, camera replay folder, trajectory
@@ -93,11 +94,11 @@ def test_a_second_capture_into_the_dataset_or_on_the_port_is_refused_at_once(
     try:
         wait_for(lambda: "waiting for the LiDAR" in log.read_text(), 60, "the first capture to start")
         started = time.monotonic()
-        assert main(args(out, *ports[2:])) == 2  # same dataset, other ports
+        assert main(args(out, *ports[2:])) == ERROR  # same dataset, other ports
         err = capsys.readouterr().err
         assert f"rigd: error: dataset {out} is being written by another process (pid {first.pid}: " in err
         assert "rigd capture" in err
-        assert main(args(tmp_path / "other", *ports[:2])) == 2  # other dataset, the first one's data port
+        assert main(args(tmp_path / "other", *ports[:2])) == ERROR  # other dataset, the first one's data port
         err = capsys.readouterr().err
         assert f"port {ports[0]} is in use by another process (pid {first.pid}: " in err
         assert time.monotonic() - started < 1.0  # refused at once, not after a silence timeout
@@ -128,7 +129,7 @@ def test_a_full_disk_before_the_first_pair_is_a_clear_error(
     out = tmp_path / "ds"
     out.mkdir()
     (out / ".rig.yaml.tmp").symlink_to("/dev/full")  # rig.yaml's write fails with ENOSPC, as on a full disk
-    assert main(recorded_args(session, out)) == 2
+    assert main(recorded_args(session, out)) == IO_ERROR
     err = capsys.readouterr().err
     assert f"rigd: error: {out / 'rig.yaml'}: cannot write (No space left on device)" in err
     assert "free some space and rerun" in err and "Traceback" not in err
@@ -142,7 +143,7 @@ def test_an_output_that_cannot_be_created_is_a_clear_error(
         tmp_path: Path, session: Session, capsys: pytest.CaptureFixture[str], no_rig_file: dict[str, str]) -> None:
     (tmp_path / "file").write_text("not a folder")
     out = tmp_path / "file" / "ds"
-    assert main(recorded_args(session, out)) == 2
+    assert main(recorded_args(session, out)) == ERROR
     err = capsys.readouterr().err
     assert f"rigd: error: {out}: cannot create the dataset folder (Not a directory)" in err
 
@@ -170,7 +171,7 @@ def test_a_read_only_output_is_a_clear_error(tmp_path: Path, session: Session, n
                                 env=no_rig_file, capture_output=True, text=True, timeout=120)
     finally:
         out.chmod(0o755)
-    assert result.returncode == 2, result.stderr
+    assert result.returncode == IO_ERROR, result.stderr
     assert f"rigd: error: {out}: cannot write into the dataset folder ({reason}" in result.stderr
     assert list(out.iterdir()) == []
 

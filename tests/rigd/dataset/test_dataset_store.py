@@ -27,7 +27,7 @@ from rigd.dataset import (
     write_pair,
     write_rig,
 )
-from rigd.dataset.lock import DatasetLock
+from rigd.dataset.lock import DatasetLock, reading
 from rigd.dataset.store import next_pair_index
 from rigd.errors import DatasetError, DatasetLockedError
 from tests.testdata import PINHOLE_FRAME
@@ -322,6 +322,20 @@ def test_a_dataset_another_process_writes_is_left_alone(dataset_root: Path) -> N
     with DatasetLock.acquire(dataset_root):  # held by this process: its writes go through
         write_pair(dataset_root, 3, *small_pair(3))
     assert len(open_dataset(dataset_root)) == 4
+
+
+def test_a_dataset_being_calibrated_takes_no_capture_and_one_being_captured_no_calibration(
+        dataset_root: Path) -> None:
+    with reading(dataset_root), reading(dataset_root):  # calibrations and checks share it
+        with pytest.raises(DatasetLockedError, match=rf"dataset {dataset_root} is being calibrated or checked"):
+            DatasetLock.acquire(dataset_root)
+        with pytest.raises(DatasetLockedError):
+            write_pair(dataset_root, 2, *small_pair(2))
+    with DatasetLock.acquire(dataset_root), pytest.raises(DatasetLockedError, match="calibrate or check it when"):
+        with reading(dataset_root):
+            pass
+    with reading(dataset_root):  # both released
+        assert len(open_dataset(dataset_root)) == 2
 
 
 def test_a_full_disk_is_a_dataset_error_and_leaves_no_temporary_file(tmp_path: Path) -> None:

@@ -145,3 +145,15 @@ def test_a_head_may_have_fisheye_sensors() -> None:
     data["camera"]["sensors"][1]["D"] = [0.01]
     with pytest.raises(DatasetError, match="fisheye needs K"):
         RigConfig.from_yaml(data, "rig.yaml")
+
+
+def test_the_dataset_hash_covers_a_heads_images_and_its_masks(tmp_path: Path) -> None:
+    from rigd.store.datasets import content_hash
+
+    root = _head_dataset(tmp_path / "head")
+    hashes = [content_hash(open_dataset(root))]
+    cv2.imwrite(str(root / "pairs" / "0001" / "images" / "left.png"), np.zeros((24, 64), np.uint8))
+    hashes.append(content_hash(open_dataset(root)))
+    cv2.imwrite(str(root / "masks" / "front.png"), np.full((24, 64), 255, np.uint8))
+    hashes.append(content_hash(open_dataset(root)))
+    assert len(set(hashes)) == 3  # a version's hash names the data it was made from

@@ -11,10 +11,11 @@ import pytest
 import yaml
 
 from rigd.cli import main
+from rigd.cli.exit_codes import USAGE
 from rigd.dataset import read_pcd
 from rigd.dataset.pcd import Cloud, write_pcd
-from rigd.dataset.thin import ThinOptions, choose_rings, ring_elevations_deg, thin_cloud
-from rigd.errors import DatasetError
+from rigd.dataset.thin import ThinOptions, _azimuth_kept, choose_rings, ring_elevations_deg, thin_cloud
+from rigd.errors import DatasetError, OutputError
 from tests.testdata import PINHOLE_FRAME
 
 GROUND_TRUTH = "T_camera_lidar: {rpy_deg: [-90.0, 0.0, -90.0], xyz_m: [0.0, -0.3, -0.5]}\n"
@@ -93,9 +94,13 @@ def test_bad_input_is_named_and_nothing_is_written(source: Path, tmp_path: Path)
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep.txt").write_text("mine")
-    with pytest.raises(DatasetError, match="not empty"):
+    with pytest.raises(OutputError, match="holds 1 entries already"):
         _thin(source, out)
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    inside = source / "pairs" / "9999"
+    with pytest.raises(OutputError, match="it is inside the input"):  # it would change the source it reads
+        _thin(source, inside)
+    assert not inside.exists() and [p.name for p in tmp_path.iterdir() if p.name.endswith(".partial")] == []
 
     no_rings = tmp_path / "norings"
     shutil.copytree(source, no_rings)
@@ -108,10 +113,19 @@ def test_bad_input_is_named_and_nothing_is_written(source: Path, tmp_path: Path)
         ThinOptions(0.0)
     with pytest.raises(SystemExit) as exit_info:  # argparse names the option
         main(["dataset", "thin", str(source), str(tmp_path / "x"), "--ring-spacing-deg", "-1"])
-    assert exit_info.value.code == 2 and not (tmp_path / "x").exists()
+    assert exit_info.value.code == USAGE and not (tmp_path / "x").exists()
 
 
 def _thin(src: Path, out: Path, options: ThinOptions | None = None) -> None:
     from rigd.dataset.thin import thin_dataset
 
     thin_dataset(src, out, options or ThinOptions(2.0))
+
+
+def test_an_azimuth_step_below_the_angles_resolution_ends_and_is_refused() -> None:
+    # At 359 deg a step of 1e-14 is lost to rounding (359 + 1e-14 == 359): the walk round the ring must still
+    # move on (it stayed on one point, writing gigabytes), and the options refuse such a step by name.
+    azimuth = np.array([359.0, 1.0, 359.5, 359.5])
+    assert 359.0 + 1e-14 == 359.0 and _azimuth_kept(azimuth, 1e-14).tolist() == [0, 1, 2, 3]
+    with pytest.raises(DatasetError, match="finer than any LiDAR resolves"):
+        ThinOptions(2.0, azimuth_step_deg=1e-14)

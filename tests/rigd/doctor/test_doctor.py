@@ -22,6 +22,7 @@ from drivers.vlp16 import encode_data_packets
 from rigd.capture import config as capture_config
 from rigd.capture.config import RigSettings, SdkSettings
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.doctor import DoctorError, DoctorOptions, Status, local
 from rigd.doctor.local import camera_usb_check, data_dir_check, head_check, rig_file_check, sdk_check
 from rigd.doctor.network import lidar_port_check
@@ -199,7 +200,7 @@ def test_doctor_command_exit_code_follows_failures(clean_env: Path, capsys, vlp1
 def test_doctor_refuses_a_listen_time_that_is_not_positive(capsys) -> None:
     with pytest.raises(DoctorError, match="listen_s"):
         DoctorOptions(listen_s=0.0)
-    assert main(["doctor", "--listen", "-1"]) == 2
+    assert main(["doctor", "--listen", "-1"]) == ERROR
     assert "listen_s must be a positive number" in capsys.readouterr().err
 
 

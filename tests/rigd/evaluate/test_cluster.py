@@ -18,6 +18,7 @@ from distributed import Client
 
 import rigd
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import write_pair
 from rigd.dataset.pcd import Cloud
 from rigd.evaluate.cluster import dataset_stamp, worker_counts
@@ -114,7 +115,7 @@ def test_worker_errors_name_the_worker(small_dataset, cluster, tmp_path, capsys)
         (root / name).write_text((small_dataset / name).read_text())
     pts = np.random.default_rng(0).normal(size=(500, 3)) + [5.0, 0.0, 0.0]
     write_pair(root, 0, np.full((256, 512), 128, np.uint8), Cloud(pts), {})
-    assert main(["evaluate", "convergence", str(root), "--trials", "2", "--cluster", address]) == 2
+    assert main(["evaluate", "convergence", str(root), "--trials", "2", "--cluster", address]) == ERROR
     err = capsys.readouterr().err
     assert "featureless" in err and "on worker tcp://127.0.0.1:" in err
 
@@ -125,10 +126,10 @@ def test_unreachable_or_malformed_address_is_a_clear_error(small_dataset, capsys
         port = s.getsockname()[1]
     address = f"tcp://127.0.0.1:{port}"
     assert main(["evaluate", "convergence", str(small_dataset), "--trials", "1", "--cluster", address,
-                 "--cluster-timeout", "1"]) == 2
+                 "--cluster-timeout", "1"]) == ERROR
     err = capsys.readouterr().err
     assert address in err and "no Dask scheduler" in err
-    assert main(["evaluate", "precision", str(small_dataset), "--size", "1", "--cluster", "tcp://127.0.0.1"]) == 2
+    assert main(["evaluate", "precision", str(small_dataset), "--size", "1", "--cluster", "tcp://127.0.0.1"]) == ERROR
     assert "not a scheduler address" in capsys.readouterr().err
 
 

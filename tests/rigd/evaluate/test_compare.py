@@ -8,6 +8,7 @@ import yaml
 import calib.methods
 from calib.methods import Method
 from rigd.cli import main
+from rigd.cli.exit_codes import USAGE
 from rigd.errors import RigdError
 from rigd.evaluate.compare import parse_methods
 
@@ -64,5 +65,5 @@ def test_compare_on_as_few_pairs_as_a_subset_runs_no_precision_and_says_so(small
 def test_calibrate_refuses_a_research_method_by_name(small_dataset, tmp_path, capsys):
     with pytest.raises(SystemExit) as refused:
         main(["calibrate", str(small_dataset), "--method", "nid", "--out", str(tmp_path / "out")])
-    assert refused.value.code == 2 and "invalid choice: 'nid'" in capsys.readouterr().err
+    assert refused.value.code == USAGE and "invalid choice: 'nid'" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()

@@ -5,6 +5,7 @@ import pytest
 import yaml
 
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import write_pair
 from rigd.dataset.pcd import Cloud
 from rigd.simulate import write_simulated_dataset
@@ -48,7 +49,7 @@ def test_drift_on_random_subsets(dataset, tmp_path):
 
 def test_drift_refuses_a_subset_larger_than_the_dataset(dataset, tmp_path, capsys):
     assert main(["evaluate", "drift", str(dataset), "--trials", "3", "--workers", "1", "--size", "4",
-                 "--out", str(tmp_path)]) == 2
+                 "--out", str(tmp_path)]) == ERROR
     assert "--size" in capsys.readouterr().err
 
 
@@ -57,5 +58,5 @@ def test_drift_needs_ground_truth(tmp_path, capsys):
     (root / "pairs").mkdir(parents=True)
     (root / "rig.yaml").write_text(yaml.safe_dump({"camera": {"model": "equirectangular", "width": 64, "height": 32}}))
     write_pair(root, 0, np.zeros((32, 64), np.uint8), Cloud(np.ones((10, 3))), {})
-    assert main(["evaluate", "drift", str(root), "--trials", "2", "--workers", "1"]) == 2
+    assert main(["evaluate", "drift", str(root), "--trials", "2", "--workers", "1"]) == ERROR
     assert "ground_truth.yaml" in capsys.readouterr().err

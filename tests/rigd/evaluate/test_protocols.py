@@ -13,6 +13,7 @@ from calib.geometry import Transform
 from calib.methods import Method, SolveRequest, photo_params, solve
 from rigd.calibration.features import dataset_photo_pairs
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import open_dataset, write_pair
 from rigd.dataset.pcd import Cloud
 from rigd.dataset.thin import ThinOptions, thin_dataset
@@ -80,7 +81,7 @@ def test_without_ground_truth_the_reference_is_a_first_calibration(small_dataset
     root = tmp_path / "no_truth"
     shutil.copytree(small_dataset, root)
     (root / "ground_truth.yaml").unlink()
-    assert main(["evaluate", "convergence", str(root), "--trials", "1", "--workers", "1"]) == 2
+    assert main(["evaluate", "convergence", str(root), "--trials", "1", "--workers", "1"]) == ERROR
     assert "--init" in capsys.readouterr().err
     truth = open_dataset(small_dataset).ground_truth
     init = ",".join(str(v) for v in np.r_[truth.rpy_deg + 0.5, truth.translation_m + 0.01])
@@ -97,12 +98,12 @@ def test_featureless_dataset_reports_the_worker_error(small_dataset, tmp_path, c
     (root / "ground_truth.yaml").write_text((small_dataset / "ground_truth.yaml").read_text())
     pts = np.random.default_rng(0).normal(size=(500, 3)) + [5.0, 0.0, 0.0]
     write_pair(root, 0, np.full((256, 512), 128, np.uint8), Cloud(pts), {})
-    assert main(["evaluate", "convergence", str(root), "--trials", "2", "--workers", "1"]) == 2
+    assert main(["evaluate", "convergence", str(root), "--trials", "2", "--workers", "1"]) == ERROR
     assert "featureless" in capsys.readouterr().err
 
 
 def test_bad_settings_are_refused(small_dataset, capsys):
-    assert main(["evaluate", "precision", str(small_dataset), "--size", "3"]) == 2
+    assert main(["evaluate", "precision", str(small_dataset), "--size", "3"]) == ERROR
     assert "subset size" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["evaluate", "convergence", str(small_dataset), "--workers", "0"])

@@ -9,6 +9,7 @@ import pytest
 
 from calib.geometry import rotation_angle_deg
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import open_dataset
 from rigd.dataset.records import HeadConfig
 from rigd.dataset.reference import agreement
@@ -80,5 +81,5 @@ def test_the_command_imports_and_reports(tmp_path: Path, capsys: pytest.CaptureF
     src = write_ford_tree(tmp_path / "ford")
     assert main(["import", "ford", str(src), str(tmp_path / "out"), "--scans", "2"]) == 0
     assert "1 pairs, head" in capsys.readouterr().out
-    assert main(["import", "ford", str(tmp_path / "nothing"), str(tmp_path / "out2")]) == 2
+    assert main(["import", "ford", str(tmp_path / "nothing"), str(tmp_path / "out2")]) == ERROR
     assert "head.yaml: file is missing" in capsys.readouterr().err

@@ -12,6 +12,7 @@ import pytest
 from calib.camera import Pinhole
 from calib.geometry import rpy_deg_to_matrix
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import open_dataset
 from rigd.errors import DatasetError
 from rigd.importers.kitti import import_kitti
@@ -77,5 +78,5 @@ def test_bad_drives_are_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     with pytest.raises(DatasetError, match=r"0000000001.bin: 8 bytes is not a whole number"):
         import_kitti(drive, tmp_path / "c")
     (drive.parent / "calib_velo_to_cam.txt").write_text("R: 1 0 0\n")
-    assert main(["import", "kitti", str(drive), str(tmp_path / "d")]) == 2
+    assert main(["import", "kitti", str(drive), str(tmp_path / "d")]) == ERROR
     assert "calib_velo_to_cam.txt: needs R with 9 numbers" in capsys.readouterr().err

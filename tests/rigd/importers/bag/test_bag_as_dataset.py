@@ -15,6 +15,7 @@ import yaml
 import rigd.cli.calibrate as calibrate_cli
 from rigd.cli import main
 from rigd.cli.bag_input import DatasetInput, is_bag
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import open_dataset
 from rigd.errors import RigdError
 from tests.rigd.importers.bag.bags import BagFormat, Recording, bag_file, stops, write_bag
@@ -59,7 +60,7 @@ def test_calibrate_imports_into_a_temporary_dataset(tmp_path: Path, bag: Path, r
     monkeypatch.setattr(calibrate_cli, "run_calibration", _stand_in(seen))
     code = main(["calibrate", str(bag), *_topics(recording)])
     err = capsys.readouterr().err
-    assert code == 2 and "stand-in calibration" in err
+    assert code == ERROR and "stand-in calibration" in err
     assert seen["pairs"] == 2 and seen["kind"].value == "pinhole"  # the bag's two stops, CameraInfo's camera
     assert "kept as pair 0001" in err  # the import's report goes to stderr (stdout may be --json)
     assert not seen["dataset"].exists()  # the temporary dataset is gone
@@ -69,7 +70,7 @@ def test_calibrate_imports_into_a_temporary_dataset(tmp_path: Path, bag: Path, r
 def test_bag_needs_its_topics(tmp_path: Path, bag: Path, recording: Recording,
                               capsys: pytest.CaptureFixture[str]) -> None:
     for command in ("calibrate", "check"):
-        assert main([command, str(bag), "--cloud-topic", recording.cloud_topic]) == 2
+        assert main([command, str(bag), "--cloud-topic", recording.cloud_topic]) == ERROR
         err = capsys.readouterr().err
         assert err.startswith("rigd: error: ") and "--image-topic" in err and "--cloud-topic" not in err.split("(")[0]
         assert recording.image_topic in err  # the bag's topics, to choose from
@@ -79,7 +80,7 @@ def test_topics_refused_for_a_dataset_folder(tmp_path: Path, capsys: pytest.Capt
     folder = tmp_path / "dataset"
     folder.mkdir()
     for command in ("calibrate", "check"):
-        assert main([command, str(folder), "--image-topic", "/camera", "--keep-dataset", str(tmp_path / "k")]) == 2
+        assert main([command, str(folder), "--image-topic", "/camera", "--keep-dataset", str(tmp_path / "k")]) == ERROR
         err = capsys.readouterr().err
         assert "a dataset folder, not a bag" in err and "--image-topic, --keep-dataset" in err
 
@@ -99,7 +100,7 @@ def test_check_runs_on_the_kept_dataset(tmp_path: Path, bag: Path, recording: Re
 
 def test_a_missing_bag_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     missing = tmp_path / "gone.mcap"
-    assert main(["calibrate", str(missing), "--image-topic", "/a", "--cloud-topic", "/b"]) == 2
+    assert main(["calibrate", str(missing), "--image-topic", "/a", "--cloud-topic", "/b"]) == ERROR
     assert f"{missing}: bag does not exist" in capsys.readouterr().err
 
 

@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import open_dataset
 from rigd.importers.bag import BagError, BagImportOptions, import_bag
 from rigd.importers.bag.stills import StillOptions, Verdict
@@ -92,7 +93,7 @@ def test_cli_prints_what_was_kept_and_why_not(tmp_path: Path, mcap_bag: Path, re
 def _cli_error(capsys: pytest.CaptureFixture[str], bag: Path, out: Path, *extra: str) -> str:
     code = main(["import", "bag", str(bag), str(out), "--still-seconds", "1", *extra])
     err = capsys.readouterr().err
-    assert code == 2, err
+    assert code == ERROR, err
     assert "Traceback" not in err and err.startswith("rigd: error: ")
     assert not out.exists() or not any(out.iterdir())  # nothing written
     return err

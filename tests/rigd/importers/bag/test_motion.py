@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.importers.bag import BagImportOptions, import_bag
 from rigd.importers.bag.motion import (
     MotionSamples,
@@ -106,7 +107,7 @@ def test_wrong_motion_topic_type_is_named(tmp_path: Path, sensor_bag: Path, caps
     code = main(["import", "bag", str(sensor_bag), str(tmp_path / "out"), "--image-topic", recording.image_topic,
                  "--cloud-topic", recording.cloud_topic, flag, topic])
     err = capsys.readouterr().err
-    assert code == 2 and err.startswith("rigd: error: ")
+    assert code == ERROR and err.startswith("rigd: error: ")
     assert f"topic {topic!r} ({flag}) carries" in err and f"not {wanted}" in err
     assert not (tmp_path / "out").exists()
 
