@@ -88,6 +88,8 @@ class TrustOptions:
     jackknife_min_rings: int = 4  # rings with edge points needed for the jackknife over rings
     jackknife_groups: int = 8
     min_places: int = 2  # fewer places: the sigmas cannot be checked across places, nothing is vouched for
+    prior_max_z: float = 3.0  # a result beyond this many of the prior's sigmas from its values disagrees with it
+    fixed_worse_nll: float = 12.5  # held axes fitting this much worse than free (2 dNLL > 25): the values disagree
     search_runners_up: int = 1  # without an initial guess: the global search's next starts solved in full
     failed_tolerances: float = 5.0  # ambiguity or sigma beyond this many tolerances on most axes: failed
     min_returned_share: float = 0.5  # fewer restarts back at the solution: the cost has several minima nearby
@@ -204,9 +206,28 @@ class Restart:
 
 @dataclass(frozen=True)
 class Verdict:
+    """``weak_axes``: the axes not vouched for; ``fixed_axes``: axes held at the values given, reported as given
+    (not checked, never vouched for)."""
+
     status: Status
     weak_axes: tuple[str, ...]
     reasons: tuple[str, ...]
+    fixed_axes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What the verdict weighs besides the sigmas and the restarts: how far the solve moved from its nearest start
+    (deg, m), how many places its pairs were taken at, how far it lies from the prior's values in their sigmas
+    (rotation, translation; None: no such prior), the axes held at given values, and how much worse (NLL) the
+    held solution fits than one with those axes free."""
+
+    moved_deg: float | None = None
+    moved_m: float | None = None
+    places: int | None = None
+    prior_z: tuple[float | None, float | None] = (None, None)
+    fixed: tuple[str, ...] = ()
+    fixed_worse_nll: float | None = None
 
 
 @dataclass(frozen=True)
@@ -230,13 +251,7 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
     Each level weighs the prior as the solution's did: the restarts minimise the objective the solution
     minimised, so their final costs compare with its."""
     rng = np.random.default_rng(trust.seed)
-    # Fold edges on the last levels (a pinhole's schedule, calib.pipeline.schedule) make the finest cost
-    # rugged within the restarts' 2 deg: one level more smooths it as the solve's own coarser level did.
-    levels = trust.restart_levels + (1 if opts.fold_levels >= len(opts.sigmas_deg) else 0)
-    tail = tail_options(opts, min(levels, len(opts.sigmas_deg)))
-    # By level width: the solution may come from a shorter schedule than the tail (the alternative one).
-    solved = {round(t.sigma_in_deg, 9): t.kappa for t in best.levels}
-    kappas = tuple(solved.get(round(s, 9)) for s in tail.sigmas_deg)
+    tail, kappas = _tail(best, opts, trust)
     fixed_t = prior is not None and prior.fix_translation
     starts = []
     for _ in range(trust.restarts):
@@ -246,6 +261,29 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
     runs = _shared_restarts(feats, starts, tail, gmm, prior, kappas, executor, while_waiting)
     winner = min([best, *runs], key=lambda r: r.final_cost)
     return winner, runs
+
+
+def _tail(best: OptimResult, opts: OptimOptions, trust: TrustOptions) -> tuple[OptimOptions,
+                                                                                 tuple[float | None, ...]]:
+    """The restarts' levels (the schedule's last ``trust.restart_levels``) and the solution's prior weight on each,
+    so their final costs compare with the solution's."""
+    # Fold edges on the last levels (a pinhole's schedule, calib.pipeline.schedule) make the finest cost
+    # rugged within the restarts' 2 deg: one level more smooths it as the solve's own coarser level did.
+    levels = trust.restart_levels + (1 if opts.fold_levels >= len(opts.sigmas_deg) else 0)
+    tail = tail_options(opts, min(levels, len(opts.sigmas_deg)))
+    # By level width: the solution may come from a shorter schedule than the tail (the alternative one).
+    solved = {round(t.sigma_in_deg, 9): t.kappa for t in best.levels}
+    return tail, tuple(solved.get(round(s, 9)) for s in tail.sigmas_deg)
+
+
+def _fixed_worse(feats: list[PairFeatures], best: OptimResult, opts: OptimOptions, gmm: GmmOptions,
+                 prior: Prior, trust: TrustOptions, kappa: float) -> float:
+    """How much worse (NLL) the solution with its translation held fits than the restarts' levels from it with the
+    translation free (the rotation prior, if any, kept)."""
+    tail, kappas = _tail(best, opts, trust)
+    free = Prior(rotation=prior.rotation, sigma_rot_rad=prior.sigma_rot_rad) if prior.rotation is not None else None
+    loose = optimise(feats, best.tau, tail, gmm, None, free, kappas=kappas)
+    return max(float(best.final_cost - loose.final_cost) / kappa, 0.0)
 
 
 def _shared_restarts(feats: list[PairFeatures], starts: list[F64], tail: OptimOptions, gmm: GmmOptions,
@@ -496,18 +534,45 @@ def _moved_far(moved_m: float | None, trust: TrustOptions) -> Verdict | None:
         "arm is that far from its guess; check the lever arm given (the prior's xyz_m is in metres, not cm)",))
 
 
-def verdict_of(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None = None,
-               moved_m: float | None = None, places: int | None = None) -> Verdict:
-    """The verdict of ``unc`` and the ``restarts`` (docs/trust.md); ``places``: how many places the pairs were
-    taken at (None: each pair its own), of which a result needs ``trust.min_places`` for any axis to be vouched
-    for: the pairs of one place share its every bias, which no spread among them shows."""
-    verdict = _verdict(unc, restarts, trust, moved_deg, moved_m)
-    if places is None or places >= trust.min_places or verdict.status is Status.FAILED:
-        return verdict
-    where = "one place" if places == 1 else f"{places} places"
-    return Verdict(Status.WEAK, AXES, (*verdict.reasons, f"every pair was taken at {where}: the sigmas come from "
-                                       "one scene seen alike and cannot be checked across places, so no axis is "
-                                       "vouched for"))
+def verdict_of(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, *, moved_deg: float | None = None,
+               moved_m: float | None = None, places: int | None = None,
+               evidence: Evidence | None = None) -> Verdict:
+    """The verdict of ``unc`` and the ``restarts`` (docs/trust.md), with the ``evidence`` of the solve around
+    them (``moved_deg``, ``moved_m`` and ``places`` fill it when it is not given)."""
+    ev = evidence or Evidence(moved_deg, moved_m, places)
+    verdict = _verdict(unc, restarts, trust, ev.moved_deg, ev.moved_m)
+    if verdict.status is Status.FAILED:
+        return replace(verdict, fixed_axes=ev.fixed)
+    nothing = _vouches_for_nothing(ev, trust)
+    if nothing is not None:
+        return Verdict(Status.WEAK, AXES, (*verdict.reasons, nothing), ev.fixed)
+    weak, reasons = set(verdict.weak_axes), list(verdict.reasons)
+    for axes, z, given in ((AXES[:3], ev.prior_z[0], "the rotation prior"), (AXES[3:], ev.prior_z[1],
+                                                                              "the lever arm given")):
+        if z is not None and z > trust.prior_max_z:
+            weak.update(axes)
+            reasons.append(f"{', '.join(axes)}: the result lies {z:.0f} sigma from {given}: the data disagree with "
+                           "it; check the values given and their unit")
+    weak -= set(ev.fixed)
+    if ev.fixed:
+        reasons.append(f"{', '.join(ev.fixed)}: held at the values given, not checked")
+    status = Status.WEAK if weak else verdict.status
+    if status is Status.TRUSTED:
+        return Verdict(status, (), tuple(reasons), ev.fixed)
+    return Verdict(Status.WEAK, tuple(a for a in AXES if a in weak), tuple(reasons), ev.fixed)
+
+
+def _vouches_for_nothing(ev: Evidence, trust: TrustOptions) -> str | None:
+    """Why no axis can be vouched for (pairs of one place; held values the data disagree with), or None."""
+    if ev.places is not None and ev.places < trust.min_places:
+        where = "one place" if ev.places == 1 else f"{ev.places} places"
+        return (f"every pair was taken at {where}: the sigmas come from one scene seen alike and cannot be checked "
+                "across places, so no axis is vouched for")
+    if ev.fixed_worse_nll is not None and ev.fixed_worse_nll > trust.fixed_worse_nll:
+        return (f"holding {', '.join(ev.fixed)} at the values given fits clearly worse than letting them free "
+                f"(delta NLL {ev.fixed_worse_nll:.0f}): the values given disagree with the data; check them and their "
+                "unit")
+    return None
 
 
 def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, moved_deg: float | None,
@@ -529,8 +594,9 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, mov
     over = trust.sigma_factor * unc.sigma > tol
     for k in np.flatnonzero(over):
         weak.add(AXES[k])
-        reasons.append(f"{AXES[k]}: {trust.sigma_factor:g} sigma = {trust.sigma_factor * unc.sigma[k]:.3g} "
-                       f"> tolerance {tol[k]:g}")
+        unit = "°" if k < 3 else " cm"
+        reasons.append(f"{AXES[k]} known to ±{trust.sigma_factor * unc.sigma[k]:.2f}{unit} (needs "
+                       f"±{tol[k]:.2f}{unit})")
     ambiguous_far = False
     for i, r in enumerate(restarts):
         if r.delta_nll >= trust.ambiguity_nll:
@@ -596,6 +662,10 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
     )
     moved, moved_m = moved_from(starts, best.tau)
     unc = with_elevation(with_intrinsics(unc, best.tau, trust), trust)
-    n_places = len(np.unique(places(feats)))
-    return Assessment(best.tau, best, unc, restarts, verdict_of(unc, list(restarts), trust, moved, moved_m, n_places),
+    held = prior is not None and prior.fix_translation
+    worse = _fixed_worse(feats, best, opts, gmm, solving or Prior(), trust, unc.kappa) if held else None
+    evidence = Evidence(moved, moved_m, len(np.unique(places(feats))),
+                        prior.distance(best.tau) if prior is not None else (None, None),
+                        AXES[3:] if held else (), worse)
+    return Assessment(best.tau, best, unc, restarts, verdict_of(unc, list(restarts), trust, evidence=evidence),
                       moved, moved_m)

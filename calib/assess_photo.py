@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from calib.assess import (
     Assessment,
+    Evidence,
     Restart,
     TrustOptions,
     Uncertainty,
@@ -66,6 +67,7 @@ from calib.photometric import (
     subset_rings,
 )
 from calib.uncertainty import (
+    AXES,
     TO_DISPLAY,
     nll_scale,
     places,
@@ -417,10 +419,15 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
         offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
                                  np.zeros(3) if fixed_translation else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
         handed.append(hand(executor, _restart, pairs, tau_at(anchor, offset), tail, fixed_translation, anchor))
+    if fixed_translation:  # the same levels with the translation free: do the values held fit the data?
+        handed.append(hand(executor, _restart, pairs, anchor, tail, False, anchor))
     cost = _finest_cost(pairs, anchor, params)
-    runs: list[tuple[PhotoResult, float]] = [(result, cost(anchor))]
-    runs.extend((run, cost(run.tau)) for run in collect(handed))
-    best, best_cost = min(runs, key=lambda r: r[1])
+    done = collect(handed)
+    loose = done.pop() if fixed_translation else None
+    # NID's cost is not a likelihood, and its lowest minimum need not be the truth's: the solve from the start is
+    # the answer (as the plain method's), and a restart that ends lower elsewhere is an ambiguity, not a better one.
+    runs: list[tuple[PhotoResult, float]] = [(result, cost(anchor)), *((run, cost(run.tau)) for run in done)]
+    best, best_cost = runs[0]
     unc = photo_uncertainty(pairs, best.tau, params, trust, fixed_translation, opts)
     offsets = np.array([xi_of(best.tau, r.tau) * TO_DISPLAY for r, _ in runs])
     # Every run from around the solution (the solve's own included) lands where the simplex shrank: their spread
@@ -435,5 +442,8 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
                      for r, c in runs if r is not best)
     moved, moved_m = moved_from(starts, best.tau)
     unc = with_elevation(with_intrinsics(unc, best.tau, trust), trust)
-    verdict = verdict_of(unc, list(restarts), trust, moved, moved_m, len(np.unique(places(pairs))))
+    worse = None if loose is None else max(best_cost - cost(loose.tau), 0.0) / unc.kappa
+    evidence = Evidence(moved, moved_m, len(np.unique(places(pairs))), fixed=AXES[3:] if fixed_translation else (),
+                        fixed_worse_nll=worse)
+    verdict = verdict_of(unc, list(restarts), trust, evidence=evidence)
     return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m)

@@ -85,3 +85,13 @@ class Prior:
             dr = np.linalg.solve(left_jacobian(-r), left_jacobian(-tau[:3]))
             grad[:3] = (z / self.sigma_rot_rad) @ dr
         return nll, grad
+
+    def distance(self, tau: F64) -> tuple[float | None, float | None]:
+        """How far the pose ``tau`` lies from the prior's values, in its sigmas: the largest rotation axis's and
+        the largest translation axis's (None for a part the prior does not give, or a held translation)."""
+        rot = trans = None
+        if self.sigma_rot_rad is not None and self.rotation is not None:
+            rot = float(np.max(np.abs(so3_log(self.rotation.T @ so3_exp(tau[:3])) / self.sigma_rot_rad)))
+        if self.sigma_xyz_m is not None and self.xyz_m is not None and not self.fix_translation:
+            trans = float(np.max(np.abs((tau[3:] - self.xyz_m) / self.sigma_xyz_m)))
+        return rot, trans

@@ -155,6 +155,7 @@ class Verdict(TypedDict):
     status: StatusName
     weak_axes: list[str]
     reasons: list[str]
+    fixed_axes: NotRequired[list[str]]  # held at the values given: reported as given, never vouched for
     next_steps: NotRequired[list[NextStep | str]]  # rigd.calibration.advice (words alone in older reports)
     moved_from_start_deg: NotRequired[float | None]
 

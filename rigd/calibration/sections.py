@@ -114,6 +114,7 @@ def assessment_yaml(a: Assessment, steps: tuple[Step, ...] = ()) -> Assessed:
     return {
         "uncertainty": _uncertainty_yaml(a),
         "verdict": {"status": v.status.value, "weak_axes": list(v.weak_axes), "reasons": list(v.reasons),
+                    "fixed_axes": list(v.fixed_axes),
                     "next_steps": [step_yaml(s) for s in steps], "moved_from_start_deg": a.moved_deg},
     }
 

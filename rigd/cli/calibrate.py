@@ -220,7 +220,8 @@ def print_trust(u: Uncertainty, v: Verdict) -> None:
           f"x, y, z: {_fmt(u['xyz_cm'])} cm")
     print(f"weakest: {u['weakest']}")
     axes = f" ({', '.join(v['weak_axes'])})" if v["weak_axes"] else ""
-    print(f"verdict: {v['status'].upper()}{axes}")
+    fixed = f"; {', '.join(v['fixed_axes'])} held as given, not checked" if v.get("fixed_axes") else ""
+    print(f"verdict: {v['status'].upper()}{axes}{fixed}")
     for reason in v["reasons"]:
         print(f"  - {reason}")
     if v.get("next_steps"):

@@ -10,6 +10,8 @@ import pytest
 
 import calib.assess as assess_module
 from calib.assess import (
+    AXES,
+    Evidence,
     Restart,
     Status,
     TrustOptions,
@@ -270,6 +272,31 @@ def test_fixed_translation_reports_no_translation_uncertainty(pairs):
     a = assess(pairs, result, opts, FIELD, prior, TrustOptions(restarts=1))
     assert np.all(a.uncertainty.sigma[3:] == 0) and np.all(a.uncertainty.sigma[:3] > 0)
     assert np.array_equal(a.tau[3:], TRUTH.translation_m)
+    assert a.verdict.fixed_axes == ("x", "y", "z") and not set(a.verdict.weak_axes) & {"x", "y", "z"}
+    assert "held at the values given, not checked" in a.verdict.reasons[-1]
+
+
+def test_a_held_lever_arm_the_data_disagree_with_vouches_for_nothing(pairs):
+    """The lever arm typed in metres where cm were meant (1/100 of the true one), held: the same levels with the
+    translation free fit far better, and the verdict says the values given disagree with the data."""
+    opts = OptimOptions()
+    prior = Prior(TRUTH.translation_m / 100.0, fix_translation=True)
+    start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.0, 1.0, -1.0], TRUTH.translation_m / 100.0)
+    result = optimise(pairs, start.tau, opts, FIELD, prior=prior)
+    v = assess(pairs, result, opts, FIELD, prior, TrustOptions(restarts=1)).verdict
+    assert v.status is not Status.TRUSTED and v.weak_axes == AXES
+    assert any("the values given disagree with the data" in r for r in v.reasons) or v.status is Status.FAILED
+
+
+def test_a_result_beyond_3_sigma_of_the_lever_arm_given_is_not_trusted():
+    """A sharp result 18 sigma from a lever arm given (free translation): the translation is named, with the
+    distance in the prior's sigmas."""
+    sharp = np.full(6, 0.01)
+    unc = Uncertainty(np.eye(6) * 1e-4, sharp, sharp, None, 0, "", True, 1.0, 0.9)
+    far = verdict_of(unc, [], TrustOptions(), evidence=Evidence(prior_z=(0.5, 18.0)))
+    assert far.status is Status.WEAK and far.weak_axes == ("x", "y", "z")
+    assert "the result lies 18 sigma from the lever arm given" in far.reasons[-1]
+    assert verdict_of(unc, [], TrustOptions(), evidence=Evidence(prior_z=(0.5, 2.0))).status is Status.TRUSTED
 
 
 def test_independent_solves_in_a_process_pool_end_exactly_where_serial_ones_do(pairs):
