@@ -17,7 +17,8 @@ import pytest
 from api_helpers import App
 
 from calib.geometry import Transform
-from rigd.api.runner import ActivationBounds, CalibrationPlan, JobRunner, Start
+from rigd.api.runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.calibration import CalibrationRequest, Start, TransformIn
 from rigd.capture import DiskFullError
 from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, write_pair, write_rig
 from rigd.store import Database, JobKind, JobStatus, JobStore, NewVersion, StorageError, VersionStore, faults
@@ -135,8 +136,8 @@ def test_a_capture_failing_on_a_full_disk_ends_and_frees_the_sensors(runner):
 
 
 def test_a_queued_calibration_that_cannot_run_fails_and_leaves_the_queue(runner):
-    plan = CalibrationPlan(dataset_id="ds", initial=GUESS, init=Start.EXPLICIT, init_version=None, sigmas_deg=None,
-                           auto_activate=False)
+    request = CalibrationRequest(dataset=Path("ds"), start=Start.GIVEN, initial=TransformIn.of(GUESS))
+    plan = CalibrationPlan("ds", request, auto_activate=False)
     job, _ = runner.submit_calibration(plan)
     runner.jobs.min_free_bytes = 1 << 60  # the disk filled while it waited
     runner._run_job(job.id)

@@ -14,18 +14,19 @@ import numpy as np
 import pytest
 
 from calib.geometry import Transform
-from rigd.api.runner import ActivationBounds, CalibrationPlan, JobRunner, Start
+from rigd.api.runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.calibration import CalibrationRequest, Start, TransformIn
 from rigd.store import Database, JobKind, JobStatus, JobStore, NewVersion, VersionStatus, VersionStore, faults
 from rigd.store.datasets import DatasetCatalog
 
 GUESS = Transform.from_rpy_xyz(np.array([0.0, 10.0, -50.0]), np.array([0.1, 0.0, -0.1]))
-PLAN = CalibrationPlan(dataset_id="ds", initial=GUESS, init=Start.EXPLICIT, init_version=None, sigmas_deg=None,
+PLAN = CalibrationPlan("ds", CalibrationRequest(dataset=Path("ds"), start=Start.GIVEN, initial=TransformIn.of(GUESS)),
                        auto_activate=True)
 # What the worker sends back for a trusted, converged result (the fields the runner reads).
 RESULT: dict[str, Any] = {
     "pair_numbers": [0, 1, 2, 3, 4, 5], "matrix": GUESS.matrix.tolist(), "dataset_hash": "sha256:0",
     "report": {"quality": {"converged": True}, "uncertainty": {}, "verdict": {"status": "trusted", "weak_axes": []},
-               "method": {"name": "rigd"}, "change_from_initial": {}},
+               "method": {"name": "gmm"}, "change_from_initial": {}},
 }
 
 

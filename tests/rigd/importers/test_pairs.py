@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from calib.geometry import Transform
 from rigd.cli import main
+from rigd.cli.exit_codes import ERROR
 from rigd.dataset import CameraKind, open_dataset
 from rigd.errors import DatasetError
 from rigd.importers.pairs import PairsOptions, PairsSource, import_pairs, match_pairs
@@ -132,7 +133,7 @@ def test_references_written_otherwise_are_refused_by_name(tmp_path: Path, capsys
     (src / "short.txt").write_text("0.1 0.2 0.3 1 2\n")
     with pytest.raises(DatasetError, match="short.txt: the rpy-deg-xyz layout needs rows of 6 numbers; data row 1"):
         read_reference(src / "short.txt", parse_convention("lidar-in-camera:rpy-deg-xyz"))
-    assert _import(src, tmp_path / "out", "--reference", str(src / "calib.csv")) == 2
+    assert _import(src, tmp_path / "out", "--reference", str(src / "calib.csv")) == ERROR
     assert "--reference and --reference-convention go together" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 
