@@ -246,6 +246,27 @@ def _alternatives(feats: list[PairFeatures], starts: list[F64], optim: OptimOpti
     return lambda: collect(handed)
 
 
+def _checked_start(feats: list[PairFeatures], initial: Transform, prior: Prior | None,
+                   params: CalibParams) -> Transform:
+    """The start (its translation the held lever arm's, if held); InitialGuessError for a start no rig has, or one
+    under which no edge point projects into any image."""
+    if prior is not None and prior.fix_translation and prior.xyz_m is not None:
+        initial = Transform(initial.rotation, prior.xyz_m)
+    if float(np.linalg.norm(initial.translation_m)) > params.max_translation_m:
+        raise InitialGuessError(
+            f"initial guess puts the camera {np.linalg.norm(initial.translation_m):.2f} m from the LiDAR "
+            f"(more than {params.max_translation_m} m): not a rig")
+    check_initial_guess(feats, initial.tau)
+    return initial
+
+
+def _fitted_elevation(feats: list[PairFeatures], first: OptimResult, optim: OptimOptions, params: CalibParams,
+                      prior: Prior | None, executor: Executor | None) -> ElevationFit:
+    """The LiDAR's elevation offset fitted around the first solve ``first`` (calib.elevation; 3 places or more)."""
+    check_places(feats)
+    return fit_elevation_offset(feats, first, optim, params.gmm, prior, executor, params.elevation_grid_deg)
+
+
 def _elevation_sigma(trust: TrustOptions | None, slope: F64, sigma_deg: float) -> TrustOptions | None:
     """``trust`` with the pose's change for one sigma of the LiDAR's elevation offset (calib.assess.with_elevation)."""
     if trust is None:
@@ -271,32 +292,19 @@ def calibrate(
     per-axis uncertainty and verdict of :mod:`calib.assess` (a restart that ends lower is the solution).
 
     ``initial`` None: the global search of :mod:`calib.initial` (``search`` options, the lever arm from the
-    prior or zero; the mounts scored by mutual information with ``search_photo``, the pairs' images and LiDAR
-    reflectivity, else by the edges) gives the start, and its runner-up is solved in full too and weighed by
-    the assessment.
-    Without a translation prior, the start's lever arm (given or searched) enters the solve as a weak prior
-    (:func:`solve_prior`).
-
-    ``executor`` (the application's process pool): the independent full solves (the alternative schedule, the
-    search's runners-up) run there while this process runs the main one, and half the restarts while this
-    process runs the other half, to the same result.
-
-    ``fit_elevation``: the LiDAR's common elevation offset is fitted around a first solve
-    (:mod:`calib.elevation`), and the pose solved and assessed again with the edge points raised by it; the
-    offset's sigma enters the pose's."""
+    prior or zero; the mounts scored by mutual information with ``search_photo``, else by the edges) gives the
+    start, and its runner-up is solved in full too and weighed by the assessment. Without a translation prior,
+    the start's lever arm enters the solve as a weak prior (:func:`solve_prior`). ``executor`` (the
+    application's pool): the independent solves run there beside this process's, to the same result.
+    ``fit_elevation``: the LiDAR's common elevation offset fitted around a first solve (:mod:`calib.elevation`),
+    the pose solved and assessed again with the edge points raised by it, the offset's sigma in the pose's."""
     found = None
     if initial is None:
         lever_arm = prior.xyz_m if prior is not None and prior.xyz_m is not None else np.zeros(3)
         found = search_initial(feats, lever_arm, search, on_search, executor, search_photo)
         initial = Transform.from_tau(found.best.tau)
-    if prior is not None and prior.fix_translation and prior.xyz_m is not None:
-        initial = Transform(initial.rotation, prior.xyz_m)
+    initial = _checked_start(feats, initial, prior, params)
     tau0 = initial.tau
-    if float(np.linalg.norm(initial.translation_m)) > params.max_translation_m:
-        raise InitialGuessError(
-            f"initial guess puts the camera {np.linalg.norm(initial.translation_m):.2f} m from the LiDAR "
-            f"(more than {params.max_translation_m} m): not a rig")
-    check_initial_guess(feats, tau0)
     optim = schedule(feats, params, tau0)
     runners_up = 0 if trust is None or found is None else trust.search_runners_up
     runner_starts = [] if found is None else [c.tau for c in found.candidates[1:1 + runners_up]]
@@ -304,9 +312,8 @@ def calibrate(
     guess_sigma = params.guess_sigma_m if solving is not prior else None
     elevation = None
     if fit_elevation:
-        check_places(feats)
         first = optimise(feats, tau0, optim, params.gmm, on_iter, solving, executor)
-        elevation = fit_elevation_offset(feats, first, optim, params.gmm, solving, executor, params.elevation_grid_deg)
+        elevation = _fitted_elevation(feats, first, optim, params, solving, executor)
         feats = offset_features(feats, elevation.offset_deg)
         trust = _elevation_sigma(trust, elevation.slope, elevation.sigma_deg)
     others = _alternatives(feats, runner_starts, optim, params.gmm, solving, executor)

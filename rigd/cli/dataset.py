@@ -40,13 +40,16 @@ def register(subparsers: Any) -> None:
     thin.add_argument("--azimuth-step-deg", type=non_negative_float, default=0.0, metavar="DEG",
                       help="along a ring, drop points nearer than this in azimuth to the last one kept, e.g. 0.2 "
                       "for a VLP-16 at 600 rpm (default 0: keep every point)")
+    thin.add_argument("--rings-by", choices=("dataset", "pair"), default="dataset",
+                      help="pick rings by each ring's median elevation over the dataset, the same lasers in every "
+                      "pair as a real sparser LiDAR has (default), or by each pair's own medians")
     thin.set_defaults(func=_thin)
 
 
 def _thin(args: argparse.Namespace) -> int:
-    from rigd.dataset.thin import ThinOptions, thin_dataset
+    from rigd.dataset.thin import RingsBy, ThinOptions, thin_dataset
 
-    options = ThinOptions(args.ring_spacing_deg, args.phase_deg, args.azimuth_step_deg)
+    options = ThinOptions(args.ring_spacing_deg, args.phase_deg, args.azimuth_step_deg, RingsBy(args.rings_by))
     bar, progress = progress_bar("thin", "pair")
     with bar:
         summary = thin_dataset(args.src, args.out, options, progress, overwrite=args.overwrite)

@@ -2,8 +2,10 @@
 the rings nearest a grid of elevations, and optionally fewer points along each ring.
 
 This is how rigd is measured at its own LiDAR's density (a VLP-16: 16 rings 2° apart, a point every 0.2° of
-azimuth at 600 rpm) on real recordings of a denser one (an HDL-64E: 64 rings 0.3–0.5° apart). The same lasers
-are kept in every pair, as a real sparser LiDAR has them: a ring's elevation is the median over the dataset.
+azimuth at 600 rpm) on real recordings of a denser one (an HDL-64E: 64 rings 0.3–0.5° apart). By default the same
+lasers are kept in every pair, as a real sparser LiDAR has them: a ring's elevation is the median over the
+dataset; ``RingsBy.PAIR`` picks each pair's rings by that pair's own medians (two near-identical thinnings, to
+see how much a calibration depends on which rings a pair happens to keep).
 The grid cannot reach beyond the source's own elevations (an HDL-64E covers +2° to −25°, a VLP-16 ±15°).
 """
 
@@ -13,6 +15,7 @@ import math
 import shutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -30,15 +33,23 @@ MIN_RING_POINTS = 10  # a ring with fewer points in a pair gives that pair no el
 MIN_AZIMUTH_STEP_DEG = 1e-3  # a VLP-16 resolves 0.1 deg, an HDL-64E 0.08 deg; finer keeps every point
 
 
+class RingsBy(Enum):
+    """Whose ring elevations the grid picks rings by."""
+
+    DATASET = "dataset"  # each ring's median over the dataset: the same lasers in every pair
+    PAIR = "pair"  # each pair's own medians
+
+
 @dataclass(frozen=True)
 class ThinOptions:
     """``ring_spacing_deg`` > 0 between kept rings; the grid is ``phase_deg`` + k ``ring_spacing_deg``;
     ``azimuth_step_deg`` >= 0: along a ring, a point nearer than this in azimuth to the last one kept is dropped
-    (0: every point kept)."""
+    (0: every point kept); ``rings_by``: the elevations the rings are picked by."""
 
     ring_spacing_deg: float
     phase_deg: float = 0.0
     azimuth_step_deg: float = 0.0
+    rings_by: RingsBy = RingsBy.DATASET
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.ring_spacing_deg) and self.ring_spacing_deg > 0):
@@ -127,6 +138,14 @@ def thin_cloud(cloud: Cloud, choice: RingChoice, azimuth_step_deg: float = 0.0) 
     return Cloud(cloud.points_lidar[index], intensity, np.concatenate(new_ring)[order])
 
 
+def _record(source: Path, options: ThinOptions, choice: RingChoice) -> dict[str, Any]:
+    """What a pair's meta.yaml records of its thinning."""
+    return {"source": str(source), "ring_spacing_deg": options.ring_spacing_deg, "phase_deg": options.phase_deg,
+            "azimuth_step_deg": options.azimuth_step_deg, "rings_by": options.rings_by.value,
+            "source_rings": list(choice.source_rings), "elevations_deg": list(choice.elevations_deg),
+            "grid_deg": list(choice.grid_deg)}
+
+
 @dataclass(frozen=True)
 class ThinSummary:
     """What ``thin_dataset`` wrote: ``pairs`` to ``out``, the rings kept, and points kept of the source's."""
@@ -177,20 +196,19 @@ def thin_dataset(source: Path, out: Path, options: ThinOptions,
     dataset = open_dataset(source)
     if not len(dataset):
         raise DatasetError(f"{source}: no pairs to thin")
+    by_dataset = options.rings_by is RingsBy.DATASET
     choice = choose_rings(_dataset_elevations(source, dataset.pair_dirs), options)
-    note = f"{len(choice.source_rings)} rings {options.ring_spacing_deg:g} deg apart, thinned by rigd"
-    record: dict[str, Any] = {"source": str(source), "ring_spacing_deg": options.ring_spacing_deg,
-                              "phase_deg": options.phase_deg, "azimuth_step_deg": options.azimuth_step_deg,
-                              "source_rings": list(choice.source_rings),
-                              "elevations_deg": list(choice.elevations_deg), "grid_deg": list(choice.grid_deg)}
+    note = (f"{len(choice.source_rings)} rings {options.ring_spacing_deg:g} deg apart, "
+            f"{'' if by_dataset else 'picked per pair, '}thinned by rigd")
     kept = total = 0
     with claim_output_dir(out, inputs=[source], overwrite=overwrite) as folder:
         _prepare_out(source, folder, note)
         for i, pair_dir in enumerate(dataset.pair_dirs):
             cloud = read_pcd(pair_dir / "cloud.pcd")
-            thinned = thin_cloud(cloud, choice, options.azimuth_step_deg)
+            mine = choice if by_dataset else choose_rings(ring_elevations_deg(cloud), options)
+            thinned = thin_cloud(cloud, mine, options.azimuth_step_deg)
             meta = read_yaml_mapping(pair_dir / "meta.yaml") if (pair_dir / "meta.yaml").is_file() else {}
-            meta["thinned"] = {**record, "points": len(thinned), "points_source": len(cloud)}
+            meta["thinned"] = {**_record(source, options, mine), "points": len(thinned), "points_source": len(cloud)}
             images = {view: dataset.image_path(i, view) for view in dataset.views}
             single = dataset.views == (SINGLE_VIEW,)
             write_pair(folder, int(pair_dir.name), images[SINGLE_VIEW] if single else images, thinned, meta)

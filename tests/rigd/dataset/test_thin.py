@@ -129,3 +129,26 @@ def test_an_azimuth_step_below_the_angles_resolution_ends_and_is_refused() -> No
     assert 359.0 + 1e-14 == 359.0 and _azimuth_kept(azimuth, 1e-14).tolist() == [0, 1, 2, 3]
     with pytest.raises(DatasetError, match="finer than any LiDAR resolves"):
         ThinOptions(2.0, azimuth_step_deg=1e-14)
+
+
+def test_rings_picked_per_pair_follow_each_pairs_own_elevations(source: Path, tmp_path: Path) -> None:
+    """Two pairs, the second's cloud 0.4 deg higher: picked by the dataset's medians both keep the same lasers;
+    picked per pair each keeps the rings nearest the grid by its own elevations."""
+    from calib.elevation import raise_elevation
+
+    two = tmp_path / "two"
+    shutil.copytree(source, two)
+    shutil.copytree(two / "pairs" / "0003", two / "pairs" / "0004")
+    cloud = read_pcd(two / "pairs" / "0004" / "cloud.pcd")
+    raised = Cloud(raise_elevation(cloud.points_lidar, 0.4), cloud.intensity, cloud.ring)
+    write_pcd(two / "pairs" / "0004" / "cloud.pcd", raised)
+    kept = {}
+    for by in ("dataset", "pair"):
+        assert main(["dataset", "thin", str(two), str(tmp_path / by), "--rings-by", by]) == 0
+        kept[by] = [yaml.safe_load((tmp_path / by / "pairs" / p / "meta.yaml").read_text())["thinned"]
+                    for p in ("0003", "0004")]
+    assert kept["dataset"][0]["source_rings"] == kept["dataset"][1]["source_rings"]
+    for meta, c in zip(kept["pair"], (cloud, raised), strict=True):
+        assert meta["rings_by"] == "pair"
+        assert meta["source_rings"] == list(choose_rings(ring_elevations_deg(c), ThinOptions(2.0)).source_rings)
+    assert kept["pair"][0]["source_rings"] != kept["pair"][1]["source_rings"]
