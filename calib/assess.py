@@ -18,7 +18,6 @@ After the coarse-to-fine solve:
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
@@ -30,6 +29,7 @@ from numpy.typing import NDArray
 from calib.edges_points import FOLD
 from calib.geometry import rotation_angle_deg, so3_exp
 from calib.gmm import GmmOptions, PairFeatures, in_image, transform_points
+from calib.handed import shared_calls
 from calib.optimize import (
     OptimOptions,
     OptimResult,
@@ -246,7 +246,7 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
                   executor: Executor | None,
                   while_waiting: Callable[[], None] | None = None) -> tuple[OptimResult, list[OptimResult]]:
     """Rerun the last levels from ``trust.restarts`` poses around the solution; returns the best run (the
-    solution itself unless a restart ended lower) and every restart (:func:`_shared_restarts` runs them,
+    solution itself unless a restart ended lower) and every restart (shared with the pool, calib.handed.share,
     with ``while_waiting``).
     Each level weighs the prior as the solution's did: the restarts minimise the objective the solution
     minimised, so their final costs compare with its."""
@@ -258,7 +258,10 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
         offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
                                  np.zeros(3) if fixed_t else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
         starts.append(tau_at(best.tau, offset))
-    runs = _shared_restarts(feats, starts, tail, gmm, prior, kappas, executor, while_waiting)
+    # This process uses the field bands the main solve built here, a worker those its own solves built (the
+    # application's pool hands a features list back to the worker that holds it). Same results as without a pool.
+    runs = shared_calls(executor, _restart_solve, [(feats, s, tail, gmm, prior, kappas) for s in starts],
+                        while_waiting)
     winner = min([best, *runs], key=lambda r: r.final_cost)
     return winner, runs
 
@@ -284,60 +287,6 @@ def _fixed_worse(feats: list[PairFeatures], best: OptimResult, opts: OptimOption
     free = Prior(rotation=prior.rotation, sigma_rot_rad=prior.sigma_rot_rad) if prior.rotation is not None else None
     loose = optimise(feats, best.tau, tail, gmm, None, free, kappas=kappas)
     return max(float(best.final_cost - loose.final_cost) / kappa, 0.0)
-
-
-def _shared_restarts(feats: list[PairFeatures], starts: list[F64], tail: OptimOptions, gmm: GmmOptions,
-                     prior: Prior | None, kappas: tuple[float | None, ...],
-                     executor: Executor | None,
-                     while_waiting: Callable[[], None] | None = None) -> list[OptimResult]:
-    """The restarts from ``starts``, in their order. With ``executor``, this process and each of its workers
-    (``executor.workers``, else one) take the next restart not yet taken when they finish one, so none waits
-    while restarts remain (restarts differ in length: split in fixed halves, one side waited ~4 s of a 14 s
-    phase on the Ford head). This process uses the field bands the main solve built here, a worker those its
-    own solves built (the application's pool hands a features list back to the worker that holds it); the pool
-    has one worker fewer than the cores, so a worker per core takes restarts beside this process. Same results
-    as without ``executor``. ``while_waiting`` runs here when no restart is left to take but a worker's last
-    one has not ended."""
-    runs: list[OptimResult | None] = [None] * len(starts)
-    order = iter(range(len(starts)))
-    lock = threading.Lock()
-
-    def take() -> int | None:
-        with lock:
-            return next(order, None)
-
-    def feed() -> None:  # on a thread per worker: one restart at a time, each when its previous ended
-        assert executor is not None
-        while (i := take()) is not None:
-            runs[i] = executor.submit(_restart_solve, feats, starts[i], tail, gmm, prior, kappas).result()
-
-    failed: list[BaseException] = []
-    n_feeders = 0 if executor is None else max(1, int(getattr(executor, "workers", 1)))
-    feeders = [threading.Thread(target=_capturing, args=(feed, failed), daemon=True) for _ in range(n_feeders)]
-    for feeder in feeders:
-        feeder.start()
-    try:
-        while (i := take()) is not None:
-            runs[i] = _restart_solve(feats, starts[i], tail, gmm, prior, kappas)
-        if any(f.is_alive() for f in feeders) and while_waiting is not None:
-            while_waiting()
-    finally:
-        with lock:  # on an error here, the workers take no further restart
-            for _ in order:
-                pass
-        for feeder in feeders:
-            feeder.join()
-    if failed:
-        raise failed[0]
-    return [r for r in runs if r is not None]
-
-
-def _capturing(fn: Callable[[], None], failed: list[BaseException]) -> None:
-    """Run ``fn``; an exception is kept in ``failed`` for the thread that waits for it to raise."""
-    try:
-        fn()
-    except BaseException as error:  # re-raised by the thread that waits for this one
-        failed.append(error)
 
 
 def _restart_solve(feats: list[PairFeatures], start: F64, tail: OptimOptions, gmm: GmmOptions,

@@ -50,7 +50,7 @@ from calib.assess import (
 from calib.elevation import SLOPE_STEP_DEG, raise_elevation
 from calib.errors import CalibError
 from calib.gmm import transform_points
-from calib.handed import collect, hand
+from calib.handed import collect, hand, shared_calls
 from calib.optimize import LevelTrace, OptimResult
 from calib.photometric import (
     LevelPair,
@@ -414,15 +414,15 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
     anchor = np.asarray(result.tau, dtype=np.float64)
     rng = np.random.default_rng(trust.seed)
     tail = _tail(params, trust.restart_levels)
-    handed = []
+    calls = []
     for _ in range(trust.restarts):
         offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
                                  np.zeros(3) if fixed_translation else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
-        handed.append(hand(executor, _restart, pairs, tau_at(anchor, offset), tail, fixed_translation, anchor))
+        calls.append((pairs, tau_at(anchor, offset), tail, fixed_translation, anchor))
     if fixed_translation:  # the same levels with the translation free: do the values held fit the data?
-        handed.append(hand(executor, _restart, pairs, anchor, tail, False, anchor))
+        calls.append((pairs, anchor, tail, False, anchor))
     cost = _finest_cost(pairs, anchor, params)
-    done = collect(handed)
+    done = shared_calls(executor, _restart, calls)
     loose = done.pop() if fixed_translation else None
     # NID's cost is not a likelihood, and its lowest minimum need not be the truth's: the solve from the start is
     # the answer (as the plain method's), and a restart that ends lower elsewhere is an ambiguity, not a better one.

@@ -1,9 +1,6 @@
 """calib.prior and calib.assess: the MAP term, the Newton-step jackknife, the verdict."""
 
 import dataclasses
-import threading
-import time
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -387,69 +384,6 @@ def test_restarts_run_one_level_more_when_folds_are_on_every_level(pairs):
               for run in _run_restarts(pairs, result, dataclasses.replace(opts, fold_levels=folds), FIELD, None,
                                        TrustOptions(restarts=1), None)[1]]
     assert widths == [list(opts.sigmas_deg[-2:]), list(opts.sigmas_deg[-3:])]
-
-
-def _timed_restart(main_thread_s: float, fail_on_worker: bool = False, worker_s: float = 0.01):
-    """A stand-in for one restart: its start's first entry as its result, taking ``main_thread_s`` on the
-    calling thread and ``worker_s`` on the executor's."""
-    def solve(feats, start, *rest):
-        on_main = threading.current_thread() is threading.main_thread()
-        if not on_main and fail_on_worker:
-            raise CalibError("worker restart failed")
-        time.sleep(main_thread_s if on_main else worker_s)
-        return ("main" if on_main else "worker", float(start[0]))
-    return solve
-
-
-def test_restarts_are_taken_one_at_a_time_so_the_faster_side_takes_the_rest(monkeypatch) -> None:
-    monkeypatch.setattr(assess_module, "_restart_solve", _timed_restart(0.5))
-    starts = [np.full(6, float(i)) for i in range(4)]
-    with ThreadPoolExecutor(1) as executor:
-        runs = assess_module._shared_restarts([], starts, OptimOptions(), GmmOptions(), None, (), executor)
-    assert [value for _, value in runs] == [0.0, 1.0, 2.0, 3.0]  # in the starts' order, whoever ran them
-    assert [side for side, _ in runs].count("main") == 1  # fixed halves would have given this process two
-
-
-def test_a_restart_that_fails_in_the_worker_raises_here(monkeypatch) -> None:
-    monkeypatch.setattr(assess_module, "_restart_solve", _timed_restart(0.05, fail_on_worker=True))
-    starts = [np.full(6, float(i)) for i in range(4)]
-    with ThreadPoolExecutor(1) as executor, pytest.raises(CalibError, match="worker restart failed"):
-        assess_module._shared_restarts([], starts, OptimOptions(), GmmOptions(), None, (), executor)
-
-
-def test_this_process_works_while_the_worker_ends_its_last_restart(monkeypatch) -> None:
-    monkeypatch.setattr(assess_module, "_restart_solve", _timed_restart(0.01, worker_s=0.5))
-    starts = [np.full(6, float(i)) for i in range(4)]
-    waited = []
-    with ThreadPoolExecutor(1) as executor:
-        runs = assess_module._shared_restarts([], starts, OptimOptions(), GmmOptions(), None, (), executor,
-                                              lambda: waited.append(True))
-    assert [side for side, _ in runs].count("worker") == 1 and waited == [True]
-
-
-class _Workers(ThreadPoolExecutor):
-    """A pool that says how many workers it has, as the application's FeaturePool does."""
-
-    @property
-    def workers(self) -> int:
-        return self._max_workers
-
-
-def test_every_worker_of_the_pool_takes_restarts_beside_this_process(monkeypatch) -> None:
-    """Four restarts, three workers: each restart waits until all four run at once, which only happens when
-    this process and every worker took one (with one worker fed, the barrier breaks)."""
-    together = threading.Barrier(4, timeout=10)
-
-    def solve(feats, start, *rest):
-        together.wait()
-        return threading.current_thread().name, float(start[0])
-
-    monkeypatch.setattr(assess_module, "_restart_solve", solve)
-    starts = [np.full(6, float(i)) for i in range(4)]
-    with _Workers(3, thread_name_prefix="worker") as executor:
-        runs = assess_module._shared_restarts([], starts, OptimOptions(), GmmOptions(), None, (), executor)
-    assert [value for _, value in runs] == [0.0, 1.0, 2.0, 3.0]
-    assert len({name for name, _ in runs}) == 4
 
 
 def test_a_left_out_solve_that_carries_most_of_the_spread_holds_the_pose_short_of_the_kernel_width():
