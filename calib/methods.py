@@ -25,11 +25,11 @@ from calib.assess_photo import as_optim, assess_photometric, photo_elevation_slo
 from calib.errors import CalibError, InitialGuessError
 from calib.geometry import Transform
 from calib.gmm import PairFeatures, SigmaModel
-from calib.initial import SearchOptions
 from calib.optimize import OptimResult
 from calib.photometric import PhotoCost, PhotoPair, PhotoParams, PhotoResult, optimise_photometric
 from calib.pipeline import CalibParams, CalibResult, PairStats, PointEdgeMethod, calibrate, paper_params, with_sigmas
 from calib.prior import Prior
+from calib.search import SearchOptions
 
 
 class Method(Enum):
@@ -124,7 +124,7 @@ def gmm_params(method: Method) -> CalibParams | None:
 @dataclass(frozen=True, kw_only=True)
 class SolveRequest:
     """One calibration as :func:`solve` takes it: ``method``; ``initial`` the start (None: the global search of
-    :mod:`calib.initial`, with ``search``'s options); ``sigmas_deg`` the GMM's coarse-to-fine ladder (None: the
+    :mod:`calib.search`, with ``search``'s options); ``sigmas_deg`` the GMM's coarse-to-fine ladder (None: the
     method's own); ``prior`` the rig's drawing's; ``trust`` the assessment's options (None: not assessed);
     ``fit_elevation`` the LiDAR's common elevation offset fitted with the pose (calib.elevation)."""
 

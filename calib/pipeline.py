@@ -28,11 +28,11 @@ from calib.fields import EdgeFields
 from calib.geometry import Transform
 from calib.gmm import Evaluator, GmmOptions, KernelNorm, PairFeatures, in_image, transform_points
 from calib.handed import collect, hand
-from calib.initial import SearchOptions, SearchResult, search_initial
 from calib.optimize import OptimOptions, OptimResult, optimise
 from calib.photometric import PhotoPair
 from calib.pixel_grid import PixelGrid
 from calib.prior import Prior
+from calib.search import SearchOptions, SearchResult, search_initial
 
 F64 = NDArray[np.float64]
 
@@ -291,7 +291,7 @@ def calibrate(
     """Algorithm 1 from ``initial`` (with the prior's MAP term if given), then, with ``trust``, the restarts,
     per-axis uncertainty and verdict of :mod:`calib.assess` (a restart that ends lower is the solution).
 
-    ``initial`` None: the global search of :mod:`calib.initial` (``search`` options, the lever arm from the
+    ``initial`` None: the global search of :mod:`calib.search` (``search`` options, the lever arm from the
     prior or zero; the mounts scored by mutual information with ``search_photo``, else by the edges) gives the
     start, and its runner-up is solved in full too and weighed by the assessment. Without a translation prior,
     the start's lever arm enters the solve as a weak prior (:func:`solve_prior`). ``executor`` (the

@@ -24,9 +24,13 @@ class DatasetLockedError(DatasetError):
 
 
 class LockHeldError(RigdError):
-    """Another process holds a lock file (:mod:`rigd.flock`); ``holder`` is what it wrote into it ("" if
+    """Another process holds a lock file (:mod:`rigd.locks`); ``holder`` is what it wrote into it ("" if
     unreadable). The lock's owner turns it into its own error naming what is locked."""
 
     def __init__(self, holder: str) -> None:
         super().__init__(holder)
         self.holder = holder
+
+
+class DataDirLockedError(RigdError):
+    """Another process (another ``rigd serve``) holds the data directory; the message names its pid."""

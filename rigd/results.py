@@ -3,7 +3,7 @@ report (``rigd check --json``) and a capture's pairs.
 
 TypedDicts, as the calibration report of rigd/report.py and for the same reasons: the records are the very
 dicts that are stored and answered, and pydantic turns them into the schema of ``JobOut.result``
-(rigd/api/models.py). Built in rigd/api/runner.py (calibrate), rigd/calibration/check.py (check) and
+(rigd/api/models.py). Built in rigd/api/job_runner.py (calibrate), rigd/calibration/check_job.py (check) and
 rigd/api/routes/capture.py (capture).
 
 Every record keeps keys it does not name when the API reads a stored job (``extra="allow"``), and a key an
@@ -22,7 +22,7 @@ from rigd.report import Sigmas, TransformYaml
 
 _OPEN = ConfigDict(extra="allow")
 
-# calib.check.DriftStatus by value (tests/rigd/api/test_job_results.py checks the two agree).
+# calib.drift.DriftStatus by value (tests/rigd/api/test_job_results.py checks the two agree).
 CheckStatus = Literal["ok", "drifted", "unknown"]
 # rigd.store.VersionStatus by value (the same test).
 VersionStatusName = Literal["candidate", "active", "superseded"]

@@ -51,7 +51,7 @@ class CalibrateIn(Options):
 
 class ThresholdIn(Request):
     """The length of a rotation / translation change that matters to a check: rigd check's defaults
-    (calib.check.DriftOptions; a test holds them equal), docs/check.md."""
+    (calib.drift.DriftOptions; a test holds them equal), docs/check.md."""
 
     rotation_deg: ToleranceDeg = Field(default=0.3, description="rotation change, deg (0.001 .. 10)")
     translation_cm: ToleranceCm = Field(default=2.0, description="translation change, cm (0.01 .. 100)")

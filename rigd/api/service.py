@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
+from rigd.api.job_runner import ActivationBounds, JobRunner
 from rigd.api.models import CameraStatus, LidarStatus
-from rigd.api.runner import ActivationBounds, JobRunner
 from rigd.api.sensors import SensorMonitor
 from rigd.api.settings import Settings
 from rigd.capture.config import RigSettings, load_settings

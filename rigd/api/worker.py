@@ -30,13 +30,13 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from calib.check import DriftOptions
+from calib.drift import DriftOptions
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.pipeline import sigmas_for
 from drivers.errors import DriverError
 from rigd.calibration import CalibrationRequest, run_calibration
-from rigd.calibration.check import run_check
+from rigd.calibration.check_job import run_check
 from rigd.calibration.job import prepare
 from rigd.calibration.progress import Stage
 from rigd.errors import RigdError

@@ -20,9 +20,9 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validat
 from calib.assess import TrustOptions
 from calib.errors import CalibError
 from calib.geometry import Transform
-from calib.initial import default_search
 from calib.methods import Method, SolveRequest
 from calib.prior import Prior
+from calib.search import default_search
 from rigd.dataset import Dataset
 from rigd.dataset.records import CameraConfig, CameraKind, lever_arm_problem, prior_from_yaml, tolerance_from_yaml
 from rigd.dataset.working import WORKING_WIDTH_PX

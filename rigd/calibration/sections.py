@@ -11,9 +11,9 @@ from calib.assess import Assessment, Status, TrustOptions
 from calib.camera import CameraModel
 from calib.elevation import ElevationFit
 from calib.geometry import Transform, rotation_angle_deg
-from calib.initial import SearchOptions, SearchResult
 from calib.methods import SolveRequest
 from calib.pipeline import CalibResult, sigmas_for
+from calib.search import SearchOptions, SearchResult
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.calibration.advice import Step
 from rigd.calibration.request import Resolved

@@ -14,8 +14,8 @@ from typing import Any
 
 from calib.assess import TrustOptions
 from calib.geometry import Transform
-from calib.initial import SearchOptions
 from calib.prior import Prior
+from calib.search import SearchOptions
 from drivers.ladybug5.sdk import DEFAULT_GRAB_TIMEOUT_MS, DEFAULT_LIBRARY
 from drivers.ladybug5.sdk_render import PanoramaBackend
 from drivers.ladybug5.stitch import DEFAULT_RADIUS_M

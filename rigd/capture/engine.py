@@ -11,7 +11,7 @@ sweep for the silence timeout ends the capture with an error that says why (no d
 packets, a blind sensor). A simulated rig that has stopped at all its places and stood at the last one longer
 than a stop lasts, with pairs still missing, ends it too (:class:`SimRigEndedError`): it gives no new place.
 ``stop`` is looked at between sweeps and never while a pair is being taken, so a pair is either written whole
-or not begun. A capture holds the dataset's writer lock (rigd.dataset.lock) from start to end: a second one
+or not begun. A capture holds the dataset's writer lock (rigd.locks) from start to end: a second one
 into the same folder is refused at once.
 """
 
@@ -60,9 +60,9 @@ from rigd.capture.sources import CameraFrame, Sources, frame_time, open_sources
 from rigd.capture.specs import CameraKind as SourceKind
 from rigd.capture.specs import LidarKind, parse_camera, parse_lidar
 from rigd.dataset import Cloud, RigConfig, read_pcd, write_ground_truth, write_pair, write_rig
-from rigd.dataset.lock import DatasetLock
 from rigd.dataset.store import pair_folders, read_yaml
 from rigd.errors import DatasetError
+from rigd.locks import DatasetLock
 from rigd.version import software_version
 
 DEFAULT_MIN_MOVE_M = 0.5

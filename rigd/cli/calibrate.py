@@ -19,8 +19,8 @@ from rigd.calibration.request import PriorIn, ToleranceIn, TransformIn
 from rigd.cli.args import ExpertHelp, expert, numbers, parse_init, print_progress, validated
 from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Calibrate
-from rigd.dataset.lock import reading
 from rigd.dataset.working import WORKING_WIDTH_PX
+from rigd.locks import reading
 from rigd.outdir import claim_output_dir
 from rigd.report import (
     CalibrationReport,

@@ -7,15 +7,15 @@ import json
 from pathlib import Path
 from typing import Any
 
-from calib.check import DriftOptions, DriftStatus
+from calib.drift import DriftOptions, DriftStatus
 from calib.geometry import Transform
-from rigd.calibration.check import extrinsics_from_file, extrinsics_from_store, group_lines, run_check
+from rigd.calibration.check_job import extrinsics_from_file, extrinsics_from_store, group_lines, run_check
 from rigd.cli.args import parse_tolerance, print_progress
 from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
-from rigd.dataset.lock import reading
 from rigd.errors import RigdError
+from rigd.locks import reading
 from rigd.results import CheckReport
 from rigd.store.jsonsafe import json_safe
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from calib.check import DriftOptions
+from calib.drift import DriftOptions
 from calib.evaluate import Params6, PoseError, StartAxes
 from rigd.cli.args import (
     add_evaluation_options,

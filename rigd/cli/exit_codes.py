@@ -2,7 +2,7 @@
 README's command table, docs/trust.md and docs/check.md link to it).
 
 ``rigd calibrate`` and ``rigd check`` exit with their verdict, a member of calib.assess.Status or
-calib.check.DriftStatus, looked up here by its name (``Calibrate[status.name]``): rigd.cli imports this module for
+calib.drift.DriftStatus, looked up here by its name (``Calibrate[status.name]``): rigd.cli imports this module for
 every command, and importing those two calib modules costs about a second (numba, OpenCV, SciPy) that
 ``rigd lidar`` has no use for. tests/rigd/test_exit_codes.py holds the names against the enums.
 
@@ -38,7 +38,7 @@ class Calibrate(IntEnum):
 
 
 class Check(IntEnum):
-    """``rigd check`` by its answer, calib.check.DriftStatus (docs/check.md); an error exits with its own code."""
+    """``rigd check`` by its answer, calib.drift.DriftStatus (docs/check.md); an error exits with its own code."""
 
     OK = 0
     DRIFTED = 1

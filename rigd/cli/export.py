@@ -87,7 +87,7 @@ def _datasets(args: argparse.Namespace, file: Path | None) -> list[Path]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rigd.calibration.check import extrinsics_from_file, extrinsics_from_store
+    from rigd.calibration.check_job import extrinsics_from_file, extrinsics_from_store
     from rigd.exports import ExportFormat, check_frames, render_transform
     from rigd.outdir import write_output_file
 

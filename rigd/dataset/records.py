@@ -14,9 +14,9 @@ from calib.assess import TrustOptions
 from calib.camera import CameraModel, Equirectangular, Fisheye, Mounted, Pinhole
 from calib.errors import CalibError
 from calib.geometry import Transform, rpy_deg_to_matrix
-from calib.initial import SearchOptions
 from calib.pipeline import CalibParams
 from calib.prior import Prior
+from calib.search import SearchOptions
 from rigd.errors import DatasetError
 from rigd.report import PriorYaml, TransformYaml
 

@@ -22,7 +22,6 @@ from numpy.typing import NDArray
 
 from calib.elevation import raise_elevation
 from calib.geometry import Transform
-from rigd.dataset.lock import writing
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
 from rigd.dataset.records import (
     SINGLE_VIEW,
@@ -35,6 +34,7 @@ from rigd.dataset.records import (
 from rigd.dataset.reference import Reference, reference_from_yaml
 from rigd.dataset.working import halvings, working_camera, working_image, working_mask
 from rigd.errors import DatasetError
+from rigd.locks import writing
 from rigd.outdir import fsync_path
 
 IMAGE_NAMES = ("image.png", "image.jpg", "image.jpeg")
@@ -267,7 +267,7 @@ def write_pair(root: Path, index: int, image: NDArray[np.uint8] | Path | Mapping
     ``image``: the camera's image, or a head's images by sensor name (images/NAME.png); a Path is an image file
     copied as it is (image.jpg, images/NAME.jpg for a JPEG: no second lossy encoding). ``extras``: more images of
     the pair by file name (e.g. ``panorama.png`` beside a head's images), for people: calibration does not read them.
-    Written under the dataset's writer lock (rigd.dataset.lock): DatasetLockedError while another process writes
+    Written under the dataset's writer lock (rigd.locks): DatasetLockedError while another process writes
     the dataset."""
     with writing(Path(root)):
         return _write_pair(Path(root), index, image, cloud, meta, dict(extras or {}))

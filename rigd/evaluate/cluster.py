@@ -113,7 +113,7 @@ def _on_worker(key: FeatureKey, client_code: tuple[tuple[str, str], ...], fn: Ca
 
 
 class DaskCluster:
-    """The workers of the Dask scheduler at ``address`` (a :class:`rigd.evaluate.runner.TrialRunner`)."""
+    """The workers of the Dask scheduler at ``address`` (a :class:`rigd.evaluate.pools.TrialRunner`)."""
 
     def __init__(self, address: str, timeout_s: float, request: CalibrationRequest) -> None:
         self._address = address

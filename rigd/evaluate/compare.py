@@ -31,7 +31,7 @@ from rigd.dataset.records import transform_to_yaml
 from rigd.dataset.store import write_yaml
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
-from rigd.evaluate.runner import trial_runner
+from rigd.evaluate.pools import trial_runner
 from rigd.evaluate.trials import EvaluationSettings, Run, Task, run_task
 
 AXES6 = ("roll_deg", "pitch_deg", "yaw_deg", "x_m", "y_m", "z_m")

@@ -1,12 +1,12 @@
 """``rigd evaluate drift``: how well ``rigd check`` tells drift from none (docs/check.md).
 
 Trials inject a known error into the ground truth (a random direction in rotation or in translation, at
-each magnitude of ``rot_deg`` / ``trans_cm``, and none at all), run :func:`calib.check.check_drift` from the
+each magnitude of ``rot_deg`` / ``trans_cm``, and none at all), run :func:`calib.drift.check_drift` from the
 erroneous extrinsics, and count the answers per magnitude: ``ok`` at zero error (a good calibration passes),
 ``drifted`` at each magnitude (detection), and drifted at zero error (false alarms). With ``size`` each trial
 checks that many pairs drawn at random from the dataset, so the pairs' own errors vary between trials too
 (with all pairs every zero-error trial is the same check). The worker processes and their features are those
-of :mod:`rigd.evaluate.runner`.
+of :mod:`rigd.evaluate.pools`.
 """
 
 from __future__ import annotations
@@ -18,15 +18,15 @@ from typing import Any
 
 import numpy as np
 
-from calib.check import DriftOptions, DriftStatus, check_drift
+from calib.drift import DriftOptions, DriftStatus, check_drift
 from calib.errors import CalibError
 from calib.evaluate import random_subsets
 from calib.geometry import Transform
 from calib.uncertainty import tau_at
-from rigd.calibration.check import with_rig_tolerance
+from rigd.calibration.check_job import with_rig_tolerance
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
-from rigd.evaluate.runner import trial_runner, where_run
+from rigd.evaluate.pools import trial_runner, where_run
 from rigd.evaluate.trials import EvaluationSettings, WorkerState, gmm_request, of_pairs, open_for
 
 ERROR = "error"  # a trial whose checked pose sees nothing: counted apart, not as an answer

@@ -2,7 +2,7 @@
 
 Each trial mounts the camera at random (yaw uniform in +-``yaw_deg``, roll and pitch uniform in +-``tilt_deg``
 as ``R = R_base Rz Ry Rx``, lever arm uniform in +-``lever_m`` per axis) and calibrates with no initial guess:
-the global search of :mod:`calib.initial`, then the usual coarse-to-fine from its best start. A random mount
+the global search of :mod:`calib.search`, then the usual coarse-to-fine from its best start. A random mount
 is made from the dataset's own sweeps by expressing each cloud in the LiDAR frame the new mount implies,
 ``p' = R'^T (R p + t - t')`` with (R, t) the ground truth and (R', t') the new mount: the camera sees every
 point where it saw it before. (The ranges |p'| then differ from the sensor's by up to the lever-arm change,
@@ -30,11 +30,11 @@ from calib.errors import CalibError
 from calib.evaluate import random_starts
 from calib.geometry import Transform, rotation_angle_deg, rpy_deg_to_matrix
 from calib.gmm import PairFeatures
-from calib.initial import SearchOptions, base_rotation
 from calib.methods import Method, solve
+from calib.search import SearchOptions, base_rotation
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
-from rigd.evaluate.runner import trial_runner, where_run
+from rigd.evaluate.pools import trial_runner, where_run
 from rigd.evaluate.trials import EvaluationSettings, WorkerState, open_for
 
 

@@ -1,5 +1,5 @@
 """The paper's evaluation protocols on a dataset (docs/evaluation.md): convergence (Fig. 19) and precision
-(Table 1), many calibrations run where :mod:`rigd.evaluate.runner` says (worker processes or a Dask cluster),
+(Table 1), many calibrations run where :mod:`rigd.evaluate.pools` says (worker processes or a Dask cluster),
 their statistics (calib.evaluate), a YAML report and a plot (:mod:`rigd.evaluate.plots`).
 """
 
@@ -34,7 +34,7 @@ from rigd.dataset.reference import AXES, Reference, agreement
 from rigd.dataset.store import write_yaml
 from rigd.errors import RigdError
 from rigd.evaluate.plots import plot_convergence, plot_precision
-from rigd.evaluate.runner import TrialRunner, trial_runner, where_run
+from rigd.evaluate.pools import TrialRunner, trial_runner, where_run
 from rigd.evaluate.trials import EvaluationSettings, Run, Task, open_for, run_task
 
 

@@ -1,7 +1,7 @@
 """What every evaluation protocol shares: its settings, one calibration's task and result, and the state a worker
 keeps for all its trials: one dataset's features, extracted once for the calibration request every trial solves
 (the request `rigd calibrate` would build, read against the dataset by the same rigd.calibration.request.resolve;
-a trial replaces only the start and the pairs). Where the trials run is :mod:`rigd.evaluate.runner`."""
+a trial replaces only the start and the pairs). Where the trials run is :mod:`rigd.evaluate.pools`."""
 
 from __future__ import annotations
 

@@ -3,6 +3,7 @@
 It raises only :mod:`rigd.store.errors` (never anything HTTP); the API maps them to status codes.
 """
 
+from rigd.locks import DataDirLock
 from rigd.store.db import Database
 from rigd.store.errors import (
     ConflictError,
@@ -13,7 +14,6 @@ from rigd.store.errors import (
     StoreUnavailableError,
 )
 from rigd.store.jobs import JobStore
-from rigd.store.lock import DataDirLock
 from rigd.store.records import (
     Change,
     ExtrinsicsVersion,

@@ -1,6 +1,6 @@
 """Errors of the store layer; the HTTP layer maps them to status codes (the store knows nothing of HTTP)."""
 
-from rigd.errors import DiskError, RigdError
+from rigd.errors import DataDirLockedError, DiskError, RigdError
 
 
 class StoreError(RigdError):
@@ -15,10 +15,6 @@ class ConflictError(StoreError):
     """The request contradicts the current state (a finished job cancelled, no active version, ...)."""
 
 
-class DataDirLockedError(StoreError):
-    """Another process (another ``rigd serve``) holds the data directory; the message names its pid."""
-
-
 class StoreUnavailableError(StoreError):
     """The database file is gone or was replaced under the running service: nothing can be read or stored."""
 
@@ -26,3 +22,7 @@ class StoreUnavailableError(StoreError):
 class StorageError(StoreError, DiskError):
     """The data directory takes no write: its file system is full or read-only (the message names the path and
     the free space). Nothing was stored; the same request succeeds once there is room again."""
+
+
+__all__ = ["ConflictError", "DataDirLockedError", "NotFoundError", "StorageError", "StoreError",
+           "StoreUnavailableError"]

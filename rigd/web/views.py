@@ -20,7 +20,7 @@ from rigd.api.routes.jobs import list_jobs
 from rigd.api.routes.status import get_status
 from rigd.api.service import Service
 from rigd.calibration.advice import Action
-from rigd.calibration.check import group_lines
+from rigd.calibration.check_job import group_lines
 from rigd.calibration.request import Start, TransformIn
 from rigd.report import NextStep, VersionQuality, calibrated, verdict_of
 from rigd.results import CaptureJobResult, is_calibration, is_capture, is_check

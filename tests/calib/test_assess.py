@@ -304,8 +304,8 @@ def test_independent_solves_in_a_process_pool_end_exactly_where_serial_ones_do(p
     import pickle
     from concurrent.futures import ProcessPoolExecutor
 
-    from calib.initial import SearchOptions
     from calib.pipeline import CalibParams, calibrate, with_sigmas
+    from calib.search import SearchOptions
 
     trust = TrustOptions(restarts=2)  # one here, one in a worker
     search = SearchOptions(yaw_range_deg=30.0, tilt_deg=0.0)  # a few mounts: a runner-up, quickly

@@ -9,8 +9,8 @@ from calib.camera import Pinhole
 from calib.edges_points import EdgePoints
 from calib.geometry import Transform, rotation_angle_deg, so3_exp, so3_log
 from calib.gmm import PairFeatures, in_image, transform_points
-from calib.initial import OPTICAL_FROM_LIDAR_AXES, base_rotation
 from calib.pipeline import CalibParams, calibrate, schedule, with_sigmas
+from calib.search import OPTICAL_FROM_LIDAR_AXES, base_rotation
 from calib.uncertainty import places
 from tests.calib.synthetic import TRUTH, head_sensors, make_head_place, make_pair
 

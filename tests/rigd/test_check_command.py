@@ -6,7 +6,7 @@ import shutil
 import pytest
 import yaml
 
-from calib.check import DriftOptions
+from calib.drift import DriftOptions
 from calib.geometry import Transform
 from rigd.cli import main
 from rigd.cli.exit_codes import ERROR

@@ -2,7 +2,7 @@
 a verdict's code."""
 
 from calib.assess import Status
-from calib.check import DriftStatus
+from calib.drift import DriftStatus
 from rigd.cli import exit_codes
 from rigd.cli.exit_codes import Calibrate, Check
 

@@ -7,9 +7,9 @@ from typing import Any
 from fastapi import APIRouter, Response, status
 
 from rigd.api.deps import Authorized, ServiceDep
+from rigd.api.job_runner import CalibrationPlan
 from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut
 from rigd.api.routes.jobs import queued_out
-from rigd.api.runner import CalibrationPlan
 from rigd.api.service import Service
 from rigd.calibration.request import CalibrationRequest, Start, TransformIn, resolve
 from rigd.dataset import Dataset

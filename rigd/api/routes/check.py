@@ -5,9 +5,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Response, status
 
 from rigd.api.deps import Authorized, ServiceDep
+from rigd.api.job_runner import CheckPlan
 from rigd.api.models import CheckIn, ErrorOut, JobOut, ThresholdIn
 from rigd.api.routes.jobs import queued_out
-from rigd.api.runner import CheckPlan
 from rigd.api.service import Service
 from rigd.errors import RigdError
 from rigd.store import ConflictError

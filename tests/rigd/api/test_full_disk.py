@@ -17,7 +17,7 @@ import pytest
 from api_helpers import App
 
 from calib.geometry import Transform
-from rigd.api.runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.api.job_runner import ActivationBounds, CalibrationPlan, JobRunner
 from rigd.calibration import CalibrationRequest, Start, TransformIn
 from rigd.capture import DiskFullError
 from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, write_pair, write_rig

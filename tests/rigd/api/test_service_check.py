@@ -8,7 +8,7 @@ from contextlib import closing
 
 from api_helpers import App, simulated_dataset, wait_job
 
-from calib.check import DriftOptions
+from calib.drift import DriftOptions
 from rigd.api.models import ThresholdIn
 from rigd.dataset import open_dataset
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from calib.geometry import Transform
-from rigd.api.runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.api.job_runner import ActivationBounds, CalibrationPlan, JobRunner
 from rigd.calibration import CalibrationRequest, Start, TransformIn
 from rigd.store import Database, JobKind, JobStatus, JobStore, NewVersion, VersionStatus, VersionStore, faults
 from rigd.store.datasets import DatasetCatalog

@@ -14,8 +14,8 @@ import pytest
 
 from calib.assess import TrustOptions
 from calib.geometry import Transform
-from calib.initial import SearchOptions, search_initial
 from calib.pipeline import CalibParams, calibrate, with_sigmas
+from calib.search import SearchOptions, search_initial
 from rigd.calibration.pool import FeaturePool
 from tests.calib.synthetic import TRUTH, make_pair
 

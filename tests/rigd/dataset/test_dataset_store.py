@@ -27,9 +27,9 @@ from rigd.dataset import (
     write_pair,
     write_rig,
 )
-from rigd.dataset.lock import DatasetLock, reading
 from rigd.dataset.store import next_pair_index
 from rigd.errors import DatasetError, DatasetLockedError
+from rigd.locks import DatasetLock, reading
 from tests.testdata import PINHOLE_FRAME
 
 PANO_RIG = RigConfig(
@@ -294,7 +294,7 @@ def test_pinhole_sample_as_a_dataset(tmp_path: Path) -> None:
 HOLD_LOCK = """
 import sys, time
 from pathlib import Path
-from rigd.dataset.lock import DatasetLock
+from rigd.locks import DatasetLock
 lock = DatasetLock.acquire(Path(sys.argv[1]))
 (Path(sys.argv[1]) / "pairs" / ".0002.tmp").mkdir()  # its pair 0002, half written
 print("locked", flush=True)

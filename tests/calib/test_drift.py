@@ -1,11 +1,11 @@
-"""calib.check: the three answers and the promises behind them, and a search from a drifted and from the true pose."""
+"""calib.drift: the three answers and the promises behind them, and a search from a drifted and from the true pose."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 
-from calib.check import (
+from calib.drift import (
     DriftOptions,
     DriftStatus,
     Group,

@@ -1,4 +1,4 @@
-"""``rigd check``: is an existing calibration still right for a dataset's pairs? (calib.check, docs/check.md)"""
+"""``rigd check``: is an existing calibration still right for a dataset's pairs? (calib.drift, docs/check.md)"""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from calib.check import DriftOptions, DriftResult, GroupChange, check_drift, percent
+from calib.drift import DriftOptions, DriftResult, GroupChange, check_drift, percent
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.pipeline import CalibParams

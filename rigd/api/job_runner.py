@@ -29,9 +29,9 @@ from calib.geometry import Transform
 from drivers.errors import DriverError
 from rigd.api.errors import QueueFullError
 from rigd.calibration.request import CalibrationRequest
-from rigd.dataset.lock import reading
 from rigd.dataset.records import transform_to_yaml
 from rigd.errors import DatasetLockedError, RigdError
+from rigd.locks import reading
 from rigd.report import CalibrationReport, StoredQuality, stored_quality, verdict_of
 from rigd.results import AutoActivation, CalibrateJobResult, CaptureJobResult, CheckReport
 from rigd.space import os_reason, write_failure

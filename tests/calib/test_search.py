@@ -1,4 +1,4 @@
-"""calib.initial: the global search for an initial guess, and its runners-up in the assessment."""
+"""calib.search: the global search for an initial guess, and its runners-up in the assessment."""
 
 import dataclasses
 import weakref
@@ -6,14 +6,14 @@ import weakref
 import numpy as np
 import pytest
 
-import calib.initial as initial_module
+import calib.search as initial_module
 from calib.assess import TrustOptions, assess
 from calib.camera import Pinhole
 from calib.geometry import Transform, rotation_angle_deg, so3_exp
 from calib.gmm import Evaluator, GmmOptions
-from calib.initial import SearchOptions, base_rotation, default_search, grid_mounts, search_initial
 from calib.optimize import OptimOptions, optimise
 from calib.pipeline import CalibParams, calibrate
+from calib.search import SearchOptions, base_rotation, default_search, grid_mounts, search_initial
 from tests.calib.synthetic import TRUTH, make_pair
 
 FIELD = dataclasses.replace(GmmOptions(), evaluator=Evaluator.FIELD)
