@@ -195,11 +195,12 @@ def solve(request: SolveRequest, *, feats: list[PairFeatures] | None = None, pho
         return result
     if photo is None:
         raise CalibError(f"method {request.method.value} needs the photometric pairs (image and LiDAR reflectivity)")
-    return _photometric(request, photo, photo_opts, result, trust, executor)
+    return _photometric(request, photo, photo_opts, result, trust, executor, on_iter)
 
 
 def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParams, gmm: CalibResult | None,
-                 trust: TrustOptions | None, executor: Executor | None) -> CalibResult:
+                 trust: TrustOptions | None, executor: Executor | None,
+                 on_iter: Callable[[int, int, float], None] | None) -> CalibResult:
     """The photometric solve from the request's start (or from the GMM's solution, ``gmm``), assessed with
     ``trust`` (nid-assessed; a declared elevation offset's sigma enters as in the GMM's: calib.assess_photo)."""
     prior = request.prior
@@ -208,7 +209,7 @@ def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParam
     assert start is not None
     if fixed and prior is not None and prior.xyz_m is not None and gmm is None:
         start = Transform(start.rotation, prior.xyz_m)
-    solved = optimise_photometric(photo, start.tau, opts, fixed_translation=fixed)
+    solved = optimise_photometric(photo, start.tau, opts, fixed_translation=fixed, on_iter=on_iter)
     stats = gmm.pairs if gmm is not None else tuple(PairStats(0, int(len(p.points_lidar))) for p in photo)
     if trust is not None:
         if trust.elevation_sigma_deg > 0:

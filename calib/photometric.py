@@ -459,13 +459,18 @@ def _subset_indices(pairs: list[PhotoPair], tau: F64, params: PhotoParams) -> li
     return [_in_view(p, tau, params, cap) for p in pairs]
 
 
+EVALS_PER_STEP = 25  # cost evaluations per progress report of optimise_photometric
+
+
 def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
-                         fixed_translation: bool = False, subset_tau: F64 | None = None) -> PhotoResult:
+                         fixed_translation: bool = False, subset_tau: F64 | None = None, *,
+                         on_iter: Callable[[int, int, float], None] | None = None) -> PhotoResult:
     """Coarse to fine over ``params.blur_deg`` from ``tau0``; each level one
     Nelder-Mead, the last rerun from its result up to ``params.restarts`` times until it moves less than the
     restart tolerance. ``fixed_translation`` holds t (a zero simplex step). ``subset_tau``: the pose whose
     view chooses the points (default ``tau0``; the trust assessment's restarts use the solution's, so their
-    costs compare with its)."""
+    costs compare with its). ``on_iter(level, step, cost)`` every EVALS_PER_STEP cost evaluations, as the GMM's
+    optimiser reports its iterations."""
     if not pairs:
         raise CalibError("no pairs to calibrate")
     tau = np.asarray(tau0, dtype=np.float64).copy()
@@ -481,8 +486,14 @@ def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
                         + [0.0 if hold_t else params.step_trans_m[level]] * 3)
         step = np.where(step > 0, step, 1e-12)
 
-        def f(t: F64, lps: list[LevelPair] = lps) -> float:
-            return level_cost(lps, t, params)
+        evaluations = [0]
+
+        def f(t: F64, lps: list[LevelPair] = lps, level: int = level, seen: list[int] = evaluations) -> float:
+            cost = level_cost(lps, t, params)
+            seen[0] += 1
+            if on_iter is not None and seen[0] % EVALS_PER_STEP == 0:
+                on_iter(level, seen[0] // EVALS_PER_STEP, cost)
+            return cost
 
         start_cost = f(tau)
         tau, evals, cost = _nelder_mead(f, tau, step, params.max_evals, params.max_move_steps)

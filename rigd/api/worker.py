@@ -110,7 +110,9 @@ def run_job(job: dict[str, Any], out: TextIO) -> dict[str, Any]:
     searching = resolved.solve.initial is None
     reporter = Reporter(out, BANDS_SEARCHING if searching else BANDS, resolved.start_why.why if searching else "")
     gmm = resolved.solve.gmm
-    reporter.levels = len(sigmas_for(gmm, list(dataset.rig.camera.models()))) if gmm is not None else 1
+    photo = resolved.solve.photo
+    reporter.levels = (len(sigmas_for(gmm, list(dataset.rig.camera.models()))) if gmm is not None else 0) + \
+        (len(photo.blur_deg) if photo is not None else 0)
     reporter.progress(Stage.HASHING, 0, 1)
     digest = content_hash(dataset)
     outcome = run_calibration(request, reporter.progress, reporter.iteration, (dataset, resolved))

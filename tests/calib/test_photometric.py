@@ -190,3 +190,15 @@ def test_sampling_takes_more_points_than_one_remap_row_holds() -> None:
     image = np.add.outer(np.arange(40.0), np.arange(60.0)).astype(np.float32)  # value = row + column
     uv = np.random.default_rng(0).uniform([0, 0], [59, 39], size=(70000, 2))  # > 32767: OpenCV's map limit
     np.testing.assert_allclose(sample(image, Pinhole(np.eye(3), np.zeros(0), 60, 40), uv), uv.sum(axis=1), atol=1e-3)
+
+
+def test_the_photometric_solve_reports_its_progress_level_by_level():
+    """As the GMM's optimiser reports its iterations: every EVALS_PER_STEP cost evaluations, the level and cost."""
+    from calib.photometric import EVALS_PER_STEP
+
+    seen = []
+    params = _small(PhotoCost.NID)
+    result = optimise_photometric([ideal_pair(4)], TRUTH.tau, params, on_iter=lambda *a: seen.append(a))
+    per_level = [level.evaluations // EVALS_PER_STEP for level in result.levels]
+    assert seen and [sum(1 for s in seen if s[0] == k) for k in range(len(per_level))] == per_level
+    assert [s[0] for s in seen] == sorted(s[0] for s in seen)
