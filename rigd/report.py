@@ -244,8 +244,12 @@ class PriorYaml(TypedDict, total=False):
 
 @with_config(_OPEN)
 class Tolerance(TypedDict):
+    """The verdict's field tolerance: per rotation and translation axis, and each axis's (roll, pitch, yaw deg;
+    x, y, z cm) as the verdict judged it."""
+
     rotation_deg: float
     translation_cm: float
+    per_axis: NotRequired[list[float]]
 
 
 class ElevationOffset(TypedDict):

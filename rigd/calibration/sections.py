@@ -189,7 +189,8 @@ def _compared(dataset: Dataset, T: Transform) -> _Compared:
 def _settings(resolved: Resolved, cameras: list[CameraModel]) -> _Settings:
     solve = resolved.solve
     trust = solve.trust or TrustOptions()
-    tolerance: Tolerance = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm}
+    tolerance: Tolerance = {"rotation_deg": trust.tolerance_rot_deg, "translation_cm": trust.tolerance_trans_cm,
+                            "per_axis": trust.tolerance_display.tolist()}
     start: StartYaml = {"source": resolved.start.value, "choice": resolved.start_why.choice,
                         "why": resolved.start_why.why}
     if resolved.start_version is not None:

@@ -92,7 +92,8 @@ def test_fixed_translation_holds_the_prior_lever_arm_and_reports_no_translation_
     assert code == {"trusted": 0, "weak": 3, "failed": 4}[report["verdict"]["status"]]
     assert np.allclose(report["T_camera_lidar"]["xyz_m"], lever, atol=1e-12)
     assert report["uncertainty"]["xyz_cm"] == [0.0, 0.0, 0.0] and all(s > 0 for s in report["uncertainty"]["rpy_deg"])
-    assert report["tolerance"] == {"rotation_deg": 0.5, "translation_cm": 5.0} and report["prior"]["fix_translation"]
+    assert report["tolerance"] == {"rotation_deg": 0.5, "translation_cm": 5.0, "per_axis": [0.5] * 3 + [5.0] * 3}
+    assert report["prior"]["fix_translation"]
     assert report["quality"]["image_size_px"] == [256, 128] and report["quality"]["source_image_size_px"] == [512, 256]
 
 
