@@ -78,6 +78,9 @@ class TrustOptions:
 
     tolerance_rot_deg: float = 0.2
     tolerance_trans_cm: float = 2.0
+    # Each axis's own tolerance (roll, pitch, yaw deg; x, y, z cm), where the application needs one axis tighter
+    # than the others (a yaw that sets a map's heading, a z that matters little); (): the two above.
+    tolerance_per_axis: tuple[float, ...] = ()
     sigma_factor: float = 2.5
     restarts: int = 4
     restart_levels: int = 2
@@ -111,6 +114,8 @@ class TrustOptions:
 
     @property
     def tolerance_display(self) -> F64:
+        if self.tolerance_per_axis:
+            return np.array(self.tolerance_per_axis, dtype=np.float64)
         return np.array([self.tolerance_rot_deg] * 3 + [self.tolerance_trans_cm] * 3)
 
 

@@ -166,6 +166,10 @@ class ToleranceIn(Request):
 
     rotation_deg: ToleranceDeg = Field(default=0.2, description="per rotation axis, deg (0.001 .. 10)")
     translation_cm: ToleranceCm = Field(default=2.0, description="per translation axis, cm (0.01 .. 100)")
+    rpy_deg: Annotated[list[ToleranceDeg], Field(min_length=3, max_length=3)] | None = Field(
+        None, description="each rotation axis's own (roll, pitch, yaw about the LiDAR's x, y, z), deg")
+    xyz_cm: Annotated[list[ToleranceCm], Field(min_length=3, max_length=3)] | None = Field(
+        None, description="each translation axis's own (x, y, z), cm")
 
 
 
@@ -293,7 +297,7 @@ def _trust(request: CalibrationRequest, dataset: Dataset) -> TrustOptions | None
     if not request.assess:
         return None
     tolerance = request.options.tolerance
-    trust = (tolerance_from_yaml(tolerance.model_dump(), "request tolerance") if tolerance is not None
+    trust = (tolerance_from_yaml(tolerance.model_dump(exclude_none=True), "request tolerance") if tolerance is not None
              else dataset.rig.tolerance or TrustOptions())
     return with_camera_model(trust, dataset)
 

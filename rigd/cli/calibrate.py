@@ -65,6 +65,9 @@ def register(subparsers: Any) -> None:
                         help="hold the translation at the lever arm (or the initial guess's)")
     parser.add_argument("--tolerance", type=str, default=None, metavar="ROT_DEG,TRANS_CM",
                         help="field tolerance of the verdict in deg and cm (default: rig.yaml tolerance, else 0.2,2)")
+    parser.add_argument("--tolerance-per-axis", type=str, default=None, metavar="R,P,Y,X,Y,Z",
+                        help="each axis's own tolerance: roll, pitch, yaw in deg, x, y, z in cm (default: "
+                        "--tolerance's on every axis)")
     parser.add_argument("--fit-elevation-offset", action="store_true",
                         help="also fit the LiDAR's common elevation offset, for cameras that look all round: a "
                         "panorama or a head; about 1.5 times the time (docs/method.md item 18)")
@@ -116,9 +119,15 @@ def options_of(args: argparse.Namespace) -> Options:
         values = numbers(args.rotation_prior_deg, "--rotation-prior-deg", 4)
         prior |= {"rpy_deg": values[:3], "sigma_deg": values[3]}
     tolerance = None
+    given: dict[str, Any] = {}
     if args.tolerance is not None:
         rot, trans = numbers(args.tolerance, "--tolerance", 2)
-        tolerance = validated(ToleranceIn, "--tolerance ROT_DEG,TRANS_CM", rotation_deg=rot, translation_cm=trans)
+        given |= {"rotation_deg": rot, "translation_cm": trans}
+    if args.tolerance_per_axis is not None:
+        axes = numbers(args.tolerance_per_axis, "--tolerance-per-axis", 6)
+        given |= {"rpy_deg": axes[:3], "xyz_cm": axes[3:]}
+    if given:
+        tolerance = validated(ToleranceIn, "--tolerance / --tolerance-per-axis", **given)
     return validated(
         Options, "rigd calibrate",
         method=Method(args.method) if args.method else None,

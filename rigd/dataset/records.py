@@ -315,8 +315,9 @@ def tolerance_from_yaml(data: Any, where: str, bounded: bool = False) -> TrustOp
     """``tolerance: {rotation_deg: 0.2, translation_cm: 2.0}``: the field tolerance of the verdict; positive, and
     ``bounded`` (rig.yaml's) within ``TOLERANCE_ROT_DEG`` / ``TOLERANCE_TRANS_CM``. The worker's request tolerance
     is not bounded here: the service's request models bound it with the same numbers."""
-    if not isinstance(data, dict) or set(data) - {"rotation_deg", "translation_cm"}:
-        raise DatasetError(f"{where}: 'tolerance' must be a mapping with rotation_deg and/or translation_cm")
+    if not isinstance(data, dict) or set(data) - {"rotation_deg", "translation_cm", "rpy_deg", "xyz_cm"}:
+        raise DatasetError(f"{where}: 'tolerance' must be a mapping with rotation_deg and/or translation_cm (and "
+                           "each axis's own: rpy_deg, xyz_cm)")
     try:
         rot = float(data.get("rotation_deg", TrustOptions.tolerance_rot_deg))
         trans = float(data.get("translation_cm", TrustOptions.tolerance_trans_cm))
@@ -330,7 +331,12 @@ def tolerance_from_yaml(data: Any, where: str, bounded: bool = False) -> TrustOp
                                    f"{value:g}: {TOLERANCE_WHY}")
     elif not (np.isfinite(rot) and np.isfinite(trans) and rot > 0 and trans > 0):
         raise DatasetError(f"{where}: tolerance values must be positive, got {rot} deg, {trans} cm")
-    return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)
+    axes = (*(_three(data["rpy_deg"], "tolerance rpy_deg", where) if "rpy_deg" in data else [rot] * 3),
+            *(_three(data["xyz_cm"], "tolerance xyz_cm", where) if "xyz_cm" in data else [trans] * 3))
+    if not all(np.isfinite(axes)) or min(axes) <= 0:
+        raise DatasetError(f"{where}: each axis's tolerance must be positive, got {list(axes)}")
+    per_axis = tuple(float(v) for v in axes) if {"rpy_deg", "xyz_cm"} & set(data) else ()
+    return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans, tolerance_per_axis=per_axis)
 
 
 SEARCH_KEYS = ("tilt_deg", "yaw_range_deg")
@@ -384,6 +390,9 @@ class RigConfig:
         if self.tolerance is not None:
             out["tolerance"] = {"rotation_deg": self.tolerance.tolerance_rot_deg,
                                 "translation_cm": self.tolerance.tolerance_trans_cm}
+            if self.tolerance.tolerance_per_axis:
+                per_axis = list(self.tolerance.tolerance_per_axis)
+                out["tolerance"] |= {"rpy_deg": per_axis[:3], "xyz_cm": per_axis[3:]}
         if self.search is not None:
             out["search"] = {"tilt_deg": self.search.tilt_deg, "yaw_range_deg": self.search.yaw_range_deg}
         return out

@@ -10,6 +10,7 @@ from rigd.cli import main
 from rigd.cli.exit_codes import CANT_CREATE, ERROR, USAGE
 from rigd.dataset import open_dataset, write_pair
 from rigd.dataset.pcd import Cloud
+from rigd.dataset.records import RigConfig
 from rigd.simulate import write_simulated_dataset
 
 
@@ -171,3 +172,21 @@ def test_a_second_run_into_one_out_replaces_it_whole_only_when_told(small_datase
 def _truth_init(dataset) -> str:
     truth = open_dataset(dataset).ground_truth
     return ",".join(map(str, [*truth.rpy_deg, *truth.translation_m]))
+
+
+def test_each_axis_can_have_its_own_tolerance(small_dataset, tmp_path, capsys):
+    """--tolerance-per-axis: the verdict judges each axis by its own (a yaw that must be within 0.001 deg is named,
+    the rest judged by their loose ones), and the report gives them; rig.yaml reads and writes them alike."""
+    truth = open_dataset(small_dataset).ground_truth
+    init = np.r_[truth.rpy_deg + [0.3, -0.3, 0.3], truth.translation_m]
+    code = main(["calibrate", str(small_dataset), f"--init={','.join(map(str, init))}", "--no-visuals", "--json",
+                 "--tolerance-per-axis", "5,5,0.001,50,50,50", "--out", str(tmp_path / "o"), "--workers", "1",
+                 "--sigmas-deg", "3.5,1.8"])
+    report = json.loads(capsys.readouterr().out)
+    assert report["tolerance"]["per_axis"] == [5.0, 5.0, 0.001, 50.0, 50.0, 50.0]
+    assert code != 0 and "yaw" in report["verdict"]["weak_axes"]
+    assert not {"roll", "pitch", "x", "y", "z"} & set(report["verdict"]["weak_axes"])
+    rig = RigConfig.from_yaml({"camera": {"model": "equirectangular", "width": 8, "height": 4},
+                               "tolerance": {"rpy_deg": [1, 1, 0.1], "xyz_cm": [3, 3, 9]}}, "rig.yaml")
+    assert rig.tolerance is not None and list(rig.tolerance.tolerance_display) == [1, 1, 0.1, 3, 3, 9]
+    assert RigConfig.from_yaml(rig.to_yaml(), "rig.yaml").tolerance == rig.tolerance
