@@ -7,25 +7,28 @@ from typing import Any
 from fastapi import APIRouter, Response, status
 
 from rigd.api.deps import Authorized, ServiceDep
-from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut
+from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut, RigOut
+from rigd.api.rigs import rig_record, rig_words, same_rig, version_rig
 from rigd.api.routes.jobs import queued_out
 from rigd.api.runner import CalibrationPlan
 from rigd.api.service import Service
 from rigd.calibration.request import CalibrationRequest, Start, TransformIn, resolve
 from rigd.dataset import Dataset
 from rigd.errors import RigdError
-from rigd.store import ConflictError
+from rigd.store import ConflictError, ExtrinsicsVersion
 
 router = APIRouter(tags=["calibrate"])
 
 
 def _start(service: Service, body: CalibrateIn, dataset: Dataset) -> dict[str, Any]:
-    """The request's start from the body's ``init``: the active version resolved now (its number kept), the rig
-    file's guess (the dataset's, else the service's; neither: the job searches and says so)."""
+    """The request's start from the body's ``init``: the active version resolved now (its number kept; only for a
+    dataset of its rig), the rig file's guess (the dataset's, else the service's; neither: the job searches and
+    says so)."""
     if body.init is InitMode.ACTIVE:
         active = service.versions.active()
         if active is None:
             raise ConflictError("there is no active extrinsics version yet; start from init 'rig' or a transform")
+        _refuse_other_rig(service, active, body.dataset, dataset)
         return {"start": Start.ACTIVE, "initial": TransformIn.of(active.T_camera_lidar),
                 "start_version": active.number}
     if body.init is InitMode.RIG:  # the guess recorded with the job and its version
@@ -34,6 +37,18 @@ def _start(service: Service, body: CalibrateIn, dataset: Dataset) -> dict[str, A
     if body.init is InitMode.SEARCH:
         return {"start": Start.SEARCH}
     return {"start": Start.GIVEN, "initial": body.init}
+
+
+def _refuse_other_rig(service: Service, active: ExtrinsicsVersion, dataset_id: str, dataset: Dataset) -> None:
+    """ConflictError when the active version is of another rig than the dataset: its extrinsics would put the
+    LiDAR's points anywhere in this camera's image (or nowhere), and the job would fail without saying why."""
+    theirs = version_rig(active, service.datasets)
+    ours = RigOut.model_validate(rig_record(dataset))
+    if not same_rig(theirs, ours):
+        assert theirs is not None
+        raise ConflictError(f"the active version {active.number} was calibrated on another rig ({rig_words(theirs)}, "
+                            f"dataset {active.dataset_id}) than dataset {dataset_id} ({rig_words(ours)}): start "
+                            "from the dataset's own guess (init 'rig') or a global search (init 'search')")
 
 
 def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
@@ -45,8 +60,9 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
     if len(dataset) == 0:
         raise RigdError(f"dataset {body.dataset} has no pairs yet")
     request = CalibrationRequest(dataset=dataset.root, options=body.options(), **_start(service, body, dataset))
-    resolve(request, dataset)
-    return CalibrationPlan(body.dataset, request, body.auto_activate)
+    resolved = resolve(request, dataset)
+    method = {"name": resolved.method_why.choice, "why": resolved.method_why.why}
+    return CalibrationPlan(body.dataset, request, body.auto_activate, rig=rig_record(dataset), method=method)
 
 
 @router.post("/calibrate", response_model=JobOut, status_code=status.HTTP_202_ACCEPTED, dependencies=[Authorized],
@@ -55,7 +71,7 @@ def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
                               "its job (nothing new is queued)"},
                         404: {"model": ErrorOut, "description": "no such dataset"},
                         409: {"model": ErrorOut, "description": "the dataset is being captured, or init 'active' "
-                              "without an active version"},
+                              "without an active version or with one of another rig (camera or LiDAR)"},
                         422: {"model": ErrorOut, "description": "bad request or unusable dataset"},
                         429: {"model": ErrorOut, "description": "the queue is full; ask again after Retry-After "
                               "seconds"}})
