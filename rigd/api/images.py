@@ -86,8 +86,8 @@ def narrowed_image(path: pathlib.Path, width: int | None, fmt: ImageFormat) -> b
     image = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if image is None:
         raise NotFoundError(f"the image {path.name} cannot be read")
-    image = np.asarray(image, np.uint8)
-    return encoded(narrowed(image, width) if width else image, path.name, fmt)
+    pixels: NDArray[np.uint8] = np.asarray(image, np.uint8)
+    return encoded(narrowed(pixels, width) if width else pixels, path.name, fmt)
 
 
 def pair_cloud_from_above(dataset: Dataset, index: int, width: int | None) -> bytes:

@@ -50,3 +50,14 @@ def rig_words(rig: RigOut) -> str:
 def same_rig(a: RigOut | None, b: RigOut | None) -> bool:
     """Whether two rigs are one (an unknown one is taken as the same: nothing says otherwise)."""
     return a is None or b is None or a == b
+
+
+def other_rig(version: ExtrinsicsVersion, datasets: DatasetCatalog, dataset_id: str, dataset: Dataset) -> str | None:
+    """How ``version`` and dataset ``dataset_id`` are of different rigs, in words (None: one rig, or unknown)."""
+    theirs = version_rig(version, datasets)
+    ours = RigOut.model_validate(rig_record(dataset))
+    if same_rig(theirs, ours):
+        return None
+    assert theirs is not None
+    return (f"version {version.number} was calibrated on another rig ({rig_words(theirs)}, dataset "
+            f"{version.dataset_id}) than dataset {dataset_id} ({rig_words(ours)})")

@@ -17,12 +17,15 @@ from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 from jinja2 import Environment, FileSystemLoader, StrictUndefined
 
+from calib.methods import FIELD_METHODS, METHODS
 from calib.uncertainty import AXES
 from rigd.api.deps import ServiceDep
 from rigd.api.service import Service
 from rigd.dataset.records import MAX_LEVER_ARM_M
 from rigd.store.datasets import DATASET_ID_RULE
-from rigd.web.views import VERSIONS_PAGE, PageState, capture_words, page_state
+from rigd.web.jobs_view import capture_words
+from rigd.web.views import VERSIONS_PAGE, PageState, page_state
+from rigd.web.words import page_words
 
 HERE = Path(__file__).resolve().parent
 TEMPLATES = Environment(loader=FileSystemLoader(HERE / "templates"), autoescape=True, undefined=StrictUndefined,
@@ -51,7 +54,8 @@ def _context(service: Service, state: PageState) -> dict[str, Any]:
     return {"state": state, "axes": AXES, "token_required": service.settings.token is not None,
             "sim_rig": rig.lidar_source.startswith("sim") and rig.camera_source.startswith("sim"),
             "capture_defaults": rig.capture, "rig_guess": rig.initial_guess, "versions_page": VERSIONS_PAGE,
-            "lever_arm_cm": MAX_LEVER_ARM_M * 100.0, "dataset_id_rule": DATASET_ID_RULE, "capture_words": capture_words}
+            "lever_arm_cm": MAX_LEVER_ARM_M * 100.0, "dataset_id_rule": DATASET_ID_RULE, "capture_words": capture_words,
+            "page_words": page_words, "methods": [(m.value, METHODS[m].label) for m in FIELD_METHODS]}
 
 
 def render_parts(context: dict[str, Any]) -> dict[str, str]:

@@ -7,15 +7,15 @@ from typing import Any
 from fastapi import APIRouter, Response, status
 
 from rigd.api.deps import Authorized, ServiceDep
-from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut, RigOut
-from rigd.api.rigs import rig_record, rig_words, same_rig, version_rig
+from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut
+from rigd.api.rigs import other_rig, rig_record
 from rigd.api.routes.jobs import queued_out
 from rigd.api.runner import CalibrationPlan
 from rigd.api.service import Service
 from rigd.calibration.request import CalibrationRequest, Start, TransformIn, resolve
 from rigd.dataset import Dataset
 from rigd.errors import RigdError
-from rigd.store import ConflictError, ExtrinsicsVersion
+from rigd.store import ConflictError
 
 router = APIRouter(tags=["calibrate"])
 
@@ -28,7 +28,11 @@ def _start(service: Service, body: CalibrateIn, dataset: Dataset) -> dict[str, A
         active = service.versions.active()
         if active is None:
             raise ConflictError("there is no active extrinsics version yet; start from init 'rig' or a transform")
-        _refuse_other_rig(service, active, body.dataset, dataset)
+        # Its extrinsics would put the LiDAR's points anywhere in another camera's image (or nowhere), and the job
+        # would fail without saying why.
+        if (problem := other_rig(active, service.datasets, body.dataset, dataset)) is not None:
+            raise ConflictError(f"the active {problem}: start from the dataset's own guess (init 'rig') or a "
+                                "global search (init 'search')")
         return {"start": Start.ACTIVE, "initial": TransformIn.of(active.T_camera_lidar),
                 "start_version": active.number}
     if body.init is InitMode.RIG:  # the guess recorded with the job and its version
@@ -37,18 +41,6 @@ def _start(service: Service, body: CalibrateIn, dataset: Dataset) -> dict[str, A
     if body.init is InitMode.SEARCH:
         return {"start": Start.SEARCH}
     return {"start": Start.GIVEN, "initial": body.init}
-
-
-def _refuse_other_rig(service: Service, active: ExtrinsicsVersion, dataset_id: str, dataset: Dataset) -> None:
-    """ConflictError when the active version is of another rig than the dataset: its extrinsics would put the
-    LiDAR's points anywhere in this camera's image (or nowhere), and the job would fail without saying why."""
-    theirs = version_rig(active, service.datasets)
-    ours = RigOut.model_validate(rig_record(dataset))
-    if not same_rig(theirs, ours):
-        assert theirs is not None
-        raise ConflictError(f"the active version {active.number} was calibrated on another rig ({rig_words(theirs)}, "
-                            f"dataset {active.dataset_id}) than dataset {dataset_id} ({rig_words(ours)}): start "
-                            "from the dataset's own guess (init 'rig') or a global search (init 'search')")
 
 
 def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
