@@ -11,8 +11,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from rigd.api.models import RigOut
+from rigd.api.models import CameraOut, RigOut
+from rigd.capture.config import RigSettings
 from rigd.dataset import Dataset
+from rigd.dataset.records import CameraKind
 from rigd.errors import DatasetError
 from rigd.store import ExtrinsicsVersion, NotFoundError
 from rigd.store.datasets import DatasetCatalog
@@ -45,6 +47,17 @@ def rig_words(rig: RigOut) -> str:
     """``equirectangular 1024×512, VLP-16``."""
     camera = rig.camera
     return f"{camera.model} {camera.width}×{camera.height}" + (f", {rig.lidar_model}" if rig.lidar_model else "")
+
+
+def fits_rig_file(settings: RigSettings, rig: RigOut) -> bool:
+    """Whether a dataset of ``rig`` is of the rig the service's rig file describes (its camera's model, the
+    panorama's size, its LiDAR), so that the rig file's initial guess may start it: an imported pinhole dataset
+    is not, and the panorama's guess would put its LiDAR's points outside its image."""
+    if settings.head:
+        return rig.camera.model == CameraKind.HEAD.value and rig.lidar_model == settings.lidar_model
+    ours = RigOut(camera=CameraOut(model=CameraKind.EQUIRECTANGULAR.value, width=settings.width,
+                                   height=settings.height), lidar_model=settings.lidar_model)
+    return rig == ours
 
 
 def same_rig(a: RigOut | None, b: RigOut | None) -> bool:

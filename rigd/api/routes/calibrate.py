@@ -6,9 +6,10 @@ from typing import Any
 
 from fastapi import APIRouter, Response, status
 
+from calib.geometry import Transform
 from rigd.api.deps import Authorized, ServiceDep
-from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut
-from rigd.api.rigs import other_rig, rig_record
+from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut, RigOut
+from rigd.api.rigs import fits_rig_file, other_rig, rig_record
 from rigd.api.routes.jobs import queued_out
 from rigd.api.runner import CalibrationPlan
 from rigd.api.service import Service
@@ -36,11 +37,17 @@ def _start(service: Service, body: CalibrateIn, dataset: Dataset) -> dict[str, A
         return {"start": Start.ACTIVE, "initial": TransformIn.of(active.T_camera_lidar),
                 "start_version": active.number}
     if body.init is InitMode.RIG:  # the guess recorded with the job and its version
-        guess = dataset.rig.initial_guess or service.rig.initial_guess
+        guess = dataset.rig.initial_guess or rig_file_guess(service, dataset)
         return {"start": Start.RIG, "initial": None if guess is None else TransformIn.of(guess)}
     if body.init is InitMode.SEARCH:
         return {"start": Start.SEARCH}
     return {"start": Start.GIVEN, "initial": body.init}
+
+
+def rig_file_guess(service: Service, dataset: Dataset) -> Transform | None:
+    """The service's rig file's initial guess for ``dataset``: only when the dataset is of that rig."""
+    fits = fits_rig_file(service.rig, RigOut.model_validate(rig_record(dataset)))
+    return service.rig.initial_guess if fits else None
 
 
 def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
