@@ -215,7 +215,8 @@ class JobView:
                           Button(f"Calibrate {dataset} from a global search", endpoint,
                                  _body({**again, "init": Start.SEARCH.value}))))
         if method in PHOTOMETRIC:
-            steps.append((f"calibrate with {method_name(Method.GMM.value)}: {method_name(method)} found no minimum",
+            why = f": {method_name(method)} found no minimum" if "not a minimum" in (j.error or "") else ""
+            steps.append((f"or calibrate with {method_name(Method.GMM.value)} instead{why}",
                           Button(f"Calibrate {dataset} with edges (GMM)", endpoint,
                                  _body({**again, "method": Method.GMM.value}))))
         steps.append(("capture more pairs at places with buildings, poles or doorways 2-10 m from the rig", None))

@@ -709,6 +709,7 @@ def test_page_fresh_install_shows_captured_pairs(browser, server):
     # "activate if trusted" unticked: the page says a trusted first version is activated all the same.
     assert not browser.find_element(By.ID, "auto-activate").is_selected()
     assert "a trusted first version is activated either way" in text(browser, "#first-activation")
+    assert text(browser, '[data-dataset="field"] .start-note') == "Calibrate starts from its rig file's guess"
     captured_pairs_before_calibrating(browser, server)
     assert console_errors(browser) == []
 
@@ -859,8 +860,6 @@ def activate_with_confirmation(browser, server, v1: dict) -> None:
         with server.client() as client:
             assert client.post("/extrinsics/versions/1/activate").json()["status"] == "active"
         until(browser, 10, lambda d: attr(d, "#v1", "data-status") == "active")
-        assert text(browser, "#active-verdict") == "failed"  # the header says what is active, in red
-        assert "failed" in attr(browser, "#active-verdict", "class").split()
     else:
         click(browser, '#v1 button[data-action="activate"]')
         until(browser, 5, lambda d: d.find_element(By.ID, "confirm").is_displayed())
@@ -876,6 +875,9 @@ def activate_with_confirmation(browser, server, v1: dict) -> None:
         click(browser, "#confirm-yes")
         until(browser, 10, lambda d: attr(d, "#v1", "data-status") == "active")
         assert message(browser)[1] == "warn"  # not a green "active" for a weak version
+    status = v1["verdict"]["status"]  # the header says what is active, in its verdict's colour
+    until(browser, 10, lambda d: text(d, "#active-verdict") == status)
+    assert status in attr(browser, "#active-verdict", "class").split()
     until(browser, 10, lambda d: not d.find_element(By.ID, "first-activation").is_displayed())
     # With an active version the next calibration starts from it (the operator did not choose otherwise).
     until(browser, 10, lambda d: d.find_element(By.ID, "init-select").get_attribute("value") == "active")
@@ -912,13 +914,24 @@ def advice_and_options(browser, server, v1: dict) -> None:
     browser.execute_script("document.getElementById('calibrate-options').open = true")
     # The lever arm in cm, as the versions table shows it; a comma read as the decimal mark ("1,5" is 1.5, not 15).
     assert "in cm" in text(browser, '#calibrate-form fieldset[data-group="lever arm"] legend')
-    for name, value in (("prior-x", "10"), ("prior-y", "5"), ("prior-z", "-15"), ("prior-sigma-cm", "1,5"),
-                        ("tolerance-deg", "0,3"), ("tolerance-cm", "2.5")):
+    # The lever arm typed in metres into the cm fields, first without its ±: the ± field is marked, nothing sent.
+    for name, value in (("prior-x", "0,1"), ("prior-y", "0.05"), ("prior-z", "-0.15"), ("tolerance-deg", "0,3"),
+                        ("tolerance-cm", "2.5")):
         field = browser.find_element(By.NAME, name)
         field.clear()
         field.send_keys(value)
     browser.find_element(By.NAME, "fix-translation").click()
     click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
+    sigma = browser.find_element(By.NAME, "prior-sigma-cm")
+    assert sigma.get_attribute("validationMessage").startswith("lever arm ±: empty; give how well the drawing")
+    assert message(browser) == (sigma.get_attribute("validationMessage"), "bad")
+    sigma.send_keys("1,5")
+    # With its ±: the page asks whether these were metres (all three under 1 cm) and offers them in cm.
+    click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
+    until(browser, 5, lambda d: d.find_element(By.ID, "lever-check").is_displayed())
+    assert "Were these metres? In cm they are 10, 5, -15." in text(browser, "#lever-said")
+    click(browser, "#lever-fix")
+    assert [browser.find_element(By.NAME, f"prior-{a}").get_attribute("value") for a in "xyz"] == ["10", "5", "-15"]
     until(browser, 10, lambda d: len(d.find_elements(By.CSS_SELECTOR, '.job[data-kind="calibrate"]')) == 2)
     with server.client() as client:
         job = client.get("/jobs", params={"kind": "calibrate"}).json()[0]
