@@ -188,7 +188,8 @@ class JobView:
         p = request.get("options") or {}
         prior = p.get("prior") or {}
         if prior.get("sigma_cm") is not None:
-            lever = ", ".join(f"{x * 100.0:.1f}" for x in prior["xyz_m"])  # cm, as the page's forms and tables
+            # cm, as the page's forms and tables, with the digits given (0.0934 cm typed for metres shows so)
+            lever = ", ".join(f"{x * 100.0:.4g}" for x in prior["xyz_m"])
             words.append(f"lever arm ({lever}) ± {prior['sigma_cm']:g} cm")
         if prior.get("sigma_deg") is not None:
             words.append(f"angles ± {prior['sigma_deg']:g}°")

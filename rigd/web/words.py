@@ -22,6 +22,8 @@ _T2 = re.compile(r"; real: T² [\d.e+-]+ > [\d.e+-]+")
 _DEG = re.compile(r"(\d) ?deg\b")
 _MM = re.compile(r"(\d+(?:\.\d+)?) mm\b")
 _SIGMA = re.compile(r"(\d) sigma\b")
+# An axis with a signed value and no unit ("solution 1 ended roll -1.14, y -6.46 away"): its unit added.
+_AXIS_VALUE = re.compile(r"\b(roll|pitch|yaw|x|y|z) ([+-]\d+(?:\.\d+)?(?:e[+-]?\d+)?)(?![\d.°]| ?(?:cm|deg|°|mm|m)\b)")
 
 
 def unit(axis: str) -> str:
@@ -46,6 +48,7 @@ def page_words(text: str) -> str:
     text = _T2.sub("", text)
     text = _DEG.sub(r"\1°", text)
     text = _MM.sub(_cm, text)
+    text = _AXIS_VALUE.sub(lambda m: f"{m.group(1)} {m.group(2)}{unit(m.group(1))}", text)
     return _SIGMA.sub(r"\1 σ", text)
 
 

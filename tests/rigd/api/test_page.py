@@ -940,7 +940,7 @@ def advice_and_options(browser, server, v1: dict) -> None:
     options = job["params"]["request"]["options"]
     assert options["fix_translation"] is True
     assert options["tolerance"] == {"rotation_deg": 0.3, "translation_cm": 2.5}
-    options = "lever arm (10.0, 5.0, -15.0) ± 1.5 cm, translation fixed, tolerance 0.3° / 2.5 cm"
+    options = "lever arm (10, 5, -15) ± 1.5 cm, translation fixed, tolerance 0.3° / 2.5 cm"
     assert options in text(browser, f'[data-job="{job["id"]}"]')
     click(browser, f'button[data-action="cancel"][data-job="{job["id"]}"]')
     until(browser, 30, lambda d: f"job {job['id']} cancelled" in message(d)[0])

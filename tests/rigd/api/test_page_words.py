@@ -75,7 +75,11 @@ def test_the_page_speaks_in_degrees_and_centimetres():
     assert page_words("pitch: 2.5 sigma = 0.301 > tolerance 0.2") == "pitch known to ±0.30° (needs ±0.20°)"
     assert page_words("x: 2.5 sigma = 4.31 > tolerance 2") == "x known to ±4.31 cm (needs ±2.00 cm)"
     assert page_words("rotation moved 1.15 deg (yaw +1.1; threshold 0.3); real: T² 1.58e+04 > 18.6") == \
-        "rotation moved 1.15° (yaw +1.1; threshold 0.3)"
+        "rotation moved 1.15° (yaw +1.1°; threshold 0.3)"
+    assert page_words("solution 1 ended roll -1.14, pitch +1.12, y -6.46 away at a cost the data cannot tell "
+                      "apart") == ("solution 1 ended roll -1.14°, pitch +1.12°, y -6.46 cm away at a cost the data "
+                                   "cannot tell apart")
+    assert page_words("x +3.2 cm, yaw -0.5°") == "x +3.2 cm, yaw -0.5°"  # units given stay as they are
     assert page_words("(LiDAR: 0.121 deg, 0.8 mm from the window's first sweep; still is within 0.050 deg, "
                       "2.6 mm)") == ("(LiDAR: 0.121°, 0.08 cm from the window's first sweep; still is within "
                                      "0.050°, 0.26 cm)")
