@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from calib.check import percent
 from calib.methods import Method
 from rigd.api.models import JobOut
 from rigd.calibration.request import Start, TransformIn
@@ -230,7 +231,7 @@ class JobView:
         result = self.record.result
         if not result or not is_check(result) or "groups" not in result or "confidence" not in result:
             return []
-        confidence = f"{result['confidence']['ok'] * 100:g} %"
+        confidence = percent(result["confidence"]["ok"])
         lines = []
         for name, u in (("rotation", "°"), ("translation", " cm")):
             if (g := result["groups"].get(name)) is not None:
