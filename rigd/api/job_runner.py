@@ -95,10 +95,15 @@ class CalibrationPlan:
     dataset_id: str
     request: CalibrationRequest
     auto_activate: bool
+    rig: dict[str, Any] | None = None  # the dataset's camera and LiDAR (rigd.api.rigs), kept with its version
+    method: dict[str, str] | None = None  # the method the request resolved to and why ({name, why})
 
     def params(self) -> dict[str, Any]:
+        extra = {"rig": self.rig} if self.rig is not None else {}
+        if self.method is not None:
+            extra["method"] = self.method
         return {"dataset": self.dataset_id, "auto_activate": self.auto_activate,
-                "request": self.request.model_dump(mode="json")}
+                "request": self.request.model_dump(mode="json"), **extra}
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ from rigd.api.errors import QueueFullError
 from rigd.api.routes import calibrate, capture, check, datasets, extrinsics, jobs
 from rigd.api.routes import status as status_routes
 from rigd.api.service import Service
+from rigd.api.wording import public_text
 from rigd.calibration.request import MAX_NESTING
 from rigd.errors import DatasetError, RigdError
 from rigd.store import ConflictError, NotFoundError, StorageError, StoreError, StoreUnavailableError
@@ -45,7 +46,8 @@ ERROR_STATUS: tuple[tuple[type[Exception], HTTPStatus], ...] = (
 
 async def _error_response(request: Request, exc: Exception) -> JSONResponse:
     code = next(code for kind, code in ERROR_STATUS if isinstance(exc, kind))
-    return JSONResponse({"detail": str(exc)}, status_code=int(code))
+    service: Service = request.app.state.service
+    return JSONResponse({"detail": public_text(str(exc), service.datasets.root)}, status_code=int(code))
 
 
 async def _queue_full(request: Request, exc: QueueFullError) -> JSONResponse:

@@ -11,7 +11,7 @@ from calib.geometry import Transform
 from calib.methods import FIELD_METHODS
 from rigd.calibration.request import Options, Request, ToleranceCm, ToleranceDeg, TransformIn
 from rigd.dataset.records import transform_to_yaml
-from rigd.report import NoQuality, StoredQuality, Uncertainty, Verdict
+from rigd.report import NoQuality, StatusName, StoredQuality, Uncertainty, Verdict
 from rigd.results import CalibrateJobResult, CaptureJobResult, CheckReport
 from rigd.store.datasets import DATASET_ID_PATTERN
 
@@ -88,6 +88,20 @@ class ChangeOut(BaseModel):
     translation_cm: float
 
 
+class CameraOut(BaseModel):
+    model: str
+    width: int
+    height: int
+
+
+class RigOut(BaseModel):
+    """The rig a calibration's dataset came from: its camera (model and size as on disk) and LiDAR model. Versions
+    compare (their change per axis, a start from the active one) only within one rig."""
+
+    camera: CameraOut
+    lidar_model: str | None
+
+
 class VersionOut(BaseModel):
     number: int
     status: Literal["candidate", "active", "superseded"]
@@ -110,6 +124,9 @@ class VersionOut(BaseModel):
     supersedes: int | None
     change: ChangeOut | None
     overlays: list[str] = Field(description="links to the LiDAR-over-image overlays of each pair")
+    rig: RigOut | None = Field(None, description="the camera and LiDAR of the dataset it was calibrated on, as "
+                               "recorded with the job (null: a manual version, or one stored before rigs were "
+                               "recorded)")
 
 
 class JobOut(BaseModel):
@@ -129,12 +146,6 @@ class JobOut(BaseModel):
     result_link: str | None
     error: str | None
     log_tail: list[str]
-
-
-class CameraOut(BaseModel):
-    model: str
-    width: int
-    height: int
 
 
 class DatasetOut(BaseModel):
@@ -197,6 +208,8 @@ class ActiveBrief(BaseModel):
     version: int
     created_at: str
     link: str
+    verdict: StatusName | None = Field(None, description="its calibration's verdict; null: stored by hand")
+    weak_axes: list[str] = Field([], description="the axes its verdict does not know to the tolerance")
 
 
 class DiskOut(BaseModel):

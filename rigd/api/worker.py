@@ -21,9 +21,11 @@ it, so the job says why it failed; its traceback goes to the job log.
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 import threading
+import time
 import traceback
 from pathlib import Path
 from typing import Any, TextIO
@@ -56,10 +58,15 @@ BANDS_SEARCHING = {**BANDS, Stage.EDGES: (0.02, 0.25), Stage.REFLECTIVITY: (0.25
 CHECK_BANDS = {Stage.EDGES: (0.0, 0.6), Stage.AROUND: (0.6, 1.0)}
 
 
+HEARTBEAT_S = 1.0  # a stage that reports nothing for this long (a photometric solve, the assessment) still moves
+CREEP_S = 60.0  # ... its bar towards its band's end: 63 % of the way after this long, never reaching it
+
+
 class Reporter:
     """Writes protocol lines to the parent; levels' iterations go to the log, throttled by the parent.
     ``bands``: the job's stages' shares of its bar; ``search_why``: why the job searches for its start, said
-    with the search's stage."""
+    with the search's stage. Its heartbeat (:meth:`beat`, from a thread) keeps a silent stage's bar moving with
+    its time said: a photometric method reports no iterations, and the assessment none either."""
 
     def __init__(self, out: TextIO, bands: dict[Stage, tuple[float, float]], search_why: str = "") -> None:
         self.out = out
@@ -67,13 +74,19 @@ class Reporter:
         self.bands = bands
         self.search_why = search_why
         self.shown = 0.0
+        self.lock = threading.Lock()  # the heartbeat's thread writes too
+        self.stage: Stage | None = None
+        self.words = ""
+        self.stage_since = self.sent_at = time.monotonic()
 
     def send(self, message: dict[str, Any]) -> None:
-        try:
-            self.out.write(json.dumps(message) + "\n")
-            self.out.flush()
-        except BrokenPipeError:  # the parent is gone
-            leave(EXIT_PARENT_GONE)
+        with self.lock:
+            try:
+                self.out.write(json.dumps(message) + "\n")
+                self.out.flush()
+            except BrokenPipeError:  # the parent is gone
+                leave(EXIT_PARENT_GONE)
+            self.sent_at = time.monotonic()
 
     def _forward(self, stage: Stage, within: float) -> float:
         """The job's fraction for ``within`` (0..1) of ``stage``, never below the last one sent."""
@@ -81,19 +94,45 @@ class Reporter:
         self.shown = max(self.shown, low + (high - low) * min(max(within, 0.0), 1.0))
         return self.shown
 
+    def _enter(self, stage: Stage, words: str) -> None:
+        if stage is not self.stage:
+            self.stage, self.stage_since = stage, time.monotonic()
+        self.words = words
+
     def progress(self, stage: Stage, done: int, total: int) -> None:
         words = stage.words + (f" ({self.search_why})" if stage is Stage.SEARCH and self.search_why else "")
         if total > 1:
             words += f", {done}/{total}"
+        self._enter(stage, words)
         self.send({"type": "progress", "stage": words, "fraction": self._forward(stage, done / max(total, 1))})
         self.send({"type": "log", "line": words})
 
     def iteration(self, level: int, iteration: int, cost: float) -> None:
         # Within a level, iterations count towards max 100.
         within = (level + min(iteration / 100.0, 1.0)) / self.levels
-        self.send({"type": "progress", "stage": f"optimising level {level + 1}/{self.levels}",
-                   "fraction": self._forward(Stage.OPTIMISING, within)})
+        self._enter(Stage.OPTIMISING, f"optimising level {level + 1}/{self.levels}")
+        self.send({"type": "progress", "stage": self.words, "fraction": self._forward(Stage.OPTIMISING, within)})
         self.send({"type": "log", "line": f"level {level + 1} iteration {iteration} cost {cost:.6f}"})
+
+    def beat(self) -> None:
+        """When the optimisation has said nothing for HEARTBEAT_S: its words with the time it has run, and the bar
+        a little further (1 - exp(-t / CREEP_S) of its band)."""
+        now = time.monotonic()
+        if self.stage is not Stage.OPTIMISING or now - self.sent_at < HEARTBEAT_S:
+            return
+        elapsed = now - self.stage_since
+        fraction = self._forward(Stage.OPTIMISING, 1.0 - math.exp(-elapsed / CREEP_S))
+        self.send({"type": "progress", "stage": f"{self.words}, {elapsed:.0f} s", "fraction": fraction})
+
+    def ended(self) -> None:
+        """No more heartbeats: the job's result or error follows."""
+        self.stage = None
+
+
+def _heartbeat(reporter: Reporter) -> None:
+    while True:
+        time.sleep(HEARTBEAT_S / 2)
+        reporter.beat()
 
 
 def _watch_parent(stdin: TextIO) -> None:
@@ -109,13 +148,17 @@ def run_job(job: dict[str, Any], out: TextIO) -> dict[str, Any]:
     dataset, resolved = prepare(request)
     searching = resolved.solve.initial is None
     reporter = Reporter(out, BANDS_SEARCHING if searching else BANDS, resolved.start_why.why if searching else "")
+    threading.Thread(target=_heartbeat, args=(reporter,), name="rigd-worker-heartbeat", daemon=True).start()
     gmm = resolved.solve.gmm
     photo = resolved.solve.photo
     reporter.levels = (len(sigmas_for(gmm, list(dataset.rig.camera.models()))) if gmm is not None else 0) + \
         (len(photo.blur_deg) if photo is not None else 0)
     reporter.progress(Stage.HASHING, 0, 1)
     digest = content_hash(dataset)
-    outcome = run_calibration(request, reporter.progress, reporter.iteration, (dataset, resolved))
+    try:
+        outcome = run_calibration(request, reporter.progress, reporter.iteration, (dataset, resolved))
+    finally:
+        reporter.ended()
     return {
         "type": "result",
         "matrix": outcome.T_camera_lidar.matrix.tolist(),

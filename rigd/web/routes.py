@@ -17,16 +17,22 @@ from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 from jinja2 import Environment, FileSystemLoader, StrictUndefined
 
+from calib.methods import FIELD_METHODS, METHODS
 from calib.uncertainty import AXES
 from rigd.api.deps import ServiceDep
+from rigd.api.models import DatasetOut
+from rigd.api.rigs import fits_rig_file
 from rigd.api.service import Service
 from rigd.dataset.records import MAX_LEVER_ARM_M
 from rigd.store.datasets import DATASET_ID_RULE
-from rigd.web.views import VERSIONS_PAGE, PageState, capture_words, page_state
+from rigd.web.jobs_view import capture_words
+from rigd.web.views import VERSIONS_PAGE, PageState, dataset_rig, page_state
+from rigd.web.words import page_words
 
 HERE = Path(__file__).resolve().parent
 TEMPLATES = Environment(loader=FileSystemLoader(HERE / "templates"), autoescape=True, undefined=StrictUndefined,
                         trim_blocks=True, lstrip_blocks=True)
+TEMPLATES.globals["page_words"] = page_words  # the page's wording of rigd's texts, in every part
 PARTS = ("summary", "sensors", "capture", "datasets", "jobs", "versions")  # templates/_PART.html, one region each
 # No inline script or style (the templates have none): an injected tag in any text shown could not run.
 HEADERS = {
@@ -48,10 +54,19 @@ def install(app: FastAPI) -> None:
 
 def _context(service: Service, state: PageState) -> dict[str, Any]:
     rig = service.rig
+
+    def has_guess(d: DatasetOut) -> bool:
+        """Whether dataset ``d`` has a guess to start from: its rig.yaml's, or the rig file's for its rig."""
+        own = dataset_rig(d)
+        return d.initial_guess is not None or (rig.initial_guess is not None and own is not None
+                                                and fits_rig_file(rig, own))
+
     return {"state": state, "axes": AXES, "token_required": service.settings.token is not None,
             "sim_rig": rig.lidar_source.startswith("sim") and rig.camera_source.startswith("sim"),
             "capture_defaults": rig.capture, "rig_guess": rig.initial_guess, "versions_page": VERSIONS_PAGE,
-            "lever_arm_cm": MAX_LEVER_ARM_M * 100.0, "dataset_id_rule": DATASET_ID_RULE, "capture_words": capture_words}
+            "lever_arm_cm": MAX_LEVER_ARM_M * 100.0, "dataset_id_rule": DATASET_ID_RULE, "capture_words": capture_words,
+            "has_guess": has_guess,
+            "methods": [(m.value, METHODS[m].label) for m in FIELD_METHODS]}
 
 
 def render_parts(context: dict[str, Any]) -> dict[str, str]:

@@ -7,6 +7,7 @@ from fastapi import APIRouter, Response, status
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.job_runner import CheckPlan
 from rigd.api.models import CheckIn, ErrorOut, JobOut, ThresholdIn
+from rigd.api.rigs import other_rig
 from rigd.api.routes.jobs import queued_out
 from rigd.api.service import Service
 from rigd.errors import RigdError
@@ -31,6 +32,10 @@ def plan(service: Service, body: CheckIn) -> CheckPlan:
         checked, against, number = service.versions.get(body.against).T_camera_lidar, "version", body.against
     else:
         checked, against, number = body.against.transform, "explicit", None
+    version = service.versions.get(number) if number is not None else None
+    if version is not None and (problem := other_rig(version, service.datasets, body.dataset, dataset)) is not None:
+        raise ConflictError(f"{problem}: its extrinsics say nothing of this rig; calibrate dataset {body.dataset} "
+                            "instead")
     threshold = (body.threshold or ThresholdIn()).model_dump()
     return CheckPlan(body.dataset, checked, against, number, threshold)
 
@@ -40,8 +45,8 @@ def plan(service: Service, body: CheckIn) -> CheckPlan:
              responses={200: {"model": JobOut, "description": "an identical check is queued or running: its job "
                               "(nothing new is queued)"},
                         404: {"model": ErrorOut, "description": "no such dataset or extrinsics version"},
-                        409: {"model": ErrorOut, "description": "the dataset is being captured, or against "
-                              "'active' without an active version"},
+                        409: {"model": ErrorOut, "description": "the dataset is being captured, against 'active' "
+                              "without an active version, or a version of another rig (camera or LiDAR)"},
                         422: {"model": ErrorOut, "description": "bad request or unusable dataset"},
                         429: {"model": ErrorOut, "description": "the queue is full; ask again after Retry-After "
                               "seconds"}})

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Path, Query, Response
 from fastapi.responses import FileResponse
 
 from rigd.api.deps import ServiceDep
-from rigd.api.images import image_response, pair_cloud_from_above
+from rigd.api.images import FormatQuery, image_response, pair_cloud_from_above
 from rigd.api.models import CameraOut, DatasetDetailOut, DatasetId, DatasetOut, ErrorOut, PairOut, TransformOut
 from rigd.api.service import Service
 from rigd.dataset import Dataset
@@ -77,7 +77,8 @@ def pair_index(dataset: Dataset, dataset_id: str, number: int) -> int:
                        422: {"model": ErrorOut}})
 def get_pair_image(service: ServiceDep, dataset_id: DatasetPath, number: PairNumber, width: Width = None,
                    sensor: Annotated[str | None, Query(pattern="^[A-Za-z0-9_-]{1,32}$", description="a multi-camera "
-                                                       "head's sensor (absent: its first)")] = None) -> Response:
+                                                       "head's sensor (absent: its first)")] = None,
+                   format: FormatQuery = None) -> Response:
     dataset = service.datasets.open(dataset_id)
     index = pair_index(dataset, dataset_id, number)
     view = sensor or dataset.views[0]
@@ -86,7 +87,7 @@ def get_pair_image(service: ServiceDep, dataset_id: DatasetPath, number: PairNum
     path = dataset.image_path(index, view)
     if not path.is_file():
         raise NotFoundError(f"dataset {dataset_id}: pair {number} has no image {path.name}")
-    return image_response(path, width)  # as captured (PNG or JPEG), or narrowed
+    return image_response(path, width, format)  # as captured (PNG or JPEG), or narrowed
 
 
 @router.get("/{dataset_id}/pairs/{number}/cloud.png", response_class=Response, responses=PNG,  # type: ignore[arg-type]

@@ -11,8 +11,9 @@ from fastapi.responses import FileResponse
 
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.exports import ExportFormat, download_name, render
-from rigd.api.images import image_response
+from rigd.api.images import FormatQuery, image_response
 from rigd.api.models import ChangeOut, ErrorOut, ManualVersionIn, TransformOut, VersionOut
+from rigd.api.rigs import recorded_rig
 from rigd.api.service import Service
 from rigd.exports import MAX_NAME_LENGTH, ROS_NAME_PATTERN
 from rigd.report import uncertainty_of, verdict_of
@@ -41,6 +42,7 @@ def version_out(version: ExtrinsicsVersion) -> VersionOut:
         job_id=version.job_id, supersedes=version.supersedes,
         change=ChangeOut(**asdict(version.change)) if version.change else None,
         overlays=[f"/extrinsics/versions/{version.number}/overlays/{p}.png" for p in pairs],
+        rig=recorded_rig(version),
     )
 
 
@@ -107,8 +109,9 @@ def overlay_path(service: Service, version: ExtrinsicsVersion, pair: int, stage:
 
 
 @router.get("/versions/{number}/overlays/{pair}.png", response_class=FileResponse,
-            responses={200: {"content": {"image/png": {}}, "description": "the LiDAR edge points over the image, "
-                             "coloured by range"}, 404: {"model": ErrorOut}})
+            responses={200: {"content": {"image/png": {}, "image/jpeg": {}},
+                             "description": "the LiDAR edge points over the image, coloured by range"},
+                       404: {"model": ErrorOut}})
 def get_overlay(service: ServiceDep, number: VersionNumber, pair: Annotated[int, Path(ge=0, le=99999)],
                 stage: Annotated[str, Query(pattern="^(after|before|closeup|cloud)$",
                                             description="after: with this version; before: with its initial guess; "
@@ -119,6 +122,8 @@ def get_overlay(service: ServiceDep, number: VersionNumber, pair: Annotated[int,
                 width: Annotated[int | None, Query(ge=64, le=8192, description="at most this wide (px): a smaller "
                                                    "copy for a screen; absent: full resolution")] = None,
                 sensor: Annotated[str | None, Query(pattern="^[A-Za-z0-9_-]{1,32}$", description="a multi-camera "
-                                                    "head's sensor (absent: its first)")] = None) -> Response:
-    return image_response(overlay_path(service, service.versions.get(number), pair, stage, sensor), width)
+                                                    "head's sensor (absent: its first)")] = None,
+                format: FormatQuery = None) -> Response:
+    path = overlay_path(service, service.versions.get(number), pair, stage, sensor)
+    return image_response(path, width, format, immutable=True)
 

@@ -9,6 +9,7 @@ from fastapi import APIRouter, Path, Query, Response, status
 from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.models import ErrorOut, JobOut
 from rigd.api.service import Service
+from rigd.api.wording import public_text
 from rigd.results import is_calibration
 from rigd.store import Job, JobKind, JobStatus
 
@@ -30,7 +31,9 @@ def job_out(service: Service, job: Job, tail: int = LOG_TAIL_LINES) -> JobOut:
     return JobOut(
         id=job.id, kind=job.kind.value, status=job.status.value, stage=job.stage, fraction=job.fraction,
         created_at=job.created_at, started_at=job.started_at, finished_at=job.finished_at, params=job.params,
-        result=job.result, result_link=link, error=job.error, log_tail=service.jobs.log_tail(job.id, tail),
+        result=job.result, result_link=link,
+        error=None if job.error is None else public_text(job.error, service.datasets.root),
+        log_tail=service.jobs.log_tail(job.id, tail),
     )
 
 

@@ -8,9 +8,17 @@ from fastapi import APIRouter
 
 from rigd.api.deps import ServiceDep
 from rigd.api.models import ActiveBrief, DiskOut, JobBrief, SensorsOut, StatusOut
-from rigd.store import JobStatus
+from rigd.report import verdict_of
+from rigd.store import ExtrinsicsVersion, JobStatus
 
 router = APIRouter(tags=["status"])
+
+
+def _active_brief(active: ExtrinsicsVersion) -> ActiveBrief:
+    verdict = verdict_of(active.quality)
+    return ActiveBrief(version=active.number, created_at=active.created_at,
+                       link=f"/extrinsics/versions/{active.number}", verdict=verdict["status"] if verdict else None,
+                       weak_axes=list(verdict["weak_axes"]) if verdict else [])
 
 
 @router.get("/status", response_model=StatusOut)
@@ -28,7 +36,6 @@ async def get_status(service: ServiceDep) -> StatusOut:
         sensors=SensorsOut(lidar=lidar, camera=camera),
         running_jobs=[JobBrief(id=j.id, kind=j.kind.value, stage=j.stage, fraction=j.fraction, link=f"/jobs/{j.id}")
                       for j in running],
-        active_extrinsics=ActiveBrief(version=active.number, created_at=active.created_at,
-                                      link=f"/extrinsics/versions/{active.number}") if active else None,
+        active_extrinsics=_active_brief(active) if active else None,
         data_dir=DiskOut(path=str(service.data_dir), free_bytes=disk.free, total_bytes=disk.total),
     )

@@ -153,6 +153,7 @@ function parseNumber(text) {  // null when empty, NaN when not a number
 function numberProblem(input, value) {
   const d = input.dataset;
   const range = d.min + " .. " + d.max + " " + d.unit;
+  if (Number.isNaN(value) && d.number === "integer") return "not a whole number (write e.g. 12); " + range;
   if (Number.isNaN(value)) return "not a number (write 1.5 or 1,5); " + range;
   if (value === null) return "";
   if (d.number === "integer" && !Number.isInteger(value)) return "a whole number of " + d.unit + ", " + range;
@@ -194,18 +195,34 @@ document.addEventListener("input", (event) => {
 // -- calibration options --------------------------------------------------------------------------------------
 function numberField(fields, name) { return checkNumber(fields.namedItem(name)); }
 
-// [values, sigma] of a prior's group, null when all empty; an error when only some are given.
+// A field the form needs filled: marked invalid (the browser and the page point at it), its reason thrown.
+class MissingField extends Error {
+  constructor(input, why) {
+    super(input.dataset.what + ": " + why);
+    input.setCustomValidity(this.message);
+    this.input = input;
+  }
+}
+
+// [values, sigma] of a prior's group, null when all empty; the first empty field marked when only some are given.
 function priorGroup(fields, names, sigmaName, what) {
   const values = names.map((n) => numberField(fields, n));
   const sigma = numberField(fields, sigmaName);
   if (values.every((v) => v === null) && sigma === null) return null;
-  if (values.some((v) => v === null) || sigma === null) throw new Error(what + " needs all three values and its ±");
+  const empty = names.find((n, k) => values[k] === null);
+  if (empty) throw new MissingField(fields.namedItem(empty), "empty; " + what + " needs all three values");
+  if (sigma === null) {
+    throw new MissingField(fields.namedItem(sigmaName), "empty; give how well the drawing knows " + what
+                           + " (e.g. " + (sigmaName === "prior-sigma-cm" ? "1 cm" : "2°") + "), or empty all four");
+  }
   return [values, sigma];
 }
 
 function calibrationBody(dataset) {
   const fields = $("calibrate-form").elements;
-  const body = {dataset, init: fields.namedItem("init").value, auto_activate: fields.namedItem("auto_activate").checked};
+  const body = {dataset, init: startFor(datasetRow(dataset)).init,
+                auto_activate: fields.namedItem("auto_activate").checked};
+  if (fields.namedItem("method").value) body.method = fields.namedItem("method").value;
   const lever = priorGroup(fields, ["prior-x", "prior-y", "prior-z"], "prior-sigma-cm", "the lever arm");
   const angles = priorGroup(fields, ["prior-roll", "prior-pitch", "prior-yaw"], "prior-sigma-deg", "the mounting angles");
   if (lever || angles) {
@@ -225,23 +242,62 @@ function calibrationBody(dataset) {
   return body;
 }
 
+// -- where each dataset's calibration starts -------------------------------------------------------------------
+// The active version starts only datasets of its rig (camera model and size, LiDAR): the server renders which
+// fit (data-fits-active); the others start from their rig file's guess, and the page says so in their row.
+function datasetRow(id) {
+  return [...document.querySelectorAll("[data-part=datasets] .row")].find((r) => r.dataset.dataset === id) || null;
+}
+
+function activeNumber() { return document.querySelector("[data-part=summary] .summary").dataset.active; }
+
+function startFor(row) {  // {init, note}: what "Calibrate" on this dataset's row sends, in words
+  const choice = $("init-select").value;
+  const guess = !row || row.dataset.guess === "true";
+  const fromGuess = guess ? "its rig file's guess" : "a global search (its rig file has no guess)";
+  if (choice === "search") return {init: "search", note: "a global search"};
+  if (choice === "rig") return {init: "rig", note: fromGuess};
+  if (row && row.dataset.fitsActive !== "true") {
+    return {init: "rig", note: fromGuess + ", not the active version: " + row.dataset.otherRig};
+  }
+  return {init: "active", note: "version " + activeNumber() + ", the active one"};
+}
+
+const INIT_HELP = {
+  active: "Datasets of the active version's rig start from it; others from their rig file's guess.",
+  rig: "The dataset's rig.yaml guess, else the rig file's; without one, a global search.",
+  search: "A global search over the mounts: no guess needed (after a reassembly).",
+};
+
 // The first calibration on a fresh install cannot start from an active version: the rig file's guess then.
 function syncInit() {
-  const active = document.querySelector("[data-part=summary] .summary").dataset.active;
+  const active = activeNumber();
   const select = $("init-select");
   select.querySelector('option[value="active"]').disabled = !active;
   $("first-activation").hidden = Boolean(active);
   if (!active && select.value === "active") select.value = "rig";
   if (active && !initTouched && select.value === "rig") select.value = "active";
+  $("init-help").textContent = INIT_HELP[select.value];
+  for (const row of document.querySelectorAll("[data-part=datasets] .row")) {
+    const note = row.querySelector(".start-note");
+    if (note) note.textContent = "Calibrate starts from " + startFor(row).note;
+  }
 }
 
 // -- activation -----------------------------------------------------------------------------------------------
-// Anything but a trusted version is activated only after the operator has read why it is not trusted.
+// Anything but a trusted version is activated only after the operator has read how far it moves the rig's
+// extrinsics, which axes it does not know, and why it is not trusted.
 function confirmActivation(row) {
   const number = row.dataset.version;
   const verdict = row.dataset.verdict;
-  const active = document.querySelector("[data-part=summary] .summary").dataset.active;
+  const active = activeNumber();
   $("confirm-title").textContent = "Activate version " + number + "?";
+  $("confirm-move").textContent = row.dataset.move
+    ? "It moves the rig's extrinsics by " + row.dataset.move + "."
+    : active ? "Version " + active + " is of another rig: the two are not compared."
+      : "Nothing is active: it becomes the rig's first extrinsics.";
+  $("confirm-unknown").textContent = verdict === "none" ? "Nothing measured how well any axis is known."
+    : row.dataset.unknown ? "Not known to the tolerance: " + row.dataset.unknown + "." : "";
   $("confirm-lead").textContent = verdict === "none" ? "It has no verdict:" : "Its verdict is " + verdict + ":";
   $("confirm-reasons").replaceChildren(...[...row.querySelectorAll(".reasons li")].map((li) => {
     const item = document.createElement("li");
@@ -258,6 +314,13 @@ function confirmActivation(row) {
     dialog.oncancel = () => resolve(false);  // Esc
     dialog.showModal();
   });
+}
+
+function activatedText(v) {  // the version just activated, with what its verdict does not vouch for
+  if (!v.verdict) return "Version " + v.number + " is " + v.status + ". It has no verdict: nothing measured it.";
+  const weak = v.verdict.weak_axes || [];
+  return "Version " + v.number + " is " + v.status + ", verdict " + v.verdict.status
+    + (weak.length ? ": " + weak.join(", ") + " not known to the tolerance." : ".");
 }
 
 // -- captures ---------------------------------------------------------------------------------------------------
@@ -289,9 +352,17 @@ function markDataset(id) {
 }
 
 const advice = {
-  prior(id) {
+  prior(id, el) {
+    const given = el.dataset.lever ? el.dataset.lever.split(",") : null;
+    if (given) {  // the lever arm that calibration was given, back in the fields: compare it with the drawing
+      const form = $("calibrate-form").elements;
+      ["prior-x", "prior-y", "prior-z"].forEach((name, k) => { form.namedItem(name).value = given[k]; });
+    }
     openOptions("prior-x");
-    say("Type the lever arm from the rig's drawing (and how well it knows it), then Calibrate " + id + ".", "");
+    say(given ? "The lever arm that calibration was given, in cm: " + given.join(", ") + ". Check it against the "
+                + "rig's drawing (cm, not m), then Calibrate " + id + "."
+              : "Type the lever arm from the rig's drawing in cm (and how well it knows it), then Calibrate " + id
+                + ".", "");
   },
   fix(id) {
     $("calibrate-form").elements.namedItem("fix-translation").checked = true;
@@ -317,6 +388,57 @@ const advice = {
   },
 };
 
+// -- a lever arm in the wrong unit ----------------------------------------------------------------------------
+// A lever arm in metres typed into the cm fields reaches rigd 100 times too short, one in mm 10 times too long:
+// both are asked about before anything is sent.
+const LEVER_SMALL_CM = 1;  // every axis below this: no camera and LiDAR sit that close (metres typed?)
+const LEVER_LARGE_CM = 200;  // farther apart than this: millimetres typed? (a car's roof to its windscreen)
+
+function leverDoubt(cm) {  // null, or {said, fixed}: what the lever arm would mean in the other unit
+  const far = Math.hypot(...cm);
+  const show = (v) => v.map((x) => +x.toFixed(2)).join(", ");
+  if (cm.every((x) => Math.abs(x) < LEVER_SMALL_CM)) {
+    const fixed = cm.map((x) => x * 100);
+    return {fixed, said: "The lever arm " + show(cm) + " cm puts the LiDAR " + far.toFixed(2) + " cm from the "
+            + "camera. Were these metres? In cm they are " + show(fixed) + "."};
+  }
+  if (far > LEVER_LARGE_CM) {
+    const fixed = cm.map((x) => x / 10);
+    return {fixed, said: "The lever arm " + show(cm) + " cm puts the LiDAR " + (far / 100).toFixed(2) + " m from "
+            + "the camera. Were these millimetres? In cm they are " + show(fixed) + "."};
+  }
+  return null;
+}
+
+function askLever(doubt) {  // "fix" | "keep" | "back"
+  $("lever-said").textContent = doubt.said;
+  $("lever-fix").textContent = "Use " + doubt.fixed.map((x) => +x.toFixed(2)).join(", ") + " cm";
+  const dialog = $("lever-check");
+  return new Promise((resolve) => {
+    const done = (answer) => () => { dialog.close(); resolve(answer); };
+    $("lever-fix").onclick = done("fix");
+    $("lever-keep").onclick = done("keep");
+    $("lever-back").onclick = done("back");
+    dialog.oncancel = () => resolve("back");  // Esc
+    dialog.showModal();
+  });
+}
+
+// The body with the lever arm as the operator confirmed it; null when they went back to change it.
+async function checkedLever(body) {
+  const xyz = body.prior && body.prior.xyz_m;
+  const doubt = xyz ? leverDoubt(xyz.map((m) => m * 100)) : null;
+  if (!doubt) return body;
+  const answer = await askLever(doubt);
+  if (answer === "back") { openOptions("prior-x"); say("Nothing was sent: correct the lever arm (cm).", ""); return null; }
+  if (answer === "fix") {
+    const form = $("calibrate-form").elements;
+    ["prior-x", "prior-y", "prior-z"].forEach((name, k) => { form.namedItem(name).value = +doubt.fixed[k].toFixed(4); });
+    body.prior.xyz_m = doubt.fixed.map((cm) => cm / 100);
+  }
+  return body;
+}
+
 // -- buttons --------------------------------------------------------------------------------------------------
 const actions = {
   async calibrate(el) {
@@ -328,10 +450,14 @@ const actions = {
     } catch (err) {
       $("calibrate-options").open = true;
       say(err.message, "bad");
+      if (err instanceof MissingField) { err.input.focus(); form.reportValidity(); }
       return;
     }
+    const start = startFor(datasetRow(body.dataset)).note;
+    body = await checkedLever(body);
+    if (!body) return;
     const job = await call("POST", "/calibrate", body);
-    if (job) follow(job, "Calibration of " + body.dataset);
+    if (job) follow(job, "Calibration of " + body.dataset + " from " + start);
   },
   async check(el) {
     const job = await call("POST", "/check", {dataset: el.dataset.dataset, against: "active"});
@@ -344,11 +470,11 @@ const actions = {
       return;
     }
     const v = await call("POST", "/extrinsics/versions/" + el.dataset.version + "/activate");
-    if (v) say("Version " + v.number + " is " + v.status + ".", "ok");
+    if (v) say(activatedText(v), v.verdict && v.verdict.status === "trusted" ? "ok" : "warn");
   },
   async rerun(el) {
     const job = await call("POST", el.dataset.url, JSON.parse(el.dataset.body));
-    if (job) follow(job, "Run again of job " + el.dataset.job);
+    if (job) follow(job, el.dataset.label || "Run again of job " + el.dataset.job);
   },
   async cancel(el) {
     const job = await call("DELETE", "/jobs/" + el.dataset.job);
@@ -410,7 +536,7 @@ $("token-form").addEventListener("submit", (event) => {
   say("");
 });
 
-$("init-select").addEventListener("change", () => { initTouched = true; });
+$("init-select").addEventListener("change", () => { initTouched = true; syncInit(); });
 
 // -- the viewer: what it shows --------------------------------------------------------------------------------
 // kind "version": a calibration's overlays (before | after, close-up, cloud); kind "dataset": captured pairs.
@@ -458,8 +584,9 @@ function followNewest() {
   Object.assign(viewer, number ? {kind: "version", id: number, ...versionSource(number)} : {kind: null, id: null});
 }
 
+// Overlays as JPEG: a third of a PNG's bytes (a 1920 px pinhole's was 0.8 MB), the dots as distinct.
 function overlayUrl(stage) {
-  const base = "/extrinsics/versions/" + viewer.id + "/overlays/" + viewer.pair + ".png?stage=" + stage;
+  const base = "/extrinsics/versions/" + viewer.id + "/overlays/" + viewer.pair + ".png?format=jpeg&stage=" + stage;
   return viewer.sensor && stage !== "cloud" ? base + "&sensor=" + encodeURIComponent(viewer.sensor) : base;
 }
 
@@ -468,7 +595,11 @@ function pairUrl(what) {  // what: "image" or "cloud.png"
   return viewer.sensor && what === "image" ? base + "?sensor=" + encodeURIComponent(viewer.sensor) : base;
 }
 
-function withWidth(url, width) { return url + (url.includes("?") ? "&" : "?") + "width=" + width; }
+// A copy ``width`` px wide; a captured image's as JPEG (its overlays ask for JPEG already).
+function withWidth(url, width) {
+  const jpeg = url.includes("/image") && !url.includes("format=") ? "&format=jpeg" : "";
+  return url + (url.includes("?") ? "&" : "?") + "width=" + width + jpeg;
+}
 
 // A smaller copy as wide as the screen uses (a phone need not fetch a 2048 px panorama for 360 px).
 function shownWidth(el) {
@@ -500,9 +631,29 @@ function showChoices() {
                                       ...viewer.sensors.map((s) => chip("sensor", s, s, s === viewer.sensor)));
 }
 
+// A captured pair's meta.yaml in the page's units (° and cm; ms between clocks): what the capture measured of it.
 function pairMetaText(meta) {
-  const shown = Object.entries(meta || {}).filter(([, v]) => v !== null && typeof v !== "object").slice(0, 8);
-  return shown.map(([k, v]) => k.replaceAll("_", " ") + ": " + (typeof v === "number" ? +v.toFixed(3) : v)).join(" · ");
+  const m = meta || {};
+  const motion = m.motion || {};
+  const lidar = m.lidar || {};
+  const num = (v) => typeof v === "number" && Number.isFinite(v);
+  const parts = [];
+  if (m.source) parts.push(String(m.source));
+  if (m.scene) parts.push(m.scene + " scene" + (num(m.seed) ? " (seed " + m.seed + ")" : ""));
+  if (num(m.range_noise_m)) parts.push("range noise " + +(m.range_noise_m * 100).toFixed(2) + " cm");
+  if (num(m.camera_minus_lidar_s)) parts.push("camera − LiDAR time " + Math.round(m.camera_minus_lidar_s * 1000) + " ms");
+  if (num(motion.still_seconds)) parts.push("held still " + +motion.still_seconds.toFixed(1) + " s");
+  if (num(motion.lidar_rotation_deg) && num(motion.lidar_translation_m)) {
+    parts.push("LiDAR moved " + motion.lidar_rotation_deg.toFixed(3) + "° and "
+               + (motion.lidar_translation_m * 100).toFixed(2) + " cm while still"
+               + (num(motion.lidar_still_rotation_deg) && num(motion.lidar_still_translation_m)
+                 ? " (within " + motion.lidar_still_rotation_deg.toFixed(3) + "° and "
+                   + (motion.lidar_still_translation_m * 100).toFixed(2) + " cm)" : ""));
+  }
+  if (num(motion.moved_since_previous_m)) parts.push("moved " + Math.round(motion.moved_since_previous_m * 100) + " cm since the previous pair");
+  if (num(lidar.points)) parts.push(lidar.points.toLocaleString("en") + " points" + (num(lidar.sweeps_fused) ? " from " + lidar.sweeps_fused + " sweeps" : ""));
+  if (num(lidar.packets_lost) && lidar.packets_lost) parts.push(lidar.packets_lost + " packets lost");
+  return parts.join(" · ");
 }
 
 function showViewer() {

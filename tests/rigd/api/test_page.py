@@ -38,6 +38,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
 from rigd.capture.engine import CaptureState
+from rigd.web.words import page_words
 
 # Debian's packages (.ci/run installs them): browser and driver come from one source package, so they match.
 CHROMIUM = Path("/usr/bin/chromium")
@@ -442,7 +443,8 @@ def test_a_restart_during_a_job_says_it_was_interrupted_and_offers_it_again(brow
         click(browser, 'button[data-action="pairs"][data-dataset="restart"]')
         until(browser, 10, lambda d: "/pairs/0/image" in lens_state(d)["after"]["src"] and images_loaded(d))
         click(browser, 'button[data-action="calibrate"][data-dataset="restart"]')
-        until(browser, 10, lambda d: "Calibration of restart: job" in message(d)[0])
+        started = re.compile(r"Calibration of restart from version \d+, the active one: job")
+        until(browser, 10, lambda d: started.match(message(d)[0]))
         with server.client() as client:
             job = client.get("/jobs", params={"kind": "calibrate"}).json()[0]
             wait_running(client, job["id"])
@@ -707,6 +709,7 @@ def test_page_fresh_install_shows_captured_pairs(browser, server):
     # "activate if trusted" unticked: the page says a trusted first version is activated all the same.
     assert not browser.find_element(By.ID, "auto-activate").is_selected()
     assert "a trusted first version is activated either way" in text(browser, "#first-activation")
+    assert text(browser, '[data-dataset="field"] .start-note') == "Calibrate starts from its rig file's guess"
     captured_pairs_before_calibrating(browser, server)
     assert console_errors(browser) == []
 
@@ -781,7 +784,8 @@ def captured_pairs_before_calibrating(browser, server) -> None:
     assert not browser.find_element(By.ID, "lens-help").is_displayed()
     help_text = text(browser, "#lens-help-pair")
     assert "zoom" in help_text and "before" not in help_text and "Dots" not in help_text
-    assert "source" in text(browser, "#pair-meta")  # the pair's meta.yaml
+    assert text(browser, "#pair-meta").startswith("simulated · indoor scene")  # the pair's meta.yaml, in words
+    assert "range noise 2 cm" in text(browser, "#pair-meta")
     click(browser, '#viewer-pairs button[data-pair="1"]')
     until(browser, 10, lambda d: "/pairs/1/image" in lens_state(d)["after"]["src"])
     until(browser, 10, images_loaded)
@@ -805,7 +809,8 @@ def first_calibration(browser, server) -> dict:
     assert badge.text == f"verdict {verdict}" and verdict in badge.get_attribute("class").split()
     assert "succeeded" not in text(browser, '.job[data-kind="calibrate"]')
     until(browser, 10, lambda d: "version 1, verdict" in message(d)[0])
-    assert message(browser)[0].startswith(f"Calibration of field: job {job['id']} done: version 1, verdict {verdict}")
+    assert message(browser)[0].startswith(f"Calibration of field from its rig file's guess: job {job['id']} done: "
+                                          f"version 1, verdict {verdict}"), message(browser)
     assert message(browser)[1] == TONE[verdict]
     # "activate if trusted" was unticked: a trusted first version is active all the same, and the page says why.
     assert ("activated: the first version" in message(browser)[0]) == (v1["status"] == "active")
@@ -844,21 +849,35 @@ def before_after_zoom_and_pan(browser, server, v1: dict) -> None:
 
 
 def activate_with_confirmation(browser, server, v1: dict) -> None:
-    """An untrusted version asks first, with its reasons; keeping the active one changes nothing."""
+    """An untrusted version asks first, with its reasons; keeping the active one changes nothing. A failed one is
+    not offered at all: the expert who wants it anyway uses the API, and the header then shows its verdict."""
     if v1["status"] == "active":  # a trusted first version is active at once: nothing to confirm
         assert v1["verdict"]["status"] == "trusted"
         return
-    click(browser, '#v1 button[data-action="activate"]')
-    until(browser, 5, lambda d: d.find_element(By.ID, "confirm").is_displayed())
-    assert texts(browser, "#confirm-reasons li") == v1["verdict"]["reasons"]
-    assert v1["verdict"]["status"] in text(browser, "#confirm-lead")
-    click(browser, "#confirm-no")
-    assert not browser.find_element(By.ID, "confirm").is_displayed()
-    with server.client() as client:
-        assert client.get("/extrinsics/versions/1").json()["status"] == "candidate"
-    click(browser, '#v1 button[data-action="activate"]')
-    click(browser, "#confirm-yes")
-    until(browser, 10, lambda d: attr(d, "#v1", "data-status") == "active")
+    if v1["verdict"]["status"] == "failed":
+        assert not browser.find_elements(By.CSS_SELECTOR, '#v1 button[data-action="activate"]')
+        assert "do not use it" in text(browser, "#v1 .bad-note")
+        with server.client() as client:
+            assert client.post("/extrinsics/versions/1/activate").json()["status"] == "active"
+        until(browser, 10, lambda d: attr(d, "#v1", "data-status") == "active")
+    else:
+        click(browser, '#v1 button[data-action="activate"]')
+        until(browser, 5, lambda d: d.find_element(By.ID, "confirm").is_displayed())
+        assert texts(browser, "#confirm-reasons li") == [page_words(r) for r in v1["verdict"]["reasons"]]
+        assert v1["verdict"]["status"] in text(browser, "#confirm-lead")
+        weak = ", ".join(v1["verdict"]["weak_axes"])
+        assert text(browser, "#confirm-unknown") == f"Not known to the tolerance: {weak}."
+        click(browser, "#confirm-no")
+        assert not browser.find_element(By.ID, "confirm").is_displayed()
+        with server.client() as client:
+            assert client.get("/extrinsics/versions/1").json()["status"] == "candidate"
+        click(browser, '#v1 button[data-action="activate"]')
+        click(browser, "#confirm-yes")
+        until(browser, 10, lambda d: attr(d, "#v1", "data-status") == "active")
+        assert message(browser)[1] == "warn"  # not a green "active" for a weak version
+    status = v1["verdict"]["status"]  # the header says what is active, in its verdict's colour
+    until(browser, 10, lambda d: text(d, "#active-verdict") == status)
+    assert status in attr(browser, "#active-verdict", "class").split()
     until(browser, 10, lambda d: not d.find_element(By.ID, "first-activation").is_displayed())
     # With an active version the next calibration starts from it (the operator did not choose otherwise).
     until(browser, 10, lambda d: d.find_element(By.ID, "init-select").get_attribute("value") == "active")
@@ -895,13 +914,24 @@ def advice_and_options(browser, server, v1: dict) -> None:
     browser.execute_script("document.getElementById('calibrate-options').open = true")
     # The lever arm in cm, as the versions table shows it; a comma read as the decimal mark ("1,5" is 1.5, not 15).
     assert "in cm" in text(browser, '#calibrate-form fieldset[data-group="lever arm"] legend')
-    for name, value in (("prior-x", "10"), ("prior-y", "5"), ("prior-z", "-15"), ("prior-sigma-cm", "1,5"),
-                        ("tolerance-deg", "0,3"), ("tolerance-cm", "2.5")):
+    # The lever arm typed in metres into the cm fields, first without its ±: the ± field is marked, nothing sent.
+    for name, value in (("prior-x", "0,1"), ("prior-y", "0.05"), ("prior-z", "-0.15"), ("tolerance-deg", "0,3"),
+                        ("tolerance-cm", "2.5")):
         field = browser.find_element(By.NAME, name)
         field.clear()
         field.send_keys(value)
     browser.find_element(By.NAME, "fix-translation").click()
     click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
+    sigma = browser.find_element(By.NAME, "prior-sigma-cm")
+    assert sigma.get_attribute("validationMessage").startswith("lever arm ±: empty; give how well the drawing")
+    assert message(browser) == (sigma.get_attribute("validationMessage"), "bad")
+    sigma.send_keys("1,5")
+    # With its ±: the page asks whether these were metres (all three under 1 cm) and offers them in cm.
+    click(browser, 'button[data-action="calibrate"][data-dataset="field"]')
+    until(browser, 5, lambda d: d.find_element(By.ID, "lever-check").is_displayed())
+    assert "Were these metres? In cm they are 10, 5, -15." in text(browser, "#lever-said")
+    click(browser, "#lever-fix")
+    assert [browser.find_element(By.NAME, f"prior-{a}").get_attribute("value") for a in "xyz"] == ["10", "5", "-15"]
     until(browser, 10, lambda d: len(d.find_elements(By.CSS_SELECTOR, '.job[data-kind="calibrate"]')) == 2)
     with server.client() as client:
         job = client.get("/jobs", params={"kind": "calibrate"}).json()[0]
@@ -909,8 +939,8 @@ def advice_and_options(browser, server, v1: dict) -> None:
                                                           "rpy_deg": None, "sigma_deg": None}
     options = job["params"]["request"]["options"]
     assert options["fix_translation"] is True
-    assert options["tolerance"] == {"rotation_deg": 0.3, "translation_cm": 2.5}
-    options = "lever arm (10.0, 5.0, -15.0) ± 1.5 cm, translation fixed, tolerance 0.3° / 2.5 cm"
+    assert options["tolerance"] == {"rotation_deg": 0.3, "translation_cm": 2.5, "rpy_deg": None, "xyz_cm": None}
+    options = "lever arm (10, 5, -15) ± 1.5 cm, translation fixed, tolerance 0.3° / 2.5 cm"
     assert options in text(browser, f'[data-job="{job["id"]}"]')
     click(browser, f'button[data-action="cancel"][data-job="{job["id"]}"]')
     until(browser, 30, lambda d: f"job {job['id']} cancelled" in message(d)[0])
@@ -963,12 +993,16 @@ def manual_version_and_change(browser, server) -> None:
     click(browser, '#v2 button[data-action="activate"]')
     until(browser, 5, lambda d: d.find_element(By.ID, "confirm").is_displayed())
     assert "no verdict" in text(browser, "#confirm-lead")
+    # How far it moves the rig's extrinsics, per axis and in all, and that nothing measured it.
+    move = text(browser, "#confirm-move")
+    assert "x +3.00 cm, y +0.00 cm, z +0.00 cm (in all 0.50° and 3.0 cm) from version 1" in move, move
+    assert "Nothing measured" in text(browser, "#confirm-unknown")
     assert "from the total station" in text(browser, "#confirm-reasons")
     click(browser, "#confirm-yes")
     until(browser, 10, lambda d: attr(d, "#v2", "data-status") == "active")
     assert attr(browser, "#v1", "data-status") == "superseded"
     assert "version 2" in text(browser, '[data-part="summary"]')
-    assert message(browser) == ("Version 2 is active.", "ok")
+    assert message(browser) == ("Version 2 is active. It has no verdict: nothing measured it.", "warn")
 
 
 def check_with_every_reason(browser, server) -> None:
@@ -981,12 +1015,13 @@ def check_with_every_reason(browser, server) -> None:
     status = check["result"]["status"]
     assert check["status"] == "succeeded" and len(check["result"]["reasons"]) >= 1
     row = f'.job[data-job="{check["id"]}"]'
-    assert texts(browser, row + " .reasons li") == check["result"]["reasons"]
-    groups = check["result"]["groups"]  # each judged group's length against its bound (none here: few places)
+    assert texts(browser, row + " .reasons li") == [page_words(r) for r in check["result"]["reasons"]]
+    groups = check["result"]["groups"]  # each judged group's length against its threshold (none here: few places)
     lengths = texts(browser, row + " .lengths li")
     assert len(lengths) == len(groups)
     for line, (name, g) in zip(lengths, sorted(groups.items()), strict=True):
-        assert line.startswith(f"{name}: {g['length']:.3g} ") and f"at most {g['upper']:.3g}" in line
+        unit = "°" if name == "rotation" else " cm"
+        assert line.startswith(f"{name} moved by {g['length']:.2f}{unit} (threshold {g['threshold']:g}{unit})")
     assert text(browser, row + " .badge") == status
     assert text(browser, row + " b").endswith("check") and "check version 2 on field" in text(browser, row)
     until(browser, 10, lambda d: f"job {check['id']} done: version 2 on field: {status}" in message(d)[0])
@@ -996,7 +1031,7 @@ def check_with_every_reason(browser, server) -> None:
 # -- without a browser ------------------------------------------------------------------------------------------
 def test_only_a_heads_report_lists_sensors():
     """One camera's (or a manual) version has no sensors to pick; a head's are its report's, in order."""
-    from rigd.web.views import report_sensors
+    from rigd.web.versions_view import report_sensors
 
     assert report_sensors({"pairs": [{"edge_pixels": 10, "edge_points": 5}]}) == []
     assert report_sensors({}) == []
@@ -1009,7 +1044,7 @@ def test_the_page_acts_on_the_advice_records_not_their_words():
     a report stored before steps were records keeps its words and has no button."""
     from rigd.calibration.advice import Action, Step
     from rigd.calibration.sections import step_yaml
-    from rigd.web.views import ADVICE_BUTTONS, advice_actions, capture_target
+    from rigd.web.versions_view import ADVICE_BUTTONS, advice_actions, capture_target
 
     step = step_yaml(Step("any words at all", (Action.CAPTURE,), (), 12))
     assert advice_actions(step) == [("capture", "Capture more pairs")]

@@ -4,8 +4,8 @@ import re
 from html import unescape
 
 from rigd.api.models import JobOut
+from rigd.web.jobs_view import JobView
 from rigd.web.routes import TEMPLATES
-from rigd.web.views import JobView
 
 GROUPS = {"rotation": {"length": 0.4123, "upper": 0.5871, "threshold": 0.3, "t2": 41.2, "t2_limit": 9.3},
           "translation": {"length": 0.87, "upper": 1.65, "threshold": 2.0, "t2": 3.1, "t2_limit": 9.3}}
@@ -43,11 +43,11 @@ def test_a_check_shows_each_groups_length_against_its_bound_and_threshold():
     html = _render(_check_job(result))
     lengths = _items(html, "lengths")
     assert len(lengths) == 2
-    for line, (name, unit) in zip(lengths, (("rotation", "deg"), ("translation", "cm")), strict=True):
-        g = GROUPS[name]
-        assert line.startswith(f"{name}: {g['length']:.3g} {unit}, at most {g['upper']:.3g} at 95")
-        assert line.endswith(f"(threshold {g['threshold']:g})")
-    assert _items(html, "reasons") == result["reasons"]
+    for line, (name, unit) in zip(lengths, (("rotation", "°"), ("translation", " cm")), strict=True):
+        g = GROUPS[name]  # the page's words: "moved by ... (threshold ...)", in ° and cm
+        assert line.startswith(f"{name} moved by {g['length']:.2f}{unit} (threshold {g['threshold']:g}{unit})")
+        assert f"up to {g['upper']:.2f}{unit} at 95 % confidence" in line
+    assert _items(html, "reasons") == ["rotation changed by 0.41°"]  # rigd check's words with the page's units
 
 
 def test_a_check_that_judged_no_group_or_predates_them_shows_no_lengths():

@@ -8,8 +8,9 @@ from pathlib import Path
 from rigd.api.models import CameraStatus, JobOut, LidarStatus
 from rigd.api.routes.capture import capture_sensors
 from rigd.capture import CaptureRequest, CaptureStatus
+from rigd.web.jobs_view import JobView
 from rigd.web.routes import TEMPLATES
-from rigd.web.views import JobView, stands_out
+from rigd.web.versions_view import stands_out
 
 
 def _text(html: str) -> str:
@@ -66,7 +67,7 @@ def test_a_failed_capture_shows_its_error_once_under_capture():
 
     class State:
         jobs = [JobView(job)]
-        capture = job
+        capture = JobView(job)
 
     class Status:
         sensors = _Sensors(LidarStatus(source="udp", state="ok"), CameraStatus(source="sdk"))
