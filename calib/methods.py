@@ -210,7 +210,7 @@ def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParam
     if fixed and prior is not None and prior.xyz_m is not None and gmm is None:
         start = Transform(start.rotation, prior.xyz_m)
     solved = optimise_photometric(photo, start.tau, opts, fixed_translation=fixed, on_iter=on_iter)
-    stats = gmm.pairs if gmm is not None else tuple(PairStats(0, int(len(p.points_lidar))) for p in photo)
+    stats = gmm.pairs if gmm is not None else tuple(PairStats(0, 0, int(len(p.points_lidar))) for p in photo)
     if trust is not None:
         if trust.elevation_sigma_deg > 0:
             slope = photo_elevation_slope(photo, solved, opts, fixed, executor)

@@ -79,8 +79,12 @@ class PairInput:
 
 @dataclass(frozen=True)
 class PairStats:
+    """What a pair gave the solve: the GMM's edge pixels and edge points, and the LiDAR points a photometric
+    cost compares with the image (its cloud's points with reflectivity)."""
+
     edge_pixels: int
     edge_points: int
+    compared_points: int = 0
 
 
 @dataclass(frozen=True)

@@ -46,11 +46,13 @@ class Level(TypedDict):
 
 @with_config(_OPEN)
 class PairQuality(TypedDict):
-    """A pair's edges: image pixels (a head's summed over its sensors) and LiDAR points."""
+    """A pair's edges: image pixels (a head's summed over its sensors) and LiDAR points; for a photometric method,
+    the LiDAR points it compares with the image instead."""
 
     edge_pixels: int
     edge_points: int
     edge_pixels_per_sensor: NotRequired[dict[str, int]]  # a multi-camera head only
+    compared_points: NotRequired[int]  # a photometric method: the cloud's points with reflectivity
 
 
 @with_config(_OPEN)

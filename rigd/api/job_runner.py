@@ -434,6 +434,10 @@ class JobRunner:
             job_id=job.id,
         )
 
+        def same_rig(active: ExtrinsicsVersion) -> bool:  # a version of another rig is not compared with this one
+            theirs, ours = active.parameters.get("rig"), params.get("rig")
+            return theirs is None or ours is None or theirs == ours
+
         def result_of(version: ExtrinsicsVersion) -> CalibrateJobResult:
             change = version.change
             return {"version": version.number, "status": version.status.value,
@@ -442,7 +446,7 @@ class JobRunner:
                     "auto_activate": decision}
 
         try:  # the version and the job's end in one transaction: a crash leaves both or neither
-            version = self.versions.add(new, policy, job_result=result_of)
+            version = self.versions.add(new, policy, job_result=result_of, comparable=same_rig)
         except StorageError as exc:
             self.jobs.finish(job.id, JobStatus.FAILED, "failed", error=f"its result could not be stored: {exc} "
                              f"(its files are in {self.jobs.job_dir(job.id) / 'calibration'})")

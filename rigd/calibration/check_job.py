@@ -24,7 +24,7 @@ from rigd.store import Database, VersionStore
 
 def group_lines(rep: CheckReport) -> list[str]:
     """Each judged group's change as a length with the largest the pairs allow and the threshold, in the words
-    ``rigd check`` prints and the page shows."""
+    ``rigd check`` prints (the page words them in its own: rigd/web/words.py)."""
     lines = []
     for name, unit in (("rotation", "deg"), ("translation", "cm")):
         if (g := rep["groups"].get(name)) is not None:

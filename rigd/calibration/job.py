@@ -8,6 +8,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from calib.errors import CalibError
 from calib.geometry import Transform
 from calib.methods import solve
@@ -41,9 +43,18 @@ def prepare(request: CalibrationRequest) -> tuple[Dataset, Resolved]:
     return dataset, resolve(request, dataset)
 
 
+def _typical_range_m(features: Features) -> float:
+    """The harmonic mean range (m) of the GMM's edge points, else of the points a photometric cost compares."""
+    if features.gmm:
+        return typical_range_m(features.gmm)
+    ranges = np.concatenate([np.linalg.norm(p.points_lidar, axis=1) for p in features.photo or []] or [np.zeros(0)])
+    near = ranges[ranges > 0.1]
+    return float(len(near) / np.sum(1.0 / near)) if near.size else 10.0
+
+
 def _scene_facts(dataset: Dataset, features: Features, resolved: Resolved) -> SceneFacts:
     prior = resolved.solve.prior
-    return SceneFacts(len(dataset), typical_range_m(features.gmm) if features.gmm else 0.0,
+    return SceneFacts(len(dataset), _typical_range_m(features),
                       dataset.rig.camera.models()[0].pixels_per_radian,
                       prior is not None and (prior.xyz_m is not None or prior.fix_translation),
                       tuple(f"pairs/{d.name}" for d in dataset.pair_dirs), features.places)

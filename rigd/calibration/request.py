@@ -268,7 +268,8 @@ def _method(options: Options, dataset: Dataset, initial: Transform | None, prior
         return Decision(options.method.value, "asked for")
     camera = dataset.source_camera
     if not (isinstance(camera, CameraConfig) and camera.kind is CameraKind.PINHOLE):
-        return Decision(Method.GMM.value, f"the default for a {dataset.rig.camera.kind.value} camera")
+        kind = dataset.rig.camera.kind.value
+        return Decision(Method.GMM.value, f"the default for {'an' if kind[0] in 'aeiou' else 'a'} {kind} camera")
     why_not = ("this calibration searches for its start, which scores the GMM's edges" if initial is None
                else "a Gaussian prior is given, which NID's cost cannot weigh" if prior is not None and prior.active
                else None if _has_intensity(dataset) else "the clouds carry no intensity to compare with the image")

@@ -125,6 +125,8 @@ def _pairs_yaml(result: CalibResult, dataset: Dataset) -> list[PairQuality]:
     for i in range(len(dataset)):
         stats = [result.pairs[v * len(dataset) + i] for v in range(len(dataset.views))]
         entry: PairQuality = {"edge_pixels": sum(p.edge_pixels for p in stats), "edge_points": stats[0].edge_points}
+        if stats[0].compared_points:
+            entry["compared_points"] = stats[0].compared_points
         if len(stats) > 1:
             entry["edge_pixels_per_sensor"] = dict(zip(dataset.views, [p.edge_pixels for p in stats], strict=True))
         out.append(entry)

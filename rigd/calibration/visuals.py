@@ -42,8 +42,9 @@ def project_visible(
 
 
 def dot_radius_px(width: int, height: int) -> int:
-    """Dots about 1/1000 of the larger image side: 1 px up to 1500 px, 2 px on a 2048-wide panorama."""
-    return max(1, round(max(width, height) / 1000))
+    """Dots about 1/600 of the larger image side: 1 px up to 900 px, 2 px at 1024, 3 px on a 1920-wide pinhole's
+    or a 2048-wide panorama's (at 1/1000 they were all but lost at full size and in screen copies)."""
+    return max(1, round(max(width, height) / 600))
 
 
 def dot_gap_px(radius_px: int) -> int:
@@ -98,6 +99,8 @@ def draw_dots(canvas: NDArray[np.uint8], uv: F64, colours_bgr: NDArray[np.uint8]
         cv2.circle(layer, centre, radius_px, tuple(int(c) for c in colour), -1, cv2.LINE_AA)
     # Pixels without a dot are the same in both, so the blend changes only the dots.
     cv2.addWeighted(layer, DOT_ALPHA, canvas, 1.0 - DOT_ALPHA, 0.0, dst=canvas)
+    for centre, colour in zip(centres, colours_bgr, strict=True):  # an opaque core: the colour survives a copy
+        cv2.circle(canvas, centre, radius_px - 1, tuple(int(c) for c in colour), -1, cv2.LINE_AA)
     return canvas
 
 

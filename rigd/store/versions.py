@@ -64,15 +64,18 @@ class VersionStore:
         self.db = db
 
     def add(self, new: NewVersion, activate: ActivationPolicy,
-            job_result: Callable[[ExtrinsicsVersion], JobResult] | None = None) -> ExtrinsicsVersion:
+            job_result: Callable[[ExtrinsicsVersion], JobResult] | None = None,
+            comparable: Callable[[ExtrinsicsVersion], bool] | None = None) -> ExtrinsicsVersion:
         """Store ``new`` as the next version; make it active if ``activate`` says so, or if none is active and
         ``new`` is not a calibration its own verdict distrusts (docs/trust.md: an untrusted result is never
         activated without a person asking for it). ``job_result``: the job ``new.job_id`` succeeds with this
         result of the stored version in the same transaction, so a crash leaves both or neither (ConflictError,
-        and nothing stored, when that job has ended already)."""
+        and nothing stored, when that job has ended already). ``comparable(active)``: whether ``new`` may be compared
+        with the active version (two rigs' versions differ by their mounts: no change is recorded between them)."""
         with self.db.write("versions.add") as conn:
             active = self._active(conn)
-            change = change_between(active, new.T_camera_lidar) if active else None
+            compared = active is not None and (comparable is None or comparable(active))
+            change = change_between(active, new.T_camera_lidar) if active is not None and compared else None
             cursor = conn.execute(
                 "INSERT INTO versions (created_at, transform, quality, dataset_id, dataset_hash, method, parameters,"
                 " code_version, supersedes, change, job_id, status) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",

@@ -138,7 +138,7 @@ def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path, ca
     # none given (with --search: chosen, not missing), said with the method chosen for it
     assert report["start"] == {"source": "search", "choice": "global search",
                                "why": "the rig file has no initial guess"}
-    assert report["method"]["name"] == "gmm" and report["method"]["why"] == "the default for a equirectangular camera"
+    assert report["method"]["name"] == "gmm" and report["method"]["why"] == "the default for an equirectangular camera"
     truth = open_dataset(small_dataset).ground_truth
     start = np.array(search["start"]["rpy_deg"])
     assert np.abs((start - truth.rpy_deg + 180.0) % 360.0 - 180.0).max() < 10.0  # inside the local basin

@@ -80,7 +80,7 @@ def test_edge_views_draw_dots_where_the_points_project_and_move_them():
 
 
 def test_dots_grow_with_the_image():
-    assert dot_radius_px(256, 128) == 1 and dot_radius_px(2048, 1024) == 2 and dot_radius_px(8000, 4000) == 8
+    assert dot_radius_px(256, 128) == 1 and dot_radius_px(2048, 1024) == 3 and dot_radius_px(8000, 4000) == 13
 
 
 def test_the_top_view_colours_each_point_from_the_pixel_it_lands_on():
