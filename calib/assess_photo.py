@@ -424,10 +424,13 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
     cost = _finest_cost(pairs, anchor, params)
     done = shared_calls(executor, _restart, calls)
     loose = done.pop() if fixed_translation else None
-    # NID's cost is not a likelihood, and its lowest minimum need not be the truth's: the solve from the start is
-    # the answer (as the plain method's), and a restart that ends lower elsewhere is an ambiguity, not a better one.
+    # NID's cost is not a likelihood, and its lowest minimum need not be the truth's: a restart that ends lower
+    # within the restarts' own reach of the solution is the same basin solved better, and taken; one that ends
+    # lower beyond it is another minimum, an ambiguity the verdict weighs, and the solve's own answer is kept.
     runs: list[tuple[PhotoResult, float]] = [(result, cost(anchor)), *((run, cost(run.tau)) for run in done)]
-    best, best_cost = runs[0]
+    reach = np.array([trust.restart_rot_deg] * 3 + [trust.restart_trans_m * 100.0] * 3)
+    near = [r for r in runs if bool(np.all(np.abs(xi_of(anchor, r[0].tau) * TO_DISPLAY) <= reach))]
+    best, best_cost = min(near, key=lambda r: r[1])
     unc = photo_uncertainty(pairs, best.tau, params, trust, fixed_translation, opts)
     offsets = np.array([xi_of(best.tau, r.tau) * TO_DISPLAY for r, _ in runs])
     # Every run from around the solution (the solve's own included) lands where the simplex shrank: their spread
