@@ -124,6 +124,14 @@ def write_output_file(target: Path, text: str, *, inputs: Sequence[Path] = (), o
         raise write_error(target, exc) from exc
 
 
+def claim_output_files(targets: Sequence[Path], *, overwrite: bool = False) -> None:
+    """Refuse (OutputError, before any work) files a run would write over that an earlier run wrote, unless
+    ``overwrite``: a command that writes several named files into a shared folder (an evaluation's report and plot)
+    checks them all at its start rather than after its long run."""
+    for target in targets:
+        _check_target(Path(target), (), overwrite, "file")
+
+
 def fsync_path(path: Path) -> None:
     """Flush a file's or a folder's data and metadata to disk (a folder: the renames in it)."""
     fd = os.open(path, os.O_RDONLY)

@@ -149,6 +149,8 @@ def add_evaluation_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cluster-timeout", type=positive_float, default=10.0, metavar="S",
                         help="seconds to wait for the cluster's scheduler and its first worker (default 10)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default DATASET/evaluation)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an earlier run's report and plot of this protocol there (default: refused)")
     parser.add_argument("--sigmas-deg", type=str, default=None, metavar="S1,S2,...",
                         help="the GMM's sigma_in per coarse-to-fine level, deg at 1 m (default: the method's)")
     parser.add_argument("--init", type=str, default=None, metavar="ROLL,PITCH,YAW,X,Y,Z",
@@ -194,4 +196,4 @@ def evaluation_settings(args: argparse.Namespace) -> EvaluationSettings:
                         options=validated(Options, "rigd evaluate", **options), workers=args.workers,
                         assess=not getattr(args, "no_uncertainty", False))
     return EvaluationSettings(request, seed=args.seed, out_dir=args.out, outlier_rule=OutlierRule(args.outlier_rule),
-                              cluster=args.cluster, cluster_timeout_s=args.cluster_timeout)
+                              cluster=args.cluster, cluster_timeout_s=args.cluster_timeout, overwrite=args.overwrite)

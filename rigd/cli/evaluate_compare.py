@@ -33,13 +33,16 @@ def register_compare(protocols: Any) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--workers", type=positive_int, default=2, help="parallel processes (default 2)")
     p.add_argument("--out", default=None, help="output directory (default DATASET/evaluation)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an earlier compare's report, table and plot there (default: refused)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     request = CompareRequest(Path(args.dataset), parse_methods(args.methods), args.subsets, args.size, args.trials,
                              args.rot_deg, args.trans_m, args.seed, args.workers,
-                             Path(args.out) if args.out else None, start_axes=StartAxes(args.start_axes))
+                             Path(args.out) if args.out else None, start_axes=StartAxes(args.start_axes),
+                             overwrite=args.overwrite)
     outcome = run_compare(request)
     rep = outcome.report
     s = rep["settings"]

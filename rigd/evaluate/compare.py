@@ -33,6 +33,7 @@ from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 from rigd.evaluate.pools import trial_runner
 from rigd.evaluate.trials import EvaluationSettings, Run, Task, run_task
+from rigd.outdir import claim_output_files
 
 AXES6 = ("roll_deg", "pitch_deg", "yaw_deg", "x_m", "y_m", "z_m")
 
@@ -53,6 +54,7 @@ class CompareRequest:
     progress: bool = True
     target_rot_deg: float = 0.5  # a run is "near the reference" within these (issue 10's real-data target)
     target_trans_cm: float = 5.0
+    overwrite: bool = False  # write over an earlier compare's report, table and plot in the same folder
 
 
 @dataclass(frozen=True)
@@ -239,6 +241,7 @@ def run_compare(req: CompareRequest) -> CompareOutcome:
     axes = req.start_axes.resolve(reference)
     starts = random_starts(reference, req.trials, req.rot_deg, req.trans_m, req.seed, axes)
     out = Path(req.out_dir) if req.out_dir is not None else dataset.root / "evaluation"
+    claim_output_files([out / f"compare.{x}" for x in ("yaml", "md", "png")], overwrite=req.overwrite)
     out.mkdir(parents=True, exist_ok=True)
     header = {"protocol": "compare", "dataset": str(dataset.root), "pairs_in_dataset": len(dataset),
               "reference": {"source": source, "T_camera_lidar": transform_to_yaml(reference)},

@@ -138,6 +138,7 @@ def run_drift(request: DriftRequest) -> DriftOutcome:
     dataset, _ = open_for(replace(s, request=checks))
     if dataset.ground_truth is None:
         raise RigdError(f"{dataset.root}: drift evaluation needs ground_truth.yaml (a simulated dataset)")
+    out = s.out(dataset, "drift.yaml")
     if request.size is not None and not 1 <= request.size <= len(dataset):
         raise RigdError(f"--size must be between 1 and the dataset's {len(dataset)} pairs, got {request.size}")
     opts = with_rig_tolerance(request.options, dataset)
@@ -158,7 +159,6 @@ def run_drift(request: DriftRequest) -> DriftOutcome:
         "wall_time_s": round(time.monotonic() - started, 2),
         "trials": [_trial_yaml(t, request.size) for t in trials],
     }
-    out = Path(s.out_dir) if s.out_dir is not None else dataset.root / "evaluation"
     out.mkdir(parents=True, exist_ok=True)
     write_yaml(out / "drift.yaml", report)
     return DriftOutcome(trials, report, out / "drift.yaml")

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -126,6 +125,7 @@ def run_initial(request: InitialRequest) -> dict[str, Any]:
     truth = dataset.ground_truth
     if truth is None:
         raise RigdError(f"{dataset.root}: the initial-guess evaluation needs ground_truth.yaml (a simulated dataset)")
+    out = s.out(dataset, "initial.yaml")
     base = base_rotation(dataset.rig.camera.models()[0])
     ref_start = random_starts(truth, 1, 5.0, 0.1, s.seed + 1)[0]
     mounts = _mounts(request, base)
@@ -157,7 +157,6 @@ def run_initial(request: InitialRequest) -> dict[str, Any]:
                     "total_s": round(t.total_s, 2), "runner_up_deg": t.runner_up_deg, "success": good,
                     "verdict": t.verdict, "error": t.error} for t, good in zip(trials, ok, strict=True)],
     }
-    out = Path(s.out_dir) if s.out_dir is not None else dataset.root / "evaluation"
     out.mkdir(parents=True, exist_ok=True)
     write_yaml(out / "initial.yaml", report)
     return report

@@ -94,6 +94,7 @@ def run_convergence(request: ConvergenceRequest) -> EvaluationOutcome:
     started = time.monotonic()
     s = request.settings
     dataset, resolved = open_for(s)
+    s.out(dataset, "convergence.yaml", "convergence.png")
     pairs = tuple(range(len(dataset)))
     with trial_runner(s) as workers:
         where = where_run(s, workers)
@@ -125,6 +126,7 @@ def run_precision(request: PrecisionRequest) -> EvaluationOutcome:
     started = time.monotonic()
     s = request.settings
     dataset, resolved = open_for(s)
+    s.out(dataset, "precision.yaml", "precision.png")
     subsets = random_subsets(len(dataset), request.size, request.subsets, s.seed)
     initial = s.initial(dataset)
     start, start_source = ((initial, Source.INITIAL_GUESS) if initial is not None

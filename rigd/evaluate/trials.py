@@ -24,6 +24,7 @@ from rigd.calibration.job import prepare
 from rigd.calibration.request import CalibrationRequest, Resolved, Start, TransformIn
 from rigd.dataset import Dataset
 from rigd.errors import RigdError
+from rigd.outdir import claim_output_files
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,7 @@ class EvaluationSettings:
     progress: bool = True  # a tqdm bar on stderr
     cluster: str | None = None  # a Dask scheduler's address (tcp://host:8786): run there instead of `workers`
     cluster_timeout_s: float = 10.0  # for connecting to it and for its first worker
+    overwrite: bool = False  # write over an earlier run's report and plot of the same protocol in the same folder
 
     @property
     def dataset(self) -> Path:
@@ -47,6 +49,13 @@ class EvaluationSettings:
     @property
     def workers(self) -> int:
         return self.request.workers
+
+    def out(self, dataset: Dataset, *names: str) -> Path:
+        """The output folder (``out_dir``, default DATASET/evaluation), once no earlier run's ``names`` there stand
+        in the way (rigd.outdir.claim_output_files: refused unless ``overwrite``)."""
+        out = Path(self.out_dir) if self.out_dir is not None else dataset.root / "evaluation"
+        claim_output_files([out / n for n in names], overwrite=self.overwrite)
+        return out
 
     def initial(self, dataset: Dataset) -> Transform | None:
         """The start the settings give: the request's transform, else the rig file's guess."""

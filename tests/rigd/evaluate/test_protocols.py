@@ -158,3 +158,17 @@ def test_the_spread_of_the_results_a_user_is_given_leaves_out_failed_runs():
     assert stats.std is not None and stats.std.z_m > 0.2  # the failed runs' 30 cm
     baseline = [Run(r.index, r.pairs, r.start, r.result, None, 0.0, 1, 1.0, verdict="not_assessed") for r in runs]
     assert std_not_failed(stats, baseline) is None
+
+
+def test_an_earlier_runs_report_is_not_written_over_unless_told(small_dataset, tmp_path, capsys):
+    """Refused at once, before any run (exit 73), and the earlier report kept; compare likewise."""
+    from rigd.cli.exit_codes import CANT_CREATE
+
+    out = tmp_path / "eval"
+    out.mkdir()
+    (out / "convergence.yaml").write_text("an earlier run's report\n")
+    assert main(["evaluate", "convergence", str(small_dataset), "--trials", "1", "--out", str(out)]) == CANT_CREATE
+    assert "convergence.yaml: exists already" in capsys.readouterr().err
+    assert (out / "convergence.yaml").read_text() == "an earlier run's report\n"
+    (out / "compare.md").write_text("an earlier table\n")
+    assert main(["evaluate", "compare", str(small_dataset), "--methods", "gmm", "--out", str(out)]) == CANT_CREATE
