@@ -2,7 +2,7 @@
 candidate LiDAR error moves it: a benchmark that prints numbers, not a product path.
 
 Run: .venv/bin/python benchmarks/acfr_target.py ../shared/data/acfr_vlp16 [--frames 1,3,5] [--range-bias-m -0.03]
-         [--ring-elevation-offsets 0.1 | FILE] [--edges] [--no-jackknife]
+         [--ring-elevation-offsets 0.1 | FILE] [--vertical-offsets] [--range-trend-m 0.005] [--edges] [--no-jackknife]
 
 Per frame: the board's 5 x 7 inner corners (95 mm squares, cfg/params.yaml) found in the fisheye image
 (cv2.findChessboardCorners, refined to sub-pixel), undistorted with cv2.fisheye and passed to solvePnP: the board's
@@ -19,8 +19,11 @@ the LiDAR's origin along the camera's and along the LiDAR's axes (cm), and as th
 roll, pitch, yaw in the LiDAR frame, deg; x, y, z, cm); a jackknife over frames gives each axis' sigma.
 Candidate causes, applied to the board points before the fit (rigd's conventions, docs/conventions.md):
 ``--range-bias-m B`` adds B to every range along its ray; ``--ring-elevation-offsets`` raises every point by an
-elevation offset in deg, one value for every ring, or a file of 16 values (ring 0 first), range and azimuth kept.
-With either, the shift from the uncorrected estimate is printed too.
+elevation offset in deg, one value for every ring, or a file of 16 values (ring 0 first), range and azimuth kept;
+``--vertical-offsets`` adds the VLP-16 manual's per-laser vertical offsets (the clouds were decoded without them,
+rigd.dataset.lasers); ``--range-trend-m T`` adds a per-laser range offset running linearly from -T on the lowest
+ring to +T on the highest (the part of the lasers' range offsets that tilts every board alike, so the boards cannot
+measure it). With any of them, the shift from the uncorrected estimate is printed too.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from calib.elevation import raise_elevation
 from calib.geometry import Transform, rotation_angle_deg, so3_exp, so3_log
 from calib.uncertainty import TO_DISPLAY, xi_of
 from rigd.dataset import read_pcd
+from rigd.dataset.lasers import with_vertical_offsets
 from rigd.importers.camera_info import read_camera_info
 from rigd.importers.reference_file import parse_convention, read_reference
 
@@ -104,10 +108,17 @@ def ring_offsets(text: str | None) -> F64 | None:
     return np.array([float(text)], np.float64)
 
 
-def corrected(points: F64, ring: NDArray[np.int16] | None, range_bias_m: float, offsets_deg: F64 | None) -> F64:
-    """The board points with the candidate corrections: every range + ``range_bias_m`` along its ray, then each
-    ring raised by its elevation offset (deg; one value: every ring)."""
-    out = np.asarray(points * (1.0 + range_bias_m / np.linalg.norm(points, axis=1))[:, None], np.float64)
+def corrected(points: F64, ring: NDArray[np.int16] | None, range_bias_m: float, offsets_deg: F64 | None,
+              range_trend_m: float = 0.0) -> F64:
+    """The board points with the candidate corrections: every range + ``range_bias_m`` (and the ring's share of
+    ``range_trend_m``, -1 on ring 0 to +1 on ring 15) along its ray, then each ring raised by its elevation offset
+    (deg; one value: every ring)."""
+    bias = np.full(len(points), range_bias_m)
+    if range_trend_m:
+        if ring is None:
+            raise SystemExit("--range-trend-m needs the clouds' ring field")
+        bias = bias + range_trend_m * (ring.astype(np.float64) - 7.5) / 7.5
+    out = np.asarray(points * (1.0 + bias / np.linalg.norm(points, axis=1))[:, None], np.float64)
     if offsets_deg is None:
         return out
     if len(offsets_deg) == 1:
@@ -134,8 +145,9 @@ def load_boards(root: Path, frames: list[int], K: F64, D: F64, args: argparse.Na
         R_cb, t_cb, rms = pose
         normal, d = R_cb[:, 2], float(R_cb[:, 2] @ t_cb)
         normal, d = (normal, d) if d > 0 else (-normal, -d)
-        cloud = read_pcd(root / "pcd" / f"pose{frame}_target.pcd")
-        points = corrected(cloud.points_lidar, cloud.ring, args.range_bias_m, offsets)
+        path = root / "pcd" / f"pose{frame}_target.pcd"
+        cloud = with_vertical_offsets(read_pcd(path), str(path)) if args.vertical_offsets else read_pcd(path)
+        points = corrected(cloud.points_lidar, cloud.ring, args.range_bias_m, offsets, args.range_trend_m)
         boards.append(Board(frame, R_cb, t_cb, normal, d, rms, points))
     return boards
 
@@ -238,6 +250,10 @@ def main() -> None:
     parser.add_argument("--range-bias-m", type=float, default=0.0, help="added to every range, m (e.g. -0.03)")
     parser.add_argument("--ring-elevation-offsets", default=None, metavar="DEG_OR_FILE",
                         help="raise every point by this elevation, deg, or by a file's per-ring values")
+    parser.add_argument("--range-trend-m", type=float, default=0.0,
+                        help="per-laser range offset from -T (lowest ring) to +T (highest), m (e.g. 0.005)")
+    parser.add_argument("--vertical-offsets", action="store_true",
+                        help="add the VLP-16 manual's per-laser vertical offsets to the board points")
     parser.add_argument("--edges", action="store_true", help="also keep the board points within the board")
     parser.add_argument("--no-jackknife", action="store_true")
     args = parser.parse_args()
@@ -246,13 +262,15 @@ def main() -> None:
     reference = read_reference(args.root / "calibration_quickstart.csv", parse_convention(REFERENCE_CONVENTION))
     boards = load_boards(args.root, frames_of(args.root, args.frames), camera.K, camera.D, args)
     print(f"{len(boards)} frames; range bias {args.range_bias_m:+.3f} m; ring elevation offsets "
-          f"{args.ring_elevation_offsets or 0} deg; edges {'on' if args.edges else 'off'}")
+          f"{args.ring_elevation_offsets or 0} deg; range trend {args.range_trend_m:+.3f} m; vertical offsets "
+          f"{'added' if args.vertical_offsets else 'none'}; edges {'on' if args.edges else 'off'}")
     solution = estimate(boards, args.edges)
     report_frames(boards, solution)
     describe(closed_form(boards), reference.T_camera_lidar, "closed form (start)")
     describe(solution, reference.T_camera_lidar, "target-based estimate")
-    if args.range_bias_m or args.ring_elevation_offsets:
-        plain = argparse.Namespace(**{**vars(args), "range_bias_m": 0.0, "ring_elevation_offsets": None})
+    if args.range_bias_m or args.ring_elevation_offsets or args.vertical_offsets or args.range_trend_m:
+        plain = argparse.Namespace(**{**vars(args), "range_bias_m": 0.0, "ring_elevation_offsets": None,
+                                      "vertical_offsets": False, "range_trend_m": 0.0})
         base = estimate(load_boards(args.root, [b.frame for b in boards], camera.K, camera.D, plain), args.edges)
         shift = local(solution, base)
         print(f"  the corrections moved it by: about the LiDAR's x, y, z (deg) {fmt(shift[:3], 3)}; along the "

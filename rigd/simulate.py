@@ -84,7 +84,8 @@ def write_simulated_dataset(out_dir: Path, kind: str, pairs: int, seed: int, wid
                            jpeg_quality=JPEG_QUALITY if sensor_effects else None, trees=trees)
         camera = CameraConfig(CameraKind.EQUIRECTANGULAR, width, height)
     rig = SimRig(config)
-    write_rig(out, RigConfig(camera, "64-ring" if rings64 else "VLP-16"))
+    # the simulated beams are where the table says: their elevation offset is known exactly (0)
+    write_rig(out, RigConfig(camera, "64-ring" if rings64 else "VLP-16", lidar_elevation_sigma_declared_deg=0.0))
     write_ground_truth(out, Transform.from_matrix(config.T_image_lidar.matrix))
     for index in tqdm(range(pairs), desc=f"simulate {sim_kind.value}", unit="pair", file=sys.stderr,
                       disable=not progress):

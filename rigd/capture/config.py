@@ -74,7 +74,7 @@ class RigSettings:
     tolerance: TrustOptions | None = None
     search: SearchOptions | None = None
     lidar_elevation_offset_deg: float = 0.0  # the LiDAR's declared elevation offset and its sigma, carried too
-    lidar_elevation_sigma_deg: float = 0.0
+    lidar_elevation_sigma_deg: float | None = None  # None: not declared (the LiDAR model's own applies)
     sdk: SdkSettings = field(default_factory=SdkSettings)
     capture: CaptureDefaults = field(default_factory=CaptureDefaults)
 
@@ -123,7 +123,7 @@ def load_settings(path: Path | None) -> RigSettings:
         tolerance=rig.tolerance if rig else None,
         search=rig.search if rig else None,
         lidar_elevation_offset_deg=rig.lidar_elevation_offset_deg if rig else 0.0,
-        lidar_elevation_sigma_deg=rig.lidar_elevation_sigma_deg if rig else 0.0,
+        lidar_elevation_sigma_deg=rig.lidar_elevation_sigma_declared_deg if rig else None,
         sdk=_sdk(_section(camera, "sdk", f"{where}: camera"), where),
         capture=_capture(_section(data, "capture", where), where),
     )

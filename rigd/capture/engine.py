@@ -590,12 +590,14 @@ class _Capture:
             if difference is not None:
                 raise DatasetError(f"{rig_path}: {difference}: capture into a new dataset")
             return
+        spec = self.sources.sim_spec
+        sigma = self.settings.lidar_elevation_sigma_deg
+        if sigma is None and spec is not None:
+            sigma = 0.0  # the simulated beams are where the table says
         try:
             write_rig(self.out, RigConfig(camera, self.settings.lidar_model, self.settings.initial_guess,
                                           self.settings.prior, self.settings.tolerance, self.settings.search,
-                                          self.settings.lidar_elevation_offset_deg,
-                                          self.settings.lidar_elevation_sigma_deg))
-            spec = self.sources.sim_spec
+                                          self.settings.lidar_elevation_offset_deg, sigma))
             if spec is not None and not (self.out / "ground_truth.yaml").is_file():
                 write_ground_truth(self.out, Transform.from_matrix(spec.T_camera_lidar.matrix))
         except DatasetError as exc:

@@ -119,6 +119,10 @@ def _register_pairs(formats: Any) -> None:
                        help="rig.yaml's initial guess of T_camera_lidar, deg and m (default none: rigd calibrate "
                        "searches)")
     pairs.add_argument("--lidar-model", default="VLP-16", metavar="NAME", help="the LiDAR's name (default VLP-16)")
+    pairs.add_argument("--vertical-offsets", choices=("auto", "manual", "as-recorded"), default="auto",
+                       help="a VLP-16's per-laser vertical offsets (up to 11.2 mm, its manual's table): added on load "
+                            "(manual), not (as-recorded), or auto (default): added when every cloud lacks them, as "
+                            "clouds from the ROS driver before 2023 do (docs/dataset.md)")
     pairs.add_argument("--mask", type=Path, default=None, metavar="PNG",
                        help="an image of the camera's size, non-zero where it shows the scene (the rig's own body "
                        "zero), copied to OUT/masks/camera.png")
@@ -126,6 +130,8 @@ def _register_pairs(formats: Any) -> None:
 
 
 def _pairs(args: argparse.Namespace) -> int:
+    from rigd.dataset import open_dataset
+    from rigd.dataset.lasers import VerticalOffsets
     from rigd.importers.pairs import IMAGE_GLOBS, PairsOptions, PairsSource, import_pairs
     from rigd.importers.reference_file import parse_convention, read_reference
 
@@ -135,13 +141,17 @@ def _pairs(args: argparse.Namespace) -> int:
         read_reference(args.reference, parse_convention(args.reference_convention))
     source = PairsSource(args.images, args.clouds, (args.image_glob,) if args.image_glob else IMAGE_GLOBS,
                          args.cloud_glob, args.by_order)
+    offsets = None if args.vertical_offsets == "auto" else VerticalOffsets(args.vertical_offsets)
     options = PairsOptions(args.camera_info, args.lidar_model, parse_init(args.init).transform if args.init else None,
-                           reference, args.mask)
+                           reference, args.mask, offsets)
     bar, progress = progress_bar("import pairs", "pair")
     with bar:
         n = import_pairs(source, args.out, options, args.only, progress)
     print(f"written: {args.out} ({n} pairs" + (f"; reference pose in {args.out / 'reference.yaml'})"
                                                if reference is not None else ")"))
+    if open_dataset(args.out).rig.lidar_vertical_offsets is VerticalOffsets.MANUAL:
+        print("the clouds are given the VLP-16 manual's per-laser vertical offsets as they are loaded "
+              "(rig.yaml lidar.vertical_offsets: manual" + (")" if offsets else "; they were decoded without them)"))
     return 0
 
 

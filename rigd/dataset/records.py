@@ -17,6 +17,7 @@ from calib.geometry import Transform, rpy_deg_to_matrix
 from calib.pipeline import CalibParams
 from calib.prior import Prior
 from calib.search import SearchOptions
+from rigd.dataset.lasers import VLP16, VerticalOffsets
 from rigd.errors import DatasetError
 from rigd.report import PriorYaml, TransformYaml
 
@@ -372,14 +373,27 @@ class RigConfig:
     # deg: every cloud point is raised by this in elevation when a pair is loaded (the LiDAR's common elevation
     # offset, e.g. from rigd calibrate --fit-elevation-offset on a well-structured set; calib.elevation)
     lidar_elevation_offset_deg: float = 0.0
-    lidar_elevation_sigma_deg: float = 0.0  # deg, how well that offset is known (1 sigma; 0: exact)
+    # deg, how well that offset is known (1 sigma; 0: exact); None: not declared, the LiDAR model's own
+    # (:data:`MODEL_ELEVATION_SIGMA_DEG`, :attr:`lidar_elevation_sigma_deg`)
+    lidar_elevation_sigma_declared_deg: float | None = None
+    # the VLP-16 manual's per-laser vertical offsets added to each cloud as it is loaded (rigd.dataset.lasers)
+    lidar_vertical_offsets: VerticalOffsets = VerticalOffsets.AS_RECORDED
+
+    @property
+    def lidar_elevation_sigma_deg(self) -> float:
+        """The sigma of the LiDAR's elevation offset the assessment takes, deg: the declared one, else the model's."""
+        if self.lidar_elevation_sigma_declared_deg is not None:
+            return self.lidar_elevation_sigma_declared_deg
+        return MODEL_ELEVATION_SIGMA_DEG.get(self.lidar_model, 0.0)
 
     def to_yaml(self) -> dict[str, Any]:
         out: dict[str, Any] = {"camera": self.camera.to_yaml(), "lidar": {"model": self.lidar_model}}
         if self.lidar_elevation_offset_deg:
             out["lidar"]["elevation_offset_deg"] = self.lidar_elevation_offset_deg
-        if self.lidar_elevation_sigma_deg:
-            out["lidar"]["elevation_offset_sigma_deg"] = self.lidar_elevation_sigma_deg
+        if self.lidar_elevation_sigma_declared_deg is not None:
+            out["lidar"]["elevation_offset_sigma_deg"] = self.lidar_elevation_sigma_declared_deg
+        if self.lidar_vertical_offsets is not VerticalOffsets.AS_RECORDED:
+            out["lidar"]["vertical_offsets"] = self.lidar_vertical_offsets.value
         if self.initial_guess is not None:
             out["initial_guess"] = {
                 "rpy_deg": self.initial_guess.rpy_deg.tolist(),
@@ -411,10 +425,33 @@ class RigConfig:
         tolerance = (tolerance_from_yaml(data["tolerance"], where, bounded=True)
                      if data.get("tolerance") is not None else None)
         search = search_from_yaml(data["search"], where) if data.get("search") is not None else None
-        return cls(camera, str(lidar.get("model", "VLP-16")), initial, prior, tolerance, search,
+        model = str(lidar.get("model", VLP16))
+        sigma = lidar.get("elevation_offset_sigma_deg")
+        return cls(camera, model, initial, prior, tolerance, search,
                    _elevation_offset(lidar.get("elevation_offset_deg", 0.0), "elevation_offset_deg", where),
-                   abs(_elevation_offset(lidar.get("elevation_offset_sigma_deg", 0.0), "elevation_offset_sigma_deg",
-                                         where)))
+                   None if sigma is None else abs(_elevation_offset(sigma, "elevation_offset_sigma_deg", where)),
+                   _vertical_offsets(lidar.get("vertical_offsets"), model, where))
+
+
+# deg: the sigma of a LiDAR model's common elevation error (every beam a little high or low), which one camera cannot
+# tell from a tilt, taken when rig.yaml declares none. A VLP-16 has nominal beam angles only (no per-unit table): the
+# floor of the real unit in docs/results.md fits best with every beam 0.02-0.11 deg up, and worse from 0.25 deg on.
+# Simulated LiDARs declare 0: their beams are where their table says.
+MODEL_ELEVATION_SIGMA_DEG = {VLP16: 0.15}
+
+
+def _vertical_offsets(value: Any, model: str, where: str) -> VerticalOffsets:
+    if value is None:
+        return VerticalOffsets.AS_RECORDED
+    try:
+        offsets = VerticalOffsets(str(value))
+    except ValueError as exc:
+        names = ", ".join(v.value for v in VerticalOffsets)
+        raise DatasetError(f"{where}: lidar vertical_offsets must be one of {names}, got {value!r}") from exc
+    if offsets is VerticalOffsets.MANUAL and model != VLP16:
+        raise DatasetError(f"{where}: lidar vertical_offsets: manual is the {VLP16} manual's table; the LiDAR is "
+                           f"{model}")
+    return offsets
 
 
 MAX_ELEVATION_OFFSET_DEG = 2.0  # a LiDAR's elevation table is good to tenths of a degree

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from calib.elevation import raise_elevation
 from calib.geometry import Transform
+from rigd.dataset.lasers import VerticalOffsets, with_vertical_offsets
 from rigd.dataset.pcd import Cloud, read_pcd, write_pcd
 from rigd.dataset.records import (
     SINGLE_VIEW,
@@ -164,6 +165,8 @@ class Dataset:
                                    f"{expected[1]}x{expected[0]}")
             images.append(working_image(image, self.source_camera, self.halvings))
         cloud = read_pcd(folder / "cloud.pcd")
+        if self.rig.lidar_vertical_offsets is VerticalOffsets.MANUAL:
+            cloud = with_vertical_offsets(cloud, str(folder / "cloud.pcd"))
         if self.rig.lidar_elevation_offset_deg:
             cloud = dataclasses.replace(cloud, points_lidar=raise_elevation(cloud.points_lidar,
                                                                             self.rig.lidar_elevation_offset_deg))

@@ -7,8 +7,9 @@ without its suffix: ``pose1.png`` and ``pose1_full.pcd`` are both 1) or, asked f
 without a partner, is an error that names them: nothing is paired by guess.
 
 Written: rig.yaml (the camera of the camera_info file, rigd.importers.camera_info), the pairs (image bytes as
-they are; the clouds' x y z, intensity and ring as read, rings checked to run from the lowest beam up), and with
-a reference file reference.yaml (rigd.importers.reference_file).
+they are; the clouds' x y z, intensity and ring as read, rings checked to run from the lowest beam up; a VLP-16's
+clouds decoded without its per-laser vertical offsets get them on load, rig.yaml ``lidar.vertical_offsets``), and
+with a reference file reference.yaml (rigd.importers.reference_file).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from calib.geometry import Transform
+from rigd.dataset.lasers import VLP16, VerticalOffsets, lacks_vertical_offsets
 from rigd.dataset.pcd import Cloud, read_pcd
 from rigd.dataset.records import CameraConfig, RigConfig
 from rigd.dataset.reference import Reference
@@ -49,13 +51,16 @@ class PairsSource:
 @dataclass(frozen=True)
 class PairsOptions:
     """What to write beside the pairs: the ``camera_info`` file, the LiDAR's model name, an initial guess of
-    ``T_camera_lidar``, a ``reference``, and a ``mask`` image file (non-zero where the image shows the scene)."""
+    ``T_camera_lidar``, a ``reference``, a ``mask`` image file (non-zero where the image shows the scene), and
+    whether a VLP-16's per-laser vertical offsets are added on load (None: when every cloud lacks them,
+    rigd.dataset.lasers)."""
 
     camera_info: Path
-    lidar_model: str = "VLP-16"
+    lidar_model: str = VLP16
     initial_guess: Transform | None = None
     reference: Reference | None = None
     mask: Path | None = None
+    vertical_offsets: VerticalOffsets | None = None
 
 
 def name_key(path: Path) -> int | None:
@@ -146,7 +151,8 @@ def _write_rig(out: Path, camera: CameraConfig, options: PairsOptions) -> None:
         (out / "masks").mkdir(parents=True, exist_ok=True)
         shutil.copyfile(options.mask, out / MASK_FILE)
         camera = replace(camera, mask=MASK_FILE)
-    write_rig(out, RigConfig(camera, options.lidar_model, options.initial_guess))
+    write_rig(out, RigConfig(camera, options.lidar_model, options.initial_guess,
+                             lidar_vertical_offsets=options.vertical_offsets or VerticalOffsets.AS_RECORDED))
     if options.reference is not None:
         write_yaml(out / "reference.yaml", options.reference.to_yaml())
 
@@ -162,7 +168,7 @@ def import_pairs(source: PairsSource, out: Path, options: PairsOptions, only: Se
     camera = read_camera_info(options.camera_info)
     for _, image_path, _ in chosen:
         _check_image(image_path, camera.width, camera.height, options.camera_info)
-    _write_rig(out, camera, options)
+    _write_rig(out, camera, replace(options, vertical_offsets=_vertical_offsets(options, chosen)))
     for index, (key, image_path, cloud_path) in enumerate(chosen):
         cloud = check_rings(read_pcd(cloud_path), cloud_path)
         meta = {"source": "pairs", "key": key, "image": image_path.name, "cloud": cloud_path.name}
@@ -170,6 +176,16 @@ def import_pairs(source: PairsSource, out: Path, options: PairsOptions, only: Se
         if progress is not None:
             progress(index + 1, len(chosen))
     return len(chosen)
+
+
+def _vertical_offsets(options: PairsOptions, chosen: list[tuple[int, Path, Path]]) -> VerticalOffsets:
+    """As asked, else the manual's when the LiDAR is a VLP-16 and every cloud was decoded without them (each
+    cloud is read and checked here, before anything is written)."""
+    if options.vertical_offsets is not None:
+        return options.vertical_offsets
+    clouds = (check_rings(read_pcd(path), path) for _, _, path in chosen)
+    lacking = options.lidar_model == VLP16 and all(lacks_vertical_offsets(cloud) for cloud in clouds)
+    return VerticalOffsets.MANUAL if lacking else VerticalOffsets.AS_RECORDED
 
 
 def _check_image(path: Path, width: int, height: int, camera_info: Path) -> None:

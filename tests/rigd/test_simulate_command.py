@@ -51,6 +51,7 @@ def test_simulate_writes_a_dataset_that_reads_back_in_a_fresh_process(tmp_path):
     dataset = open_dataset(out)
     assert dataset.rig.camera.kind is CameraKind.EQUIRECTANGULAR
     assert (dataset.rig.camera.width, dataset.rig.camera.height) == (256, 128)
+    assert dataset.rig.lidar_elevation_sigma_deg == 0.0  # the simulated beams are where the table says
     meta = dataset.load_pair(1).meta
     assert (meta["scene"], meta["seed"], meta["index"]) == ("outdoor", 5, 1)
     assert "T_world_camera" in meta and "T_world_lidar" in meta

@@ -14,6 +14,7 @@ from capture_helpers import complete_pairs
 from drivers.sim.motion import MotionRigSpec, save_spec
 from rigd.capture import CaptureError, CaptureRequest, CaptureStatus, SimRigEndedError, SourceEndedError, run_capture
 from rigd.capture import engine as capture_engine
+from rigd.dataset import open_dataset
 from rigd.errors import RigdError
 
 WAIT_S = 30.0  # far beyond when the error is due: a capture still running then would wait for ever
@@ -72,6 +73,7 @@ def test_more_pairs_than_the_sim_rig_has_places_end_with_an_error(tmp_path: Path
     assert elapsed < 13.0
     written = whole_pairs(out)
     assert 1 <= len(written) <= 2  # one pair a place at most; the last place, where the rig stays, gives one
+    assert open_dataset(out).rig.lidar_elevation_sigma_deg == 0.0  # the simulated beams are where the table says
     message = str(error)
     assert message.startswith(f"the simulated rig (--lidar sim:{rig}) has stopped at all its 2 places and stands at "
                               "the last one for good"), message
