@@ -24,7 +24,17 @@ from calib.methods import Method, SolveRequest
 from calib.prior import Prior
 from calib.search import default_search
 from rigd.dataset import Dataset
-from rigd.dataset.records import CameraConfig, CameraKind, lever_arm_problem, prior_from_yaml, tolerance_from_yaml
+from rigd.dataset.lasers import VLP16
+from rigd.dataset.pcd import read_pcd
+from rigd.dataset.records import (
+    MODEL_ELEVATION_SIGMA_DEG,
+    CameraConfig,
+    CameraKind,
+    lever_arm_problem,
+    prior_from_yaml,
+    tolerance_from_yaml,
+)
+from rigd.dataset.thin import ring_elevations_deg
 from rigd.dataset.working import WORKING_WIDTH_PX
 from rigd.errors import RigdError
 from rigd.store.jsonsafe import unicode_safe
@@ -303,11 +313,31 @@ def _trust(request: CalibrationRequest, dataset: Dataset) -> TrustOptions | None
     return with_camera_model(trust, dataset)
 
 
+SPARSE_RINGS_DEG = 1.0  # median spacing of neighbouring rings from which a LiDAR is as sparse as a VLP-16 (2 deg)
+
+
+def elevation_sigma_deg(dataset: Dataset) -> float:
+    """The sigma of the LiDAR's common elevation error the assessment takes, deg: rig.yaml's, else the LiDAR
+    model's (rigd.dataset.records.MODEL_ELEVATION_SIGMA_DEG), else for rings as sparse as a VLP-16's (at least
+    SPARSE_RINGS_DEG apart) the VLP-16's: a common error of a sparse LiDAR's beams leaks into the tilt and z by
+    which rings cross which edges (docs/trust.md); a dense one's clouds hold it to far less."""
+    rig = dataset.rig
+    if rig.lidar_elevation_sigma_declared_deg is not None or rig.lidar_elevation_sigma_deg or not len(dataset):
+        return rig.lidar_elevation_sigma_deg
+    cloud = read_pcd(dataset.pair_dirs[0] / "cloud.pcd")
+    if cloud.ring is None:
+        return 0.0
+    rings = sorted(ring_elevations_deg(cloud).values())
+    sparse = len(rings) > 1 and float(np.median(np.diff(rings))) >= SPARSE_RINGS_DEG
+    return MODEL_ELEVATION_SIGMA_DEG[VLP16] if sparse else 0.0
+
+
 def with_camera_model(trust: TrustOptions, dataset: Dataset) -> TrustOptions:
-    """``trust`` with rig.yaml's declared sensor uncertainties: the LiDAR's elevation offset sigma, and a single
-    camera's principal-point sigma as rotations (at the size on disk; a head's and a panorama's stay K-exact)."""
-    if dataset.rig.lidar_elevation_sigma_deg:
-        trust = replace(trust, elevation_sigma_deg=dataset.rig.lidar_elevation_sigma_deg)
+    """``trust`` with the sensors' uncertainties: the LiDAR's elevation offset sigma (:func:`elevation_sigma_deg`),
+    and a single camera's principal-point sigma as rotations (at the size on disk; a head's and a panorama's stay
+    K-exact)."""
+    if sigma := elevation_sigma_deg(dataset):
+        trust = replace(trust, elevation_sigma_deg=sigma)
     camera = dataset.source_camera
     if not isinstance(camera, CameraConfig):
         return trust
