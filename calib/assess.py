@@ -244,6 +244,7 @@ class Assessment:
     verdict: Verdict
     moved_deg: float | None = None  # rotation from the nearest start of a solve to the solution; None: unknown
     moved_m: float | None = None  # translation from the nearest start to the solution; None: unknown
+    evidence: Evidence | None = None  # what the verdict weighed besides the sigmas and restarts
 
 
 def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptions, gmm: GmmOptions,
@@ -495,18 +496,16 @@ def verdict_of(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, *
     them (``moved_deg``, ``moved_m`` and ``places`` fill it when it is not given)."""
     ev = evidence or Evidence(moved_deg, moved_m, places)
     verdict = _verdict(unc, restarts, trust, ev.moved_deg, ev.moved_m)
+    disagree = _disagreements(ev, trust)
     if verdict.status is Status.FAILED:
-        return replace(verdict, fixed_axes=ev.fixed)
+        return Verdict(Status.FAILED, verdict.weak_axes, (*verdict.reasons, *(r for _, r in disagree)), ev.fixed)
     nothing = _vouches_for_nothing(ev, trust)
     if nothing is not None:
-        return Verdict(Status.WEAK, AXES, (*verdict.reasons, nothing), ev.fixed)
+        return Verdict(Status.WEAK, AXES, (*verdict.reasons, *(r for _, r in disagree), nothing), ev.fixed)
     weak, reasons = set(verdict.weak_axes), list(verdict.reasons)
-    for axes, z, given in ((AXES[:3], ev.prior_z[0], "the rotation prior"), (AXES[3:], ev.prior_z[1],
-                                                                              "the lever arm given")):
-        if z is not None and z > trust.prior_max_z:
-            weak.update(axes)
-            reasons.append(f"{', '.join(axes)}: the result lies {z:.0f} sigma from {given}: the data disagree with "
-                           "it; check the values given and their unit")
+    for axes, reason in disagree:
+        weak.update(axes)
+        reasons.append(reason)
     weak -= set(ev.fixed)
     if ev.fixed:
         reasons.append(f"{', '.join(ev.fixed)}: held at the values given, not checked")
@@ -514,6 +513,18 @@ def verdict_of(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, *
     if status is Status.TRUSTED:
         return Verdict(status, (), tuple(reasons), ev.fixed)
     return Verdict(Status.WEAK, tuple(a for a in AXES if a in weak), tuple(reasons), ev.fixed)
+
+
+def _disagreements(ev: Evidence, trust: TrustOptions) -> list[tuple[tuple[str, ...], str]]:
+    """The axes whose result lies beyond ``trust.prior_max_z`` of the prior's sigmas from the values given, with
+    why, in every verdict: a lever arm typed in the wrong unit is said whatever else the result is."""
+    out: list[tuple[tuple[str, ...], str]] = []
+    for axes, z, given in ((AXES[:3], ev.prior_z[0], "the rotation prior"), (AXES[3:], ev.prior_z[1],
+                                                                              "the lever arm given")):
+        if z is not None and z > trust.prior_max_z:
+            out.append((axes, f"{', '.join(axes)}: the result lies {z:.0f} sigma from {given}: the data disagree "
+                              "with it; check the values given and their unit"))
+    return out
 
 
 def _vouches_for_nothing(ev: Evidence, trust: TrustOptions) -> str | None:
@@ -622,4 +633,4 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
                         prior.distance(best.tau) if prior is not None else (None, None),
                         AXES[3:] if held else (), worse)
     return Assessment(best.tau, best, unc, restarts, verdict_of(unc, list(restarts), trust, evidence=evidence),
-                      moved, moved_m)
+                      moved, moved_m, evidence)

@@ -449,4 +449,5 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
     evidence = Evidence(moved, moved_m, len(np.unique(places(pairs))), fixed=AXES[3:] if fixed_translation else (),
                         fixed_worse_nll=worse)
     verdict = verdict_of(unc, list(restarts), trust, evidence=evidence)
-    return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m)
+    return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m,
+                      evidence)

@@ -209,6 +209,26 @@ def _start_steps(a: Assessment, trust: TrustOptions) -> list[Step]:
     if a.moved_m is not None and a.moved_m > trust.max_move_m:
         steps.append(Step(f"the translation ran {a.moved_m:.1f} m from its start: check the lever arm given and its "
                           "unit", (Action.LEVER_ARM,), TRANSLATION))
+    return steps + _given_steps(a, trust)
+
+
+def _given_steps(a: Assessment, trust: TrustOptions) -> list[Step]:
+    """What the values given (the lever arm, the rotation prior, a held translation) say against the data."""
+    ev = a.evidence
+    if ev is None:
+        return []
+    steps = []
+    rot_z, trans_z = ev.prior_z
+    if trans_z is not None and trans_z > trust.prior_max_z:
+        steps.append(Step(f"the translation lies {trans_z:.0f} sigma from the lever arm given: check it and its unit "
+                          "(a lever arm in metres where cm are asked for is a hundredth of the rig's)",
+                          (Action.LEVER_ARM,), TRANSLATION))
+    if rot_z is not None and rot_z > trust.prior_max_z:
+        steps.append(Step(f"the rotation lies {rot_z:.0f} sigma from the rotation prior given: check it", (),
+                          ROTATION))
+    if ev.fixed_worse_nll is not None and ev.fixed_worse_nll > trust.fixed_worse_nll:
+        steps.append(Step(f"{', '.join(ev.fixed)} held at the values given fit clearly worse than free: check the "
+                          "lever arm given and its unit, or let the translation free", (Action.LEVER_ARM,), ev.fixed))
     return steps
 
 

@@ -158,3 +158,18 @@ def test_pairs_at_one_place_count_once_and_the_capture_asks_for_new_places():
     assert "now 20 pairs at 1 place" in steps[0].text
     assert steps[-1].text.startswith("only 20 pairs at 1 place: rigd is measured with 12 places")
     assert [s.pairs for s in steps] == [steps[0].pairs, 31] and steps[0].pairs >= 31
+
+
+def test_a_lever_arm_the_data_disagree_with_asks_to_check_it_and_its_unit():
+    """The verdict's evidence (calib.assess.Evidence): 18 sigma from the lever arm given, or held values that fit
+    far worse than free: the first step asks to check the lever arm and its unit."""
+    from calib.assess import Evidence
+
+    a = assessment([0.05] * 3 + [0.3] * 3, Status.WEAK, ("x", "y", "z"))
+    far = next_steps(replace(a, evidence=Evidence(prior_z=(0.5, 18.0))), FAR, TRUST)
+    assert far[0].text.startswith("the translation lies 18 sigma from the lever arm given: check it and its unit")
+    assert far[0].actions == (Action.LEVER_ARM,) and far[0].axes == ("x", "y", "z")
+    held = next_steps(replace(a, evidence=Evidence(fixed=("x", "y", "z"), fixed_worse_nll=150.0)), FAR, TRUST)
+    assert held[0].text.startswith("x, y, z held at the values given fit clearly worse than free")
+    near = next_steps(replace(a, evidence=Evidence(prior_z=(0.5, 2.0))), FAR, TRUST)
+    assert not any("sigma from the lever arm" in s.text for s in near)
