@@ -23,26 +23,35 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 T0_S = 1_700_000_000.0
 IMAGE_PERIOD_S = 0.1
 WIDTH, HEIGHT = 2048, 1024
 
 
-def write_bag(path: Path, seconds: float, still_s: float, move_s: float) -> dict[str, int]:
-    import cv2  # here, not at the top: the measuring process stays small (module doc)
-    import numpy as np
-    from rosbags.rosbag2 import StoragePlugin, Writer
+def _typestore() -> Any:
+    """ROS 2 Humble's message types with velodyne_msgs (imported here: the measuring process stays small)."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    from drivers.sim import render_panorama
-    from drivers.sim.motion import MotionRigSpec
-    from drivers.sim.stream import TURN_S, LidarEmitter
     from rigd.importers.bag.reader import VELODYNE_MSGS
 
     store = get_typestore(Stores.ROS2_HUMBLE)
     for name, text in VELODYNE_MSGS.items():
         store.register(get_types_from_msg(text, name))
+    return store
+
+
+def write_bag(path: Path, seconds: float, still_s: float, move_s: float) -> dict[str, int]:
+    import cv2  # here, not at the top: the measuring process stays small (module doc)
+    import numpy as np
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from drivers.sim import render_panorama
+    from drivers.sim.motion import MotionRigSpec
+    from drivers.sim.stream import TURN_S, LidarEmitter
+
+    store = _typestore()
     T = store.types
     stops = int(np.ceil(seconds / (still_s + move_s)))
     spec = MotionRigSpec(scene="indoor", seed=3, stops=stops, still_s=still_s, move_s=move_s).started(T0_S)

@@ -110,22 +110,7 @@ def encode_data_packets(
     azimuth = np.rint(_padded_azimuth(azimuth_deg, total) * 100.0).astype(np.int64) % AZIMUTH_UNITS
 
     records = np.zeros(packets, dtype=DATA_PACKET_DTYPE)
-    blocks = records["blocks"]
-    blocks["flag"] = BLOCK_FLAG
-    # (P, blocks written per mode, 2 firings, 16 lasers) -> channels 0-15 and 16-31 of a block.
-    if return_mode is ReturnMode.DUAL:
-        shape = (packets, 6, 2 * LASERS)
-        for parity, (dist, ref) in enumerate([(last, last_refl), (strongest, refl)]):
-            blocks["azimuth"][:, parity::2] = azimuth.reshape(packets, 6, 2)[:, :, 0]
-            blocks["channels"]["distance"][:, parity::2] = _padded(dist, total, 0).reshape(shape)
-            blocks["channels"]["reflectivity"][:, parity::2] = _padded(ref, total, 0).reshape(shape)
-    else:
-        source = last if return_mode is ReturnMode.LAST else strongest
-        source_refl = last_refl if return_mode is ReturnMode.LAST else refl
-        shape = (packets, 12, 2 * LASERS)
-        blocks["azimuth"] = azimuth.reshape(packets, 12, 2)[:, :, 0]
-        blocks["channels"]["distance"] = _padded(source, total, 0).reshape(shape)
-        blocks["channels"]["reflectivity"] = _padded(source_refl, total, 0).reshape(shape)
+    _fill_blocks(records["blocks"], azimuth, return_mode, (strongest, refl), (last, last_refl))
     offset_us = np.arange(packets) * (per_packet * SEQUENCE_US)
     time_s = (start_time_s + offset_us * 1e-6).astype(np.float64)
     stamp_us = round(start_time_s * 1e6) + np.rint(offset_us).astype(np.int64)  # integers: no drift
@@ -133,6 +118,28 @@ def encode_data_packets(
     records["return_mode"] = return_mode
     records["product_id"] = product_id
     return EncodedPackets(records.view(np.uint8).reshape(packets, -1), time_s)
+
+
+def _fill_blocks(blocks: NDArray[np.void], azimuth: NDArray[np.int64], return_mode: ReturnMode,
+                 strongest: tuple[NDArray[np.uint16], NDArray[np.integer]],
+                 last: tuple[NDArray[np.uint16], NDArray[np.integer]]) -> None:
+    """The data blocks of the packets: (P, blocks per mode, 2 firings, 16 lasers) -> channels 0-15 and 16-31 of a
+    block; DUAL alternates the last and the strongest returns block by block."""
+    packets = len(blocks)
+    total = len(azimuth)
+    blocks["flag"] = BLOCK_FLAG
+    if return_mode is ReturnMode.DUAL:
+        shape = (packets, 6, 2 * LASERS)
+        for parity, (dist, ref) in enumerate([last, strongest]):
+            blocks["azimuth"][:, parity::2] = azimuth.reshape(packets, 6, 2)[:, :, 0]
+            blocks["channels"]["distance"][:, parity::2] = _padded(dist, total, 0).reshape(shape)
+            blocks["channels"]["reflectivity"][:, parity::2] = _padded(ref, total, 0).reshape(shape)
+        return
+    source, source_refl = last if return_mode is ReturnMode.LAST else strongest
+    shape = (packets, 12, 2 * LASERS)
+    blocks["azimuth"] = azimuth.reshape(packets, 12, 2)[:, :, 0]
+    blocks["channels"]["distance"] = _padded(source, total, 0).reshape(shape)
+    blocks["channels"]["reflectivity"] = _padded(source_refl, total, 0).reshape(shape)
 
 
 def gprmc_sentence(utc_s: float) -> str:
