@@ -44,10 +44,10 @@ def feature_at(feats: list[PairFeatures], dataset: Dataset, pair: int, view: int
 
 
 def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress | None,
-                     executor: Executor | None = None, places: tuple[int, ...] | None = None) -> list[PairFeatures]:
+                     executor: Executor | None = None) -> list[PairFeatures]:
     """Edge features of every pair of ``dataset``, one per view of a pair (FeaturelessError names a pair without
-    enough edges), the pairs extracted side by side in ``executor`` (:func:`edge_threads`) if given, each with
-    its place (``places``, rigd.dataset.places; None: each pair its own). Ordered view by view
+    enough edges), the pairs extracted side by side in ``executor`` (:func:`edge_threads`) if given, each pair a
+    place of its own (:func:`features_for` gives them the places found). Ordered view by view
     (:func:`feature_at`)."""
     if len(dataset) == 0:
         raise RigdError(f"{dataset.root}: dataset has no pairs (pairs/NNNN)")
@@ -66,8 +66,7 @@ def dataset_features(dataset: Dataset, params: CalibParams, progress: Progress |
     # One camera object per view for all pairs (each pair's was made, or unpickled, on its own): the cost projects
     # and sums the pairs that share one camera object together (calib.gmm.pair_terms), not one pair at a time.
     cameras = dataset.rig.camera.models()
-    where = places or tuple(range(len(dataset)))
-    return [dataclasses.replace(views[v], camera=camera, place=where[i]) for v, camera in enumerate(cameras)
+    return [dataclasses.replace(views[v], camera=camera, place=i) for v, camera in enumerate(cameras)
             for i, views in enumerate(per_pair)]
 
 
@@ -172,12 +171,16 @@ def features_for(dataset: Dataset, solve: SolveRequest, progress: Progress | Non
                  workers: int = 1) -> Features:
     """The features ``solve`` needs of ``dataset``, the pairs' edges in ``workers`` threads."""
     gmm = solve.gmm
-    places = dataset_places(dataset)
     feats = None
     if gmm is not None:
-        with edge_threads(workers, len(dataset)) as threads:
-            feats = dataset_features(dataset, gmm, progress, threads, places)
+        with edge_threads(workers, len(dataset)) as threads, ThreadPoolExecutor(1) as beside:
+            found = beside.submit(dataset_places, dataset)  # the clouds read while the edges are found
+            feats = dataset_features(dataset, gmm, progress, threads)
+            places = found.result()
+        feats = [dataclasses.replace(f, place=places[i % len(dataset)]) for i, f in enumerate(feats)]
         return_freed_memory()
+    else:
+        places = dataset_places(dataset)
     photo = dataset_photo_pairs(dataset, solve.photo, progress, places) if solve.photo is not None else None
     search = _search_photo(dataset, progress) if solve.initial is None and gmm is not None else None
     return Features(feats, photo, search, places)
