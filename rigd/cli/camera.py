@@ -39,6 +39,7 @@ from drivers.ladybug5.usb import (
 )
 from rigd.capture.config import DEFAULT_LAYOUT_FILE
 from rigd.cli.exit_codes import OK, UNHEALTHY
+from rigd.outdir import claim_output_files
 
 
 def _hex_int(text: str) -> int:
@@ -111,6 +112,7 @@ def _register_export_head(sub: Any) -> None:
         "fit is poor (written anyway). Needs FLIR's SDK and the layout of `rigd camera sdk-layout`.",
     )
     export.add_argument("--out", type=Path, required=True, help="head file to write (YAML)")
+    export.add_argument("--overwrite", action="store_true", help="replace --out (and its maps) if they exist")
     export.add_argument("--maps", type=Path, default=None, help="rectification maps file (default OUT.maps.npz)")
     source = export.add_mutually_exclusive_group()
     source.add_argument("--serial", type=int, default=None, help="the camera's serial (default: the only camera)")
@@ -257,6 +259,8 @@ def _read_head(args: argparse.Namespace) -> HeadCalibration:
 
 
 def run_export_head(args: argparse.Namespace) -> int:
+    # refused before the camera is read: a head file (and its maps) written by another run stays unless told
+    claim_output_files([args.out, args.maps or args.out.with_suffix(".maps.npz")], overwrite=args.overwrite)
     head = _read_head(args)
     save_head(head, args.out, args.maps)
     print(f"wrote {args.out}: {head.summary()}")

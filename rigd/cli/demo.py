@@ -24,6 +24,7 @@ from rigd.capture.engine import SIM_MOVE_S, SIM_STOP_MARGIN_S, sim_stops
 from rigd.cli.args import non_negative_float, print_progress
 from rigd.cli.calibrate import print_trust
 from rigd.cli.capture import StatusPrinter
+from rigd.errors import OutputError
 
 STILL_SECONDS = 2.0  # rigd capture's default
 # The rig file's lever arm from the mount's drawing, which rigd's own advice asks for when z is weak: a street's
@@ -53,6 +54,10 @@ def register(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # The demo's own folder (it holds its sim-rig.yaml) is rewritten; any other folder that holds something is not.
+    own = (args.out / "sim-rig.yaml").is_file()
+    if args.out.is_dir() and any(args.out.iterdir()) and not own:
+        raise OutputError(f"{args.out}: holds files of something other than rigd demo: give a new folder (--out)")
     dataset = args.out / "dataset"
     if dataset.exists():
         shutil.rmtree(dataset)

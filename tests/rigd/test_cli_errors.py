@@ -50,3 +50,19 @@ def test_numba_caches_in_the_temporary_folder_when_it_can_write_nowhere_else(mon
     assert cache is not None and cache.name == f"rigd-numba-cache-{os.getuid()}"
     monkeypatch.setenv("NUMBA_CACHE_DIR", "/somewhere")
     assert rigd.numba_cache_dir() is None  # the operator's choice stands
+
+
+def test_the_demo_and_export_head_write_over_nothing_they_did_not_make(tmp_path, capsys):
+    """A folder of someone else's files is not the demo's; a head file already there stays: exit 73 at once."""
+    from rigd.cli.exit_codes import CANT_CREATE
+
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "notes.txt").write_text("mine\n")
+    assert main(["demo", "--out", str(theirs)]) == CANT_CREATE
+    assert "holds files of something other than rigd demo" in capsys.readouterr().err
+    head = tmp_path / "head.yaml"
+    head.write_text("an earlier head\n")
+    assert main(["camera", "export-head", "--out", str(head), "--layout", str(tmp_path / "absent.yaml")]) \
+        == CANT_CREATE
+    assert head.read_text() == "an earlier head\n" and "--overwrite" in capsys.readouterr().err

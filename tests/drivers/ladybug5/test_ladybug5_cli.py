@@ -119,9 +119,9 @@ def test_export_head_from_a_stream_and_from_a_configuration_file(fake_sdk, tmp_p
     assert export(fake_sdk, tmp_path, "--pgr", str(tmp_path / "s.pgr"), "--size", "16x12") == 0
     assert "factory head of camera 17099999" in capsys.readouterr().out
     (tmp_path / "folding.cal").write_text("FAKECAL -0.9 0.0 10.0")
-    code = export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal"), "--size", "16x12")
+    code = export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal"), "--size", "16x12", "--overwrite")
     assert code == 1 and "warning: the OpenCV lens model does not hold" in capsys.readouterr().out
-    assert export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal")) == ERROR
+    assert export(fake_sdk, tmp_path, "--calibration", str(tmp_path / "folding.cal"), "--overwrite") == ERROR
     assert "does not say the sensor size: give it (--size" in capsys.readouterr().err
 
 
