@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from rigd.capture.fuse import fuse_sweeps, sweeps_for_frame
 from rigd.capture.gate import SweepSample
+from rigd.dataset.lasers import VLP16, VerticalOffsets, lacks_vertical_offsets
 from rigd.dataset.pcd import Cloud
 from rigd.dataset.records import CameraConfig, CameraKind, RigConfig
 from rigd.dataset.store import read_yaml, write_pair, write_rig, write_yaml
@@ -334,6 +335,7 @@ def import_bag(bag_path: Path, out: Path, *, options: BagImportOptions,
         if not kept:
             raise BagError(no_still_moment(bag.path, decisions, options.still))
         write_rig(out, rig)
+        lacking = []
         for index, decision in enumerate(kept):
             assert decision.image is not None and decision.sweep is not None
             image_index = int(order[decision.image])
@@ -341,6 +343,11 @@ def import_bag(bag_path: Path, out: Path, *, options: BagImportOptions,
             pair = _pair_cloud(bag, topics["cloud"], scan, decision, image.stamp_s, options.still)
             write_pair(out, index, decode_frame(image, topics["image"].kind), pair.cloud,
                        _meta(bag, topics, decision, image, pair, options))
+            lacking.append(rig.lidar_model == VLP16 and lacks_vertical_offsets(pair.cloud))
+        if all(lacking):  # a VLP-16's PointCloud2 from a ROS driver without its lasers' offsets (rigd.dataset.lasers)
+            write_rig(out, dataclasses.replace(rig, lidar_vertical_offsets=VerticalOffsets.MANUAL))
+            say("the VLP-16's clouds lack its lasers' vertical offsets (every ring on its nominal cone): rig.yaml "
+                "adds them as each cloud is loaded (lidar.vertical_offsets: manual)")
         summary = ImportSummary(out, len(kept), tuple(decisions), scan.camera_frame, scan.lidar_frame, start_s)
         write_yaml(out / BAG_FILE, {
             "bag": str(bag.path),

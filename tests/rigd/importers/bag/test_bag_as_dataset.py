@@ -120,3 +120,18 @@ def test_export_names_the_bag_frames_after_the_temporary_dataset_is_gone(tmp_pat
     assert main(["export", str(out), "--format", "ros-tf"]) == 0
     tf = yaml.safe_load(capsys.readouterr().out)
     assert (tf["header"]["frame_id"], tf["child_frame_id"]) == ("cam_optical", "vlp16")
+
+
+def test_a_vlp16s_clouds_without_their_lasers_offsets_get_them_on_load(tmp_path: Path, bag: Path,
+                                                                      recording: Recording,
+                                                                      monkeypatch: pytest.MonkeyPatch,
+                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """Clouds a ROS driver decoded without the VLP-16's vertical offsets (detection: tests/rigd/dataset/test_lasers.py):
+    the import says so and rig.yaml adds them as each cloud is loaded."""
+    import rigd.importers.bag.importer as importer
+    from rigd.dataset.lasers import VerticalOffsets
+
+    monkeypatch.setattr(importer, "lacks_vertical_offsets", lambda cloud: True)
+    assert main(["import", "bag", str(bag), str(tmp_path / "d"), *_topics(recording)]) == 0
+    assert "lack its lasers' vertical offsets" in capsys.readouterr().out
+    assert open_dataset(tmp_path / "d").rig.lidar_vertical_offsets is VerticalOffsets.MANUAL
