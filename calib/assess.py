@@ -110,6 +110,9 @@ class TrustOptions:
     # The pose's change (6,) in local coordinates (rad, m) for one sigma of the LiDAR's elevation offset, fitted
     # or declared (calib.elevation); () when neither.
     elevation_sigma_pose: tuple[float, ...] = ()
+    # Where a second method's answer lies from the solution (6,) in local coordinates (rad, m): the GMM's edges
+    # refined from NID's solution (calib.methods); () when none was asked for or the edges could not be read.
+    cross_check_pose: tuple[float, ...] = ()
     seed: int = 0
 
     @property
@@ -154,6 +157,9 @@ class Uncertainty:
     intrinsics: F64 | None = None
     # The LiDAR elevation offset's part of the sigma (6,) deg/cm (None: exact; :func:`with_elevation`).
     elevation: F64 | None = None
+    # A second method's disagreement's part of the sigma (6,) deg/cm (None: no second method;
+    # :func:`with_cross_check`).
+    cross_check: F64 | None = None
 
 
 def with_intrinsics(unc: Uncertainty, tau: F64, trust: TrustOptions) -> Uncertainty:
@@ -185,6 +191,18 @@ def with_elevation(unc: Uncertainty, trust: TrustOptions) -> Uncertainty:
     part = np.asarray(trust.elevation_sigma_pose, dtype=np.float64)
     extra = np.outer(part, part)
     return replace(_with_part(unc, extra, trust), elevation=sigmas_display(extra))
+
+
+def with_cross_check(unc: Uncertainty, trust: TrustOptions) -> Uncertainty:
+    """``unc`` with a second method's disagreement (``trust.cross_check_pose``, d from the solution) added: two
+    answers from independent evidence (the image's edges, its intensities) that land d apart cannot both be
+    right; were both unbiased with one sigma, d would have that sigma times sqrt(2), so d / sqrt(2) along d is
+    the bias neither can rule out. Independent of the data's jackknives, it adds in quadrature."""
+    if not trust.cross_check_pose or not unc.is_minimum:
+        return unc
+    part = np.asarray(trust.cross_check_pose, dtype=np.float64) / np.sqrt(2.0)
+    extra = np.outer(part, part)
+    return replace(_with_part(unc, extra, trust), cross_check=sigmas_display(extra))
 
 
 UNHELD_SHARE = 0.999  # a left-out solve this close to the kernel's width ran to it (trust_region_step's bound)

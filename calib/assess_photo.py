@@ -21,7 +21,10 @@ is formed once per pose and "without the cluster" is a subtraction.
    left-out solve one bounded Newton step of the left-out cost with its own Hessian and gradient, and the
    GMM's jackknife over rings the same way (each ring left out in every pair: each laser has its own
    reflectivity response and elevation, shared by every place, so leaving out places cannot see them).
-3. **Verdict**: :func:`calib.assess.verdict_of`, the GMM's rules unchanged.
+3. **A second method.** Where the GMM's edges were refined from the NID solution (calib.methods), how far they
+   moved enters the sigma (:func:`calib.assess.with_cross_check`): NID alone cannot see a bias the image's
+   intensities share across places and rings (the camera's model, the reflectivity's response).
+4. **Verdict**: :func:`calib.assess.verdict_of`, the GMM's rules unchanged.
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ from calib.assess import (
     moved_from,
     trust_region_step,
     verdict_of,
+    with_cross_check,
     with_elevation,
     with_intrinsics,
 )
@@ -444,7 +448,7 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
                              "solution" if r is result else "restart")
                      for r, c in runs if r is not best)
     moved, moved_m = moved_from(starts, best.tau)
-    unc = with_elevation(with_intrinsics(unc, best.tau, trust), trust)
+    unc = with_cross_check(with_elevation(with_intrinsics(unc, best.tau, trust), trust), trust)
     worse = None if loose is None else max(best_cost - cost(loose.tau), 0.0) / unc.kappa
     evidence = Evidence(moved, moved_m, len(np.unique(places(pairs))), fixed=AXES[3:] if fixed_translation else (),
                         fixed_worse_nll=worse)

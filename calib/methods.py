@@ -19,17 +19,31 @@ from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
+from numpy.typing import NDArray
 
 from calib.assess import TrustOptions
 from calib.assess_photo import as_optim, assess_photometric, photo_elevation_slope
 from calib.errors import CalibError, InitialGuessError
 from calib.geometry import Transform
 from calib.gmm import PairFeatures, SigmaModel
-from calib.optimize import OptimResult
+from calib.handed import collect, hand
+from calib.optimize import OptimResult, optimise, tail_options
 from calib.photometric import PhotoCost, PhotoPair, PhotoParams, PhotoResult, optimise_photometric
-from calib.pipeline import CalibParams, CalibResult, PairStats, PointEdgeMethod, calibrate, paper_params, with_sigmas
+from calib.pipeline import (
+    CalibParams,
+    CalibResult,
+    PairStats,
+    PointEdgeMethod,
+    calibrate,
+    paper_params,
+    schedule,
+    with_sigmas,
+)
 from calib.prior import Prior
 from calib.search import SearchOptions
+from calib.uncertainty import xi_of
+
+F64 = NDArray[np.float64]
 
 
 class Method(Enum):
@@ -63,13 +77,15 @@ class MethodSpec:
     """What a method solves with: ``gmm`` the GMM's settings (None: no GMM), ``photo`` the photometric cost's
     (None: none; both: the GMM, then the photometric cost from its solution), whether it has a trust
     assessment, whether `rigd calibrate` offers it (the others are research methods of `rigd evaluate`), and
-    its name in words."""
+    its name in words. ``cross_check``: an assessed photometric method's second opinion, the GMM's settings its
+    edges are refined with from the solution (calib.assess.with_cross_check)."""
 
     label: str
     gmm: CalibParams | None
     photo: PhotoParams | None
     assessed: bool
     field: bool
+    cross_check: CalibParams | None = None
 
 
 # MI and NID compare values, not gradients: blurring the image by degrees flattens them (measured on the pinhole
@@ -87,7 +103,7 @@ METHODS: dict[Method, MethodSpec] = {
     Method.GMM: MethodSpec("GMM edge alignment", _RIGD, None, assessed=True, field=True),
     Method.NID_ASSESSED: MethodSpec("NID (image against LiDAR reflectivity)", None,
                                     PhotoParams(cost=PhotoCost.NID, **_HISTOGRAM),  # type: ignore[arg-type]
-                                    assessed=True, field=True),
+                                    assessed=True, field=True, cross_check=_RIGD),
     Method.PAPER: MethodSpec("the paper's GMM as printed", paper_params(), None, assessed=True, field=False),
     Method.MI: MethodSpec("MI baseline", None, PhotoParams(cost=PhotoCost.MI, **_HISTOGRAM),  # type: ignore[arg-type]
                           assessed=False, field=False),
@@ -149,6 +165,14 @@ class SolveRequest:
         return self.method.spec.photo
 
     @property
+    def edges(self) -> CalibParams | None:
+        """The settings the GMM's edge features are extracted with: the method's GMM, or its cross-check's when
+        assessed (None: the request needs no edges)."""
+        if self.gmm is not None:
+            return self.gmm
+        return self.method.spec.cross_check if self.assessed else None
+
+    @property
     def assessed(self) -> bool:
         return self.trust is not None and self.method.spec.assessed
 
@@ -175,10 +199,11 @@ def solve(request: SolveRequest, *, feats: list[PairFeatures] | None = None, pho
           search_photo: list[PhotoPair] | None = None, executor: Executor | None = None,
           on_iter: Callable[[int, int, float], None] | None = None,
           on_search: Callable[[int, int], None] | None = None) -> CalibResult:
-    """Calibrate as ``request`` asks. ``feats``: the GMM features (GMM methods), ``photo``: the photometric pairs
-    (photometric methods), ``search_photo``: the pairs' images and reflectivity for the global search's score
-    (calib.search_mi). ``executor``: the application's pool for the independent solves. The result has an
-    assessment when the request is assessed (:attr:`SolveRequest.assessed`)."""
+    """Calibrate as ``request`` asks. ``feats``: the GMM features (GMM methods; for an assessed photometric one its
+    cross-check's edges, or None to go without), ``photo``: the photometric pairs (photometric methods),
+    ``search_photo``: the pairs' images and reflectivity for the global search's score (calib.search_mi).
+    ``executor``: the application's pool for the independent solves. The result has an assessment when the
+    request is assessed (:attr:`SolveRequest.assessed`)."""
     request.check()
     gmm, photo_opts = request.gmm, request.photo
     trust = request.trust if request.assessed else None
@@ -195,12 +220,14 @@ def solve(request: SolveRequest, *, feats: list[PairFeatures] | None = None, pho
         return result
     if photo is None:
         raise CalibError(f"method {request.method.value} needs the photometric pairs (image and LiDAR reflectivity)")
-    return _photometric(request, photo, photo_opts, result, trust, executor, on_iter)
+    edges = feats if gmm is None else None
+    return _photometric(request, photo, photo_opts, result, trust, executor, on_iter, edges)
 
 
 def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParams, gmm: CalibResult | None,
                  trust: TrustOptions | None, executor: Executor | None,
-                 on_iter: Callable[[int, int, float], None] | None) -> CalibResult:
+                 on_iter: Callable[[int, int, float], None] | None,
+                 edges: list[PairFeatures] | None = None) -> CalibResult:
     """The photometric solve from the request's start (or from the GMM's solution, ``gmm``), assessed with
     ``trust`` (nid-assessed; a declared elevation offset's sigma enters as in the GMM's: calib.assess_photo)."""
     prior = request.prior
@@ -212,12 +239,27 @@ def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParam
     solved = optimise_photometric(photo, start.tau, opts, fixed_translation=fixed, on_iter=on_iter)
     stats = gmm.pairs if gmm is not None else tuple(PairStats(0, 0, int(len(p.points_lidar))) for p in photo)
     if trust is not None:
+        cross = request.method.spec.cross_check
+        refined = hand(executor, refine_edges, edges, solved.tau, cross, prior, trust.restart_levels) \
+            if edges and cross is not None else None
         if trust.elevation_sigma_deg > 0:
             slope = photo_elevation_slope(photo, solved, opts, fixed, executor)
             trust = replace(trust, elevation_sigma_pose=tuple(float(v) for v in slope * trust.elevation_sigma_deg))
+        if refined is not None:
+            cross_tau = collect([refined])[0]
+            trust = replace(trust, cross_check_pose=tuple(float(v) for v in xi_of(np.asarray(solved.tau), cross_tau)))
         a = assess_photometric(photo, solved, opts, trust, fixed, starts=(start.tau,), executor=executor)
         return CalibResult(Transform.from_tau(a.tau), a.optim, stats, a)
     return CalibResult(Transform.from_tau(np.asarray(solved.tau)), _levels(solved, gmm), stats, None)
+
+
+def refine_edges(feats: list[PairFeatures], tau: F64, params: CalibParams, prior: Prior | None, levels: int) -> F64:
+    """The GMM's edges refined from ``tau`` (6,) over the last ``levels`` levels of their schedule from there (one
+    more when folds are on every level, as the restarts of calib.assess): where the edges put the pose near it."""
+    optim = schedule(feats, params, tau)
+    levels += 1 if optim.fold_levels >= len(optim.sigmas_deg) else 0
+    tail = tail_options(optim, min(levels, len(optim.sigmas_deg)))
+    return np.asarray(optimise(feats, tau, tail, params.gmm, None, prior).tau, dtype=np.float64)
 
 
 def _levels(solved: PhotoResult, gmm: CalibResult | None) -> OptimResult:

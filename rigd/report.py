@@ -135,6 +135,8 @@ class Uncertainty(Sigmas):
     restart_spread: NotRequired[Sigmas | None]  # RMS of the restarts' offsets (nid-assessed; docs/trust.md)
     camera_model: NotRequired[Sigmas | None]  # the declared principal-point sigma as rotations (docs/trust.md)
     lidar_elevation: NotRequired[Sigmas | None]  # the fitted elevation offset's sigma, as the pose moves with it
+    # nid-assessed: the GMM's edges refined from NID's answer, their move / sqrt(2) (docs/trust.md)
+    cross_check: NotRequired[Sigmas | None]
     matched_share: NotRequired[float | None]
     restarts: NotRequired[list[Restart]]
 

@@ -159,13 +159,28 @@ def _rings(axes: list[str], a: Assessment) -> Step | None:
                 "lever arm from the rig's drawing", (Action.CAPTURE, Action.LEVER_ARM), tuple(axes))
 
 
+def _set_by(axes: list[str], sigma: np.ndarray, part: np.ndarray | None) -> list[str]:
+    """The ``axes`` whose ``sigma`` (6,) ``part`` (6,) sets: it is larger than the rest in quadrature."""
+    if part is None:
+        return []
+    rest = np.sqrt(np.maximum(np.square(sigma) - np.square(part), 0.0))
+    return [ax for ax in axes if part[AXES.index(ax)] > rest[AXES.index(ax)]]
+
+
 def elevation_set(axes: list[str], a: Assessment) -> list[str]:
     """The ``axes`` whose sigma the LiDAR's elevation offset (fitted or declared) sets: its part is the larger."""
-    u = a.uncertainty
-    if u.elevation is None:
-        return []
-    data = np.sqrt(np.maximum(np.square(u.sigma) - np.square(u.elevation), 0.0))
-    return [ax for ax in axes if u.elevation[AXES.index(ax)] > data[AXES.index(ax)]]
+    return _set_by(axes, a.uncertainty.sigma, a.uncertainty.elevation)
+
+
+def _cross_check(axes: list[str], a: Assessment) -> Step | None:
+    part = a.uncertainty.cross_check
+    if not axes or part is None:
+        return None
+    worst, unit, value = _worst(axes, part * np.sqrt(2.0))
+    return Step(f"{', '.join(axes)}: the image's edges and its intensities disagree (the GMM's edges refined from "
+                f"NID's answer move {worst} by {value:.2g} {unit}), a bias that neither sees alone and more pairs "
+                "like these do not narrow; check the camera's intrinsics (K, D) against a recent calibration, and "
+                "capture places with distinct edges 2-10 m away", (Action.CAPTURE,), tuple(axes))
 
 
 def _elevation(axes: list[str], a: Assessment) -> Step | None:
@@ -263,6 +278,9 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[S
     by_elevation = elevation_set(counted, a)
     steps.append(_elevation(by_elevation, a))
     counted = [ax for ax in counted if ax not in by_elevation]
+    by_cross_check = _set_by(counted, a.uncertainty.sigma, a.uncertainty.cross_check)
+    steps.append(_cross_check(by_cross_check, a))
+    counted = [ax for ax in counted if ax not in by_cross_check]
     by_rings = ring_set(counted, a)
     steps.append(_rings(by_rings, a))
     steps.append(_more_pairs([ax for ax in counted if ax not in by_rings], a, facts, trust))

@@ -169,18 +169,31 @@ class Features(NamedTuple):
 
 def features_for(dataset: Dataset, solve: SolveRequest, progress: Progress | None = None,
                  workers: int = 1) -> Features:
-    """The features ``solve`` needs of ``dataset``, the pairs' edges in ``workers`` threads."""
-    gmm = solve.gmm
+    """The features ``solve`` needs of ``dataset``, the pairs' edges in ``workers`` threads. An assessed
+    photometric method's edges are its cross-check's: a dataset too bare for them goes without one."""
+    edges = solve.edges
     feats = None
-    if gmm is not None:
+    if edges is not None:
         with edge_threads(workers, len(dataset)) as threads, ThreadPoolExecutor(1) as beside:
             found = beside.submit(dataset_places, dataset)  # the clouds read while the edges are found
-            feats = dataset_features(dataset, gmm, progress, threads)
+            feats = _edges_or_none(dataset, edges, progress, threads, needed=solve.gmm is not None)
             places = found.result()
-        feats = [dataclasses.replace(f, place=places[i % len(dataset)]) for i, f in enumerate(feats)]
+        if feats is not None:
+            feats = [dataclasses.replace(f, place=places[i % len(dataset)]) for i, f in enumerate(feats)]
         return_freed_memory()
     else:
         places = dataset_places(dataset)
     photo = dataset_photo_pairs(dataset, solve.photo, progress, places) if solve.photo is not None else None
-    search = _search_photo(dataset, progress) if solve.initial is None and gmm is not None else None
+    search = _search_photo(dataset, progress) if solve.initial is None and solve.gmm is not None else None
     return Features(feats, photo, search, places)
+
+
+def _edges_or_none(dataset: Dataset, params: CalibParams, progress: Progress | None, threads: Executor | None,
+                   needed: bool) -> list[PairFeatures] | None:
+    """:func:`dataset_features`; when not ``needed`` (a cross-check's), None for a pair without enough edges."""
+    try:
+        return dataset_features(dataset, params, progress, threads)
+    except FeaturelessError:
+        if needed:
+            raise
+        return None

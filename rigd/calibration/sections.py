@@ -97,6 +97,8 @@ def _uncertainty_yaml(a: Assessment) -> Uncertainty:
             "rpy_deg": _finite(u.intrinsics[:3]), "xyz_cm": _finite(u.intrinsics[3:])},
         "lidar_elevation": None if u.elevation is None else {
             "rpy_deg": _finite(u.elevation[:3]), "xyz_cm": _finite(u.elevation[3:])},
+        "cross_check": None if u.cross_check is None else {
+            "rpy_deg": _finite(u.cross_check[:3]), "xyz_cm": _finite(u.cross_check[3:])},
         "matched_share": u.matched_share,
         "restarts": restarts,
     }

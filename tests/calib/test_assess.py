@@ -18,6 +18,7 @@ from calib.assess import (
     assess,
     trust_region_step,
     verdict_of,
+    with_cross_check,
     with_intrinsics,
 )
 from calib.errors import CalibError
@@ -185,6 +186,20 @@ def test_a_principal_point_known_to_a_pixel_is_a_tilt_one_camera_cannot_rule_out
     tilted = verdict_of(added, [], trust)
     assert tilted.status is Status.WEAK and tilted.weak_axes == ("pitch",)  # 2.5 * 0.118 deg > 0.2; yaw 0.16 < 0.2
     assert with_intrinsics(data, forward, TrustOptions()) is data  # K taken as exact
+
+
+def test_a_second_methods_disagreement_is_a_bias_neither_rules_out():
+    """The GMM's edges landing d from NID's answer: d / sqrt(2) along d joins the sigma in quadrature."""
+    d = np.array([0.0, np.radians(0.3), 0.0, 0.0, 0.0, 0.04])  # 0.3 deg about the LiDAR's y, 4 cm along z
+    trust = TrustOptions(cross_check_pose=tuple(d))
+    data = _unc([0.03] * 3 + [0.5] * 3)
+    added = with_cross_check(data, trust)
+    assert added.cross_check is not None
+    assert added.cross_check == pytest.approx([0.0, 0.3 / np.sqrt(2), 0.0, 0.0, 0.0, 4.0 / np.sqrt(2)])
+    assert added.sigma == pytest.approx(np.hypot(data.sigma, added.cross_check))
+    assert verdict_of(data, [], trust).status is Status.TRUSTED
+    assert verdict_of(added, [], trust).weak_axes == ("pitch", "z")
+    assert with_cross_check(data, TrustOptions()) is data  # no second method: nothing added
 
 
 def test_a_solution_far_from_every_start_fails_however_well_determined_it_looks():

@@ -150,6 +150,16 @@ def test_an_axis_the_elevation_offset_sets_asks_for_a_better_known_offset_not_mo
     assert any(s.startswith("z: capture more pairs") for s in data_set)
 
 
+def test_an_axis_the_methods_disagree_on_names_the_disagreement_not_more_pairs():
+    a = assessment([0.03, 0.3, 0.02, 0.3, 0.3, 0.3], Status.WEAK, ("pitch",))
+    part = np.array([0.0, 0.28, 0.0, 0.0, 0.0, 0.0])  # of pitch's 0.3 deg, the disagreement's 0.28
+    steps = next_steps(replace(a, uncertainty=replace(a.uncertainty, cross_check=part)), FAR, TRUST)
+    said = [s for s in steps if "disagree" in s.text]
+    assert len(said) == 1 and said[0].axes == ("pitch",) and said[0].text.startswith("pitch: the image's edges")
+    assert "move pitch by 0.4 deg" in said[0].text  # the move itself: its part is move / sqrt(2)
+    assert not any(s.text.startswith("pitch: capture more pairs") for s in steps)
+
+
 def test_pairs_at_one_place_count_once_and_the_capture_asks_for_new_places():
     """20 pairs at one place (the rig never moved): the advice counts the place, and the capture's target in all
     is the 20 pairs plus one at each of 11 new places."""

@@ -94,6 +94,7 @@ def test_calibrate_without_a_method_reports_the_one_it_chose(pinhole, tmp_path, 
     report = yaml.safe_load((out / "extrinsics.yaml").read_text())
     assert report["method"]["name"] == "nid-assessed" and "default on one pinhole camera" in report["method"]["why"]
     assert report["verdict"]["status"] != "not_assessed"
+    assert report["uncertainty"]["cross_check"] is not None  # the GMM's edges refined from NID's answer
     assert "method: nid-assessed (the default on one pinhole camera" in capsys.readouterr().out
 
 
