@@ -17,7 +17,8 @@ import pytest
 from api_helpers import App
 
 from calib.geometry import Transform
-from rigd.api.job_runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.api.calibration_result import ActivationBounds
+from rigd.api.job_runner import CalibrationPlan, JobRunner
 from rigd.calibration import CalibrationRequest, Start, TransformIn
 from rigd.capture import DiskFullError
 from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, write_pair, write_rig
@@ -156,7 +157,7 @@ def test_a_result_that_cannot_be_stored_fails_its_job_and_stores_nothing(runner)
               "report": {"quality": {"converged": True}, "uncertainty": {}, "method": {"name": "rigd"},
                          "verdict": {"status": "trusted", "weak_axes": []}, "change_from_initial": {}}}
     full_at("versions.add:commit")
-    runner._store_result(runner.jobs.get(job.id), result)
+    runner.recorder.store(runner.jobs.get(job.id), result)
     failed = runner.jobs.get(job.id)
     assert failed.status is JobStatus.FAILED and "its result could not be stored" in failed.error
     assert runner.versions.count() == 0
