@@ -136,7 +136,7 @@ def _samples(lp: LevelPair, tau: F64, labels: I64) -> tuple[NDArray[np.bool_], F
 
 
 def _cluster_hists(lp: LevelPair, tau: F64, labels: I64, n_clusters: int, bins: int) -> F64:
-    """(n_clusters, bins, bins) soft joint histograms (calib.photometric.soft_joint_histogram) of each
+    """(n_clusters, bins, bins) soft joint histograms (calib.photometric.labelled_histograms) of each
     cluster's samples at ``tau`` (``labels`` (M,) cluster of each point, -1: none)."""
     keep, refl, grey = _samples(lp, tau, labels)
     return labelled_histograms(refl, grey, labels[keep], n_clusters, bins)

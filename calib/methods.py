@@ -111,16 +111,6 @@ METHODS: dict[Method, MethodSpec] = {
 FIELD_METHODS = tuple(m for m in Method if m.spec.field)  # what `rigd calibrate` and the service offer
 
 
-def photo_params(method: Method) -> PhotoParams | None:
-    """The photometric settings of ``method`` (None for the GMM-only methods)."""
-    return method.spec.photo
-
-
-def gmm_params(method: Method) -> CalibParams | None:
-    """The GMM settings of ``method`` (None for the photometric-only methods)."""
-    return method.spec.gmm
-
-
 @dataclass(frozen=True, kw_only=True)
 class SolveRequest:
     """One calibration as :func:`solve` takes it: ``method``; ``initial`` the start (None: the global search of

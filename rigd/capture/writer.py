@@ -15,7 +15,7 @@ from rigd.capture.errors import DiskFullError
 from rigd.capture.pair_files import camera_difference, pair_bytes, pair_images, rig_camera
 from rigd.capture.sources import CameraFrame
 from rigd.dataset import Cloud, RigConfig, write_ground_truth, write_pair, write_rig
-from rigd.dataset.store import pair_folders, read_yaml
+from rigd.dataset.store import next_pair_index, read_yaml
 from rigd.errors import DatasetError
 from rigd.locks import DatasetLock
 
@@ -47,7 +47,7 @@ class PairWriter:
     def write(self, frame: CameraFrame, cloud: Cloud, meta: dict[str, Any], done: int) -> Path:
         """The pair at the dataset's next index, after the ``done`` pairs of this capture; checks the space first,
         before anything is written, rig.yaml included."""
-        index = max((int(p.name) for p in pair_folders(self.out)), default=-1) + 1
+        index = next_pair_index(self.out)
         self._check_space(pair_bytes(frame), cloud, done)
         self._ensure_rig(frame)
         image, extras = pair_images(frame)
