@@ -404,7 +404,7 @@ def photo_elevation_slope(pairs: list[PhotoPair], result: PhotoResult, params: P
     return np.asarray((xi_of(anchor, high.tau) - xi_of(anchor, low.tau)) / (2 * SLOPE_STEP_DEG), dtype=np.float64)
 
 
-def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, trust: TrustOptions,
+def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, trust: TrustOptions, *,
                        fixed_translation: bool = False, starts: tuple[F64, ...] = (),
                        opts: PhotoTrustOptions | None = None, executor: Executor | None = None) -> Assessment:
     """Restarts, uncertainty and verdict of the NID solution ``result`` (module docstring). ``starts``: the

@@ -205,7 +205,8 @@ def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParam
         if trust.elevation_sigma_deg > 0:
             slope = photo_elevation_slope(photo, solved, opts, fixed, executor)
             trust = replace(trust, elevation_sigma_pose=tuple(float(v) for v in slope * trust.elevation_sigma_deg))
-        a = assess_photometric(photo, solved, opts, trust, fixed, starts=(start.tau,), executor=executor)
+        a = assess_photometric(photo, solved, opts, trust, fixed_translation=fixed, starts=(start.tau,),
+                               executor=executor)
         return CalibResult(Transform.from_tau(a.tau), a.optim, stats, a)
     return CalibResult(Transform.from_tau(np.asarray(solved.tau)), _levels(solved, gmm), stats, None)
 

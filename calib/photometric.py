@@ -171,7 +171,7 @@ def rank_normalise(values: F64, groups: NDArray[np.int16] | None = None) -> F64:
 
 
 def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[np.float32] | None,
-               ring: NDArray[np.int16] | None, camera: CameraModel, params: PhotoParams, index: int = 0,
+               ring: NDArray[np.int16] | None, camera: CameraModel, params: PhotoParams, *, index: int = 0,
                mask: NDArray[np.bool_] | None = None) -> PhotoPair:
     """The arrays the photometric costs need of one pair (``mask``: see :class:`PhotoPair`); raises
     FeaturelessError when the cloud has no intensity (reflectivity) field, or one of a single value."""

@@ -22,7 +22,8 @@ def pair():
 
 def _fresh(pair) -> EdgeFields:
     cam = pair.camera
-    return EdgeFields.build(pair.pixels.uv, pair.pixels.score, cam.width, cam.height, True, 0.7, 48.0)
+    return EdgeFields.build(pair.pixels.uv, pair.pixels.score, cam.width, cam.height, wrap_u=True, sigma_min=0.7,
+                            sigma_max=48.0)
 
 
 def _whole(pair) -> EdgeFields:
