@@ -309,14 +309,14 @@ def _fixed_worse(feats: list[PairFeatures], best: OptimResult, opts: OptimOption
     translation free (the rotation prior, if any, kept)."""
     tail, kappas = _tail(best, opts, trust)
     free = Prior(rotation=prior.rotation, sigma_rot_rad=prior.sigma_rot_rad) if prior.rotation is not None else None
-    loose = optimise(feats, best.tau, tail, gmm, None, free, kappas=kappas)
+    loose = optimise(feats, best.tau, tail, gmm, prior=free, kappas=kappas)
     return max(float(best.final_cost - loose.final_cost) / kappa, 0.0)
 
 
 def _restart_solve(feats: list[PairFeatures], start: F64, tail: OptimOptions, gmm: GmmOptions,
                    prior: Prior | None, kappas: tuple[float | None, ...]) -> OptimResult:
     """One restart: the tail levels from ``start`` with the solution's prior weights."""
-    return optimise(feats, start, tail, gmm, None, prior, kappas=kappas)
+    return optimise(feats, start, tail, gmm, prior=prior, kappas=kappas)
 
 
 def _groups(clusters: Clusters, n_pairs: int, trust: TrustOptions) -> tuple[NDArray[np.int64], int]:
@@ -611,7 +611,7 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, mov
                                         f"{local} restarts agree",))
 
 
-def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions,
+def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions, *,
            prior: Prior | None, trust: TrustOptions, alternatives: tuple[OptimResult, ...] = (),
            solving: Prior | None = None, executor: Executor | None = None,
            starts: tuple[F64, ...] = ()) -> Assessment:

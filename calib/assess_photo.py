@@ -140,7 +140,7 @@ def _samples(lp: LevelPair, tau: F64, labels: I64) -> tuple[NDArray[np.bool_], F
 
 
 def _cluster_hists(lp: LevelPair, tau: F64, labels: I64, n_clusters: int, bins: int) -> F64:
-    """(n_clusters, bins, bins) soft joint histograms (calib.photometric.soft_joint_histogram) of each
+    """(n_clusters, bins, bins) soft joint histograms (calib.photometric.labelled_histograms) of each
     cluster's samples at ``tau`` (``labels`` (M,) cluster of each point, -1: none)."""
     keep, refl, grey = _samples(lp, tau, labels)
     return labelled_histograms(refl, grey, labels[keep], n_clusters, bins)
@@ -408,7 +408,7 @@ def photo_elevation_slope(pairs: list[PhotoPair], result: PhotoResult, params: P
     return np.asarray((xi_of(anchor, high.tau) - xi_of(anchor, low.tau)) / (2 * SLOPE_STEP_DEG), dtype=np.float64)
 
 
-def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, trust: TrustOptions,
+def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, trust: TrustOptions, *,
                        fixed_translation: bool = False, starts: tuple[F64, ...] = (),
                        opts: PhotoTrustOptions | None = None, executor: Executor | None = None) -> Assessment:
     """Restarts, uncertainty and verdict of the NID solution ``result`` (module docstring). ``starts``: the

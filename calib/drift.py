@@ -324,8 +324,8 @@ def check_drift(feats: list[PairFeatures], checked: Transform, params: CalibPara
     # checked pose's basin; quasi-Newton steps along a direction few pairs pin can reach another one (measured:
     # 3 small pairs checked at their ground truth, 1.5 deg away and "drifted").
     optim = replace(tail_options(full, min(opts.levels, len(full.sigmas_deg))), quasi_newton=False)
-    result = optimise(feats, checked.tau, optim, params.gmm, None, prior)
-    a = assess(feats, result, optim, params.gmm, prior, replace(opts.trust, restarts=0))
+    result = optimise(feats, checked.tau, optim, params.gmm, prior=prior)
+    a = assess(feats, result, optim, params.gmm, prior=prior, trust=replace(opts.trust, restarts=0))
     change = xi_of(checked.tau, a.tau) * TO_DISPLAY
     covariance = a.uncertainty.covariance * np.outer(TO_DISPLAY, TO_DISPLAY)
     n_places = int(places(feats).max()) + 1

@@ -76,7 +76,7 @@ def offset_features(feats: list[PairFeatures], offset_deg: float) -> list[PairFe
 
 def _refine(feats: list[PairFeatures], offset_deg: float, tau: F64, finest: OptimOptions, gmm: GmmOptions,
             prior: Prior | None, kappa: float) -> OptimResult:
-    return optimise(offset_features(feats, offset_deg), tau, finest, gmm, None, prior, None, (kappa,))
+    return optimise(offset_features(feats, offset_deg), tau, finest, gmm, prior=prior, kappas=(kappa,))
 
 
 def _refinements(feats: list[PairFeatures], solution: OptimResult, opts: OptimOptions, gmm: GmmOptions,
@@ -144,6 +144,7 @@ def fit_elevation_offset(
     solution: OptimResult,
     opts: OptimOptions,
     gmm: GmmOptions,
+    *,
     prior: Prior | None = None,
     executor: Executor | None = None,
     grid_deg: tuple[float, ...] = GRID_DEG,

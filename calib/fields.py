@@ -169,7 +169,7 @@ class EdgeFields:
 
     @classmethod
     def build(
-        cls, uv: F64, score: F64, width: int, height: int, wrap_u: bool, sigma_min: float, sigma_max: float
+        cls, uv: F64, score: F64, width: int, height: int, *, wrap_u: bool, sigma_min: float, sigma_max: float
     ) -> EdgeFields:
         """``uv`` (M,2) px edge positions (sub-pixel), ``score`` (M,) normalised edge scores."""
         n = int(np.ceil(np.log2(sigma_max / sigma_min) * RUNGS_PER_OCTAVE)) + 1

@@ -296,11 +296,6 @@ def _slices(sizes: list[int]) -> list[slice]:
     return [slice(int(e - n), int(e)) for e, n in zip(ends, sizes, strict=True)]
 
 
-def point_terms(feat: PairFeatures, frz: Frozen, tau: F64, sigma_in_px: float, opts: GmmOptions) -> PointTerms:
-    """:func:`pair_terms` of one pair."""
-    return pair_terms([feat], [frz], tau, [sigma_in_px], opts)[0]
-
-
 def cost_and_gradient(
     feats: list[PairFeatures], frozen: list[Frozen], tau: F64, sigma_in_px: list[float], opts: GmmOptions
 ) -> CostGrad:

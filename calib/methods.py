@@ -127,16 +127,6 @@ METHODS: dict[Method, MethodSpec] = {
 FIELD_METHODS = tuple(m for m in Method if m.spec.field)  # what `rigd calibrate` and the service offer
 
 
-def photo_params(method: Method) -> PhotoParams | None:
-    """The photometric settings of ``method`` (None for the GMM-only methods)."""
-    return method.spec.photo
-
-
-def gmm_params(method: Method) -> CalibParams | None:
-    """The GMM settings of ``method`` (None for the photometric-only methods)."""
-    return method.spec.gmm
-
-
 @dataclass(frozen=True, kw_only=True)
 class SolveRequest:
     """One calibration as :func:`solve` takes it: ``method``; ``initial`` the start (None: the global search of
@@ -248,7 +238,8 @@ def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParam
         if refined is not None:
             cross_tau = collect([refined])[0]
             trust = replace(trust, cross_check_pose=tuple(float(v) for v in xi_of(np.asarray(solved.tau), cross_tau)))
-        a = assess_photometric(photo, solved, opts, trust, fixed, starts=(start.tau,), executor=executor)
+        a = assess_photometric(photo, solved, opts, trust, fixed_translation=fixed, starts=(start.tau,),
+                               executor=executor)
         return CalibResult(Transform.from_tau(a.tau), a.optim, stats, a)
     return CalibResult(Transform.from_tau(np.asarray(solved.tau)), _levels(solved, gmm), stats, None)
 
@@ -259,7 +250,7 @@ def refine_edges(feats: list[PairFeatures], tau: F64, params: CalibParams, prior
     optim = schedule(feats, params, tau)
     levels += 1 if optim.fold_levels >= len(optim.sigmas_deg) else 0
     tail = tail_options(optim, min(levels, len(optim.sigmas_deg)))
-    return np.asarray(optimise(feats, tau, tail, params.gmm, None, prior).tau, dtype=np.float64)
+    return np.asarray(optimise(feats, tau, tail, params.gmm, prior=prior).tau, dtype=np.float64)
 
 
 def _levels(solved: PhotoResult, gmm: CalibResult | None) -> OptimResult:

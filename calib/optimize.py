@@ -315,6 +315,7 @@ def optimise(
     tau0: F64,
     opts: OptimOptions,
     gmm: GmmOptions,
+    *,
     on_iter: Callable[[int, int, float], None] | None = None,
     prior: Prior | None = None,
     executor: Executor | None = None,

@@ -171,7 +171,7 @@ def rank_normalise(values: F64, groups: NDArray[np.int16] | None = None) -> F64:
 
 
 def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[np.float32] | None,
-               ring: NDArray[np.int16] | None, camera: CameraModel, params: PhotoParams, index: int = 0,
+               ring: NDArray[np.int16] | None, camera: CameraModel, params: PhotoParams, *, index: int = 0,
                mask: NDArray[np.bool_] | None = None) -> PhotoPair:
     """The arrays the photometric costs need of one pair (``mask``: see :class:`PhotoPair`); raises
     FeaturelessError when the cloud has no intensity (reflectivity) field, or one of a single value."""
@@ -192,15 +192,11 @@ def photo_pair(image: NDArray[np.uint8], points_lidar: F64, intensity: NDArray[n
     return PhotoPair(camera, grey, points, refl, mask, rings)
 
 
-def soft_joint_histogram(a: F64, b: F64, bins: int) -> F64:
-    """Joint histogram (bins, bins) of ``a``, ``b`` (N,) in [0, 1], each sample split linearly between its
-    two nearest bin centres in each variable (triangular Parzen window), so the counts move continuously."""
-    return np.asarray(labelled_histograms(a, b, np.zeros(len(a), np.int64), 1, bins)[0], dtype=np.float64)
-
-
 def labelled_histograms(a: F64, b: F64, labels: NDArray[np.int64], n: int, bins: int) -> F64:
-    """(n, bins, bins): the :func:`soft_joint_histogram` of each label's samples (``labels`` (N,) in [0, n)), in
-    one count; each histogram's samples are added in their order, so the sums are those of each alone."""
+    """(n, bins, bins): the soft joint histogram of each label's samples (``labels`` (N,) in [0, n)) of ``a``,
+    ``b`` (N,) in [0, 1], in one count: each sample split linearly between its two nearest bin centres in each
+    variable (triangular Parzen window), so the counts move continuously; each histogram's samples are added in
+    their order, so the sums are those of each alone."""
     pa = np.clip(a, 0.0, 1.0) * (bins - 1)
     pb = np.clip(b, 0.0, 1.0) * (bins - 1)
     ia = np.minimum(np.floor(pa).astype(np.int64), bins - 2)
@@ -341,7 +337,8 @@ def project_pairs(pairs: list[LevelPair], tau: F64) -> list[tuple[F64, NDArray[n
 
 
 def joint_histograms(a: list[F64], b: list[F64], bins: int) -> F64:
-    """(P, bins, bins): :func:`soft_joint_histogram` of each of P pairs of samples ``a[i]``, ``b[i]`` (N_i,)."""
+    """(P, bins, bins): the soft joint histogram (:func:`labelled_histograms`) of each of P pairs of samples
+    ``a[i]``, ``b[i]`` (N_i,)."""
     labels = np.repeat(np.arange(len(a), dtype=np.int64), [len(x) for x in a])
     return labelled_histograms(np.concatenate(a) if a else np.zeros(0), np.concatenate(b) if b else np.zeros(0),
                                labels, len(a), bins)

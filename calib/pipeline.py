@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
@@ -140,8 +141,8 @@ def _features(pair: PairInput, camera: CameraModel, params: CalibParams, points:
     fields = None
     if params.gmm.evaluator is not Evaluator.EXACT:
         floor = max(params.gmm.sigma_floor_px, np.radians(params.gmm.sigma_floor_deg) * camera.pixels_per_radian)
-        fields = EdgeFields.build(pixels.uv, pixels.score, camera.width, camera.height, wrap,
-                                  floor, params.gmm.sigma_ceiling_px)
+        fields = EdgeFields.build(pixels.uv, pixels.score, camera.width, camera.height, wrap_u=wrap,
+                                  sigma_min=floor, sigma_max=params.gmm.sigma_ceiling_px)
     grid = PixelGrid.build(pixels.uv, pixels.score, camera.width, camera.height, wrap)
     return PairFeatures(camera, pixels, points, fields, grid, place)
 
@@ -246,7 +247,7 @@ def _alternatives(feats: list[PairFeatures], starts: list[F64], optim: OptimOpti
     them): started in ``executor`` now if given, so they run while this process solves from the best start;
     call the result to collect them (this process takes back those no worker has started: calib.handed)."""
     single = replace(optim, alternative_schedules=0)
-    handed = [hand(executor, optimise, feats, s, single, gmm, None, prior) for s in starts]
+    handed = [hand(executor, functools.partial(optimise, prior=prior), feats, s, single, gmm) for s in starts]
     return lambda: collect(handed)
 
 
@@ -268,7 +269,8 @@ def _fitted_elevation(feats: list[PairFeatures], first: OptimResult, optim: Opti
                       prior: Prior | None, executor: Executor | None) -> ElevationFit:
     """The LiDAR's elevation offset fitted around the first solve ``first`` (calib.elevation; 3 places or more)."""
     check_places(feats)
-    return fit_elevation_offset(feats, first, optim, params.gmm, prior, executor, params.elevation_grid_deg)
+    return fit_elevation_offset(feats, first, optim, params.gmm, prior=prior, executor=executor,
+                                grid_deg=params.elevation_grid_deg)
 
 
 def _elevation_sigma(trust: TrustOptions | None, slope: F64, sigma_deg: float) -> TrustOptions | None:
@@ -316,12 +318,12 @@ def calibrate(
     guess_sigma = params.guess_sigma_m if solving is not prior else None
     elevation = None
     if fit_elevation:
-        first = optimise(feats, tau0, optim, params.gmm, on_iter, solving, executor)
+        first = optimise(feats, tau0, optim, params.gmm, on_iter=on_iter, prior=solving, executor=executor)
         elevation = _fitted_elevation(feats, first, optim, params, solving, executor)
         feats = offset_features(feats, elevation.offset_deg)
         trust = _elevation_sigma(trust, elevation.slope, elevation.sigma_deg)
     others = _alternatives(feats, runner_starts, optim, params.gmm, solving, executor)
-    result = optimise(feats, tau0, optim, params.gmm, on_iter, solving, executor)
+    result = optimise(feats, tau0, optim, params.gmm, on_iter=on_iter, prior=solving, executor=executor)
     if trust is not None and trust.elevation_sigma_deg > 0 and elevation is None:  # a declared offset's sigma
         slope = elevation_slope(feats, result, optim, params.gmm, solving, executor)
         trust = _elevation_sigma(trust, slope, trust.elevation_sigma_deg)
@@ -329,7 +331,7 @@ def calibrate(
     if trust is None:
         return CalibResult(Transform.from_tau(result.tau), result, stats, search=found, guess_sigma_m=guess_sigma,
                            elevation=elevation)
-    assessment = assess(feats, result, optim, params.gmm, prior, trust, tuple(others()), solving, executor,
-                        (tau0, *runner_starts))
+    assessment = assess(feats, result, optim, params.gmm, prior=prior, trust=trust, alternatives=tuple(others()),
+                        solving=solving, executor=executor, starts=(tau0, *runner_starts))
     return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found, guess_sigma,
                        elevation)

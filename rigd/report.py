@@ -300,7 +300,7 @@ class Assessed(TypedDict):
 @with_config(_OPEN)
 class StoredQuality(Quality):
     """An extrinsics version's ``quality`` from a calibration: the report's, the pairs used and the report's
-    sections the service shows with it (rigd/api/job_runner.py)."""
+    sections the service shows with it (rigd/api/calibration_result.py)."""
 
     pairs_used: int
     error_vs_ground_truth: NotRequired[GroundTruthError]

@@ -3,7 +3,7 @@ report (``rigd check --json``) and a capture's pairs.
 
 TypedDicts, as the calibration report of rigd/report.py and for the same reasons: the records are the very
 dicts that are stored and answered, and pydantic turns them into the schema of ``JobOut.result``
-(rigd/api/models.py). Built in rigd/api/job_runner.py (calibrate), rigd/calibration/check_job.py (check) and
+(rigd/api/models.py). Built in rigd/api/calibration_result.py (calibrate), rigd/calibration/check_job.py (check) and
 rigd/api/routes/capture.py (capture).
 
 Every record keeps keys it does not name when the API reads a stored job (``extra="allow"``), and a key an

@@ -124,12 +124,6 @@ class SdkCamera:
     def describe(self) -> str:
         return f"camera {self.info.serial} ({self.info.model})" if self.info else f"camera {self.serial or '?'}"
 
-    def enumerate_serials(self) -> list[int]:
-        """Head serial numbers of the cameras the SDK sees on the bus (no open camera needed)."""
-        if self._context.value:
-            return [c.serial for c in _enumerate(self.lib, self._context)]
-        return [c.serial for c in enumerate_cameras(self.lib)]
-
     def open(self) -> SdkCamera:
         self.lib.call("ladybugCreateContext", ctypes.byref(self._context))
         try:

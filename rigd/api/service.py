@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
-from rigd.api.job_runner import ActivationBounds, JobRunner
+from rigd.api.calibration_result import ActivationBounds
+from rigd.api.job_runner import JobRunner
 from rigd.api.models import CameraStatus, LidarStatus
 from rigd.api.sensors import SensorMonitor
 from rigd.api.settings import Settings

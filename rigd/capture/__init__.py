@@ -6,7 +6,7 @@ Used by ``rigd capture`` and the HTTP service::
     summary = run_capture(CaptureRequest(out=Path("ds"), n=12, lidar="udp", camera="sdk"), print, stop_event)
 """
 
-from rigd.capture.engine import CaptureRequest, CaptureState, CaptureStatus, CaptureSummary, run_capture
+from rigd.capture.engine import run_capture
 from rigd.capture.errors import (
     CaptureError,
     ConfigError,
@@ -17,6 +17,7 @@ from rigd.capture.errors import (
     SourceSpecError,
     SyncError,
 )
+from rigd.capture.records import CaptureRequest, CaptureState, CaptureStatus, CaptureSummary
 
 __all__ = [
     "CaptureError",

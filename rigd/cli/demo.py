@@ -20,7 +20,7 @@ from drivers.sim.motion import MotionRigSpec, save_spec
 from rigd.calibration import CalibrationRequest, Options, Start, TransformIn, run_calibration
 from rigd.calibration.request import PriorIn
 from rigd.capture import CaptureRequest, run_capture
-from rigd.capture.engine import SIM_MOVE_S, SIM_STOP_MARGIN_S, sim_stops
+from rigd.capture.sim_end import SIM_MOVE_S, SIM_STOP_MARGIN_S, sim_stops
 from rigd.cli.args import non_negative_float, print_progress
 from rigd.cli.calibrate import print_trust
 from rigd.cli.capture import StatusPrinter

@@ -261,6 +261,7 @@ def pair_folders(root: Path) -> list[Path]:
 
 
 def next_pair_index(root: Path) -> int:
+    """One past the highest complete pair of the dataset ``root`` (0 for none): where a capture resumes."""
     return max((int(p.name) for p in pair_folders(root)), default=-1) + 1
 
 

@@ -228,11 +228,6 @@ class JobStore:
             self._retry_later()
             return self.get(job_id)
 
-    def pending_ends(self) -> int:
-        """How many job ends wait for the database to take writes."""
-        with self._pending_lock:
-            return len(self._pending)
-
     def _shown(self, job: Job) -> Job:
         end = self._pending.get(job.id)
         return job if end is None else end.applied(job)

@@ -48,7 +48,8 @@ def make_pair(seed: int, width: int = 512, height: int = 256, evaluator_fields: 
                     axis=0)
     pixels = EdgePixels(pix.astype(np.float64), np.ones(len(pix)))
     points = EdgePoints(pts_lidar, np.ones(len(pts_lidar)), np.zeros(len(pts_lidar), np.int8))
-    fields = EdgeFields.build(pixels.uv, pixels.score, width, height, True, 0.7, 48.0) if evaluator_fields else None
+    fields = (EdgeFields.build(pixels.uv, pixels.score, width, height, wrap_u=True, sigma_min=0.7, sigma_max=48.0)
+              if evaluator_fields else None)
     grid = PixelGrid.build(pixels.uv, pixels.score, width, height, True)  # as calib.pipeline's features carry
     return PairFeatures(cam, pixels, points, fields, grid)
 
@@ -82,7 +83,8 @@ def make_head_place(seed: int, sensors: list[Mounted]) -> list[PairFeatures]:
         inside = in_image(cam, uv, valid)
         pix = np.unique(np.rint(uv[inside]), axis=0)
         pixels = EdgePixels(pix.astype(np.float64), np.ones(len(pix)))
-        fields = EdgeFields.build(pixels.uv, pixels.score, cam.width, cam.height, False, 0.7, 48.0)
+        fields = EdgeFields.build(pixels.uv, pixels.score, cam.width, cam.height, wrap_u=False, sigma_min=0.7,
+                                  sigma_max=48.0)
         grid = PixelGrid.build(pixels.uv, pixels.score, cam.width, cam.height, False)
         feats.append(PairFeatures(cam, pixels, points, fields, grid, place=seed))
     return feats

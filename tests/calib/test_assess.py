@@ -230,17 +230,17 @@ def test_assessment_measures_the_rotation_from_the_nearest_start(pairs):
     opts = OptimOptions()
     result = optimise(pairs, start.tau, opts, FIELD)
     trust = TrustOptions(restarts=0)
-    near = assess(pairs, result, opts, FIELD, None, trust, starts=(start.tau,))
+    near = assess(pairs, result, opts, FIELD, prior=None, trust=trust, starts=(start.tau,))
     moved = np.degrees(np.linalg.norm(xi_of(start.tau, near.tau)[:3]))
     assert near.moved_deg == pytest.approx(moved, rel=1e-6) and 1.0 < near.moved_deg < 3.0
     assert near.verdict.status is Status.TRUSTED
     assert near.moved_m == pytest.approx(float(np.linalg.norm(start.tau[3:] - near.tau[3:])), rel=1e-9)
     elsewhere = Transform.from_rpy_xyz(TRUTH.rpy_deg + [0.0, 0.0, 40.0], TRUTH.translation_m)
-    both = assess(pairs, result, opts, FIELD, None, trust, starts=(elsewhere.tau, start.tau))
+    both = assess(pairs, result, opts, FIELD, prior=None, trust=trust, starts=(elsewhere.tau, start.tau))
     assert both.moved_deg == pytest.approx(near.moved_deg)  # the nearest start counts
-    only_far = assess(pairs, result, opts, FIELD, None, trust, starts=(elsewhere.tau,))
+    only_far = assess(pairs, result, opts, FIELD, prior=None, trust=trust, starts=(elsewhere.tau,))
     assert only_far.moved_deg == pytest.approx(40.0, abs=2.0) and only_far.verdict.status is Status.FAILED
-    assert assess(pairs, result, opts, FIELD, None, trust).moved_deg is None
+    assert assess(pairs, result, opts, FIELD, prior=None, trust=trust).moved_deg is None
 
 
 def test_restarts_weigh_the_prior_as_the_solution_did(pairs):
@@ -268,7 +268,7 @@ def test_assessment_of_a_clean_synthetic_solve_is_trusted_and_covers_the_truth(p
     start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.5, -1.0, 1.0], TRUTH.translation_m + [0.04, -0.03, 0.03])
     opts = OptimOptions()
     result = optimise(pairs, start.tau, opts, FIELD)
-    a = assess(pairs, result, opts, FIELD, None, TrustOptions(restarts=2))
+    a = assess(pairs, result, opts, FIELD, prior=None, trust=TrustOptions(restarts=2))
     err = np.abs(xi_of(TRUTH.tau, a.tau) * TO_DISPLAY)
     assert a.verdict.status is Status.TRUSTED, a.verdict.reasons
     assert np.all(err <= 3 * a.uncertainty.sigma + 1e-9) and np.all(a.uncertainty.sigma > 0)
@@ -281,7 +281,7 @@ def test_fixed_translation_reports_no_translation_uncertainty(pairs):
     prior = Prior(TRUTH.translation_m, fix_translation=True)
     start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.0, 1.0, -1.0], TRUTH.translation_m)
     result = optimise(pairs, start.tau, opts, FIELD, prior=prior)
-    a = assess(pairs, result, opts, FIELD, prior, TrustOptions(restarts=1))
+    a = assess(pairs, result, opts, FIELD, prior=prior, trust=TrustOptions(restarts=1))
     assert np.all(a.uncertainty.sigma[3:] == 0) and np.all(a.uncertainty.sigma[:3] > 0)
     assert np.array_equal(a.tau[3:], TRUTH.translation_m)
     assert a.verdict.fixed_axes == ("x", "y", "z") and not set(a.verdict.weak_axes) & {"x", "y", "z"}
@@ -295,7 +295,7 @@ def test_a_held_lever_arm_the_data_disagree_with_vouches_for_nothing(pairs):
     prior = Prior(TRUTH.translation_m / 100.0, fix_translation=True)
     start = Transform.from_rpy_xyz(TRUTH.rpy_deg + [1.0, 1.0, -1.0], TRUTH.translation_m / 100.0)
     result = optimise(pairs, start.tau, opts, FIELD, prior=prior)
-    v = assess(pairs, result, opts, FIELD, prior, TrustOptions(restarts=1)).verdict
+    v = assess(pairs, result, opts, FIELD, prior=prior, trust=TrustOptions(restarts=1)).verdict
     assert v.status is not Status.TRUSTED and v.weak_axes == AXES
     assert any("the values given disagree with the data" in r for r in v.reasons) or v.status is Status.FAILED
 
@@ -364,9 +364,10 @@ def test_the_guess_lever_arm_is_a_weak_prior_of_the_solve_and_not_of_the_reporte
     # and the reported uncertainty is the data's: a prior used by the solve alone does not shrink it.
     result = without.optim
     tight = Prior(result.tau[3:], np.full(3, 1e-4))  # 0.1 mm, against the data's 0.6 mm
-    alone = assess(pairs, result, OptimOptions(), GmmOptions(), None, TrustOptions(restarts=0))
-    solved_with = assess(pairs, result, OptimOptions(), GmmOptions(), None, TrustOptions(restarts=0), solving=tight)
-    declared_tight = assess(pairs, result, OptimOptions(), GmmOptions(), tight, TrustOptions(restarts=0))
+    alone = assess(pairs, result, OptimOptions(), GmmOptions(), prior=None, trust=TrustOptions(restarts=0))
+    solved_with = assess(pairs, result, OptimOptions(), GmmOptions(), prior=None, trust=TrustOptions(restarts=0),
+                         solving=tight)
+    declared_tight = assess(pairs, result, OptimOptions(), GmmOptions(), prior=tight, trust=TrustOptions(restarts=0))
     np.testing.assert_array_equal(solved_with.uncertainty.laplace, alone.uncertainty.laplace)
     assert np.all(declared_tight.uncertainty.laplace[3:] < 0.5 * alone.uncertainty.laplace[3:])
 

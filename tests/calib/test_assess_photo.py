@@ -31,10 +31,9 @@ from calib.photometric import (
     photo_pair,
     project_level,
     sample,
-    soft_joint_histogram,
 )
 from calib.uncertainty import TO_DISPLAY, tau_at, xi_of
-from tests.calib.test_photometric import TRUTH, ideal_pair
+from tests.calib.test_photometric import TRUTH, ideal_pair, soft_joint_histogram
 
 SMALL = PhotoParams(cost=PhotoCost.NID, blur_deg=(0.5, 0.0), step_rot_deg=(0.6, 0.2), step_trans_m=(0.03, 0.01),
                     max_evals=300, restarts=1, rotation_only_levels=0)

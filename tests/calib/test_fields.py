@@ -11,7 +11,7 @@ import scipy.fft
 from calib.edges_image import l0_smooth
 from calib.field_gather import gather
 from calib.fields import RUNGS_PER_OCTAVE, EdgeFields, _kernels, _sample_growing, sample_fields
-from calib.gmm import Evaluator, GmmOptions, freeze, pair_terms, point_terms
+from calib.gmm import Evaluator, GmmOptions, freeze, pair_terms
 from tests.calib.synthetic import TRUTH, make_pair
 
 
@@ -22,7 +22,8 @@ def pair():
 
 def _fresh(pair) -> EdgeFields:
     cam = pair.camera
-    return EdgeFields.build(pair.pixels.uv, pair.pixels.score, cam.width, cam.height, True, 0.7, 48.0)
+    return EdgeFields.build(pair.pixels.uv, pair.pixels.score, cam.width, cam.height, wrap_u=True, sigma_min=0.7,
+                            sigma_max=48.0)
 
 
 def _whole(pair) -> EdgeFields:
@@ -144,7 +145,7 @@ def test_pairs_batched_equal_pair_by_pair(evaluator):
     frozen = [freeze(f, tau, s, opts) for f, s in zip(feats, sigma_in, strict=True)]
     batched = pair_terms(feats, frozen, tau, sigma_in, opts)
     for f, z, s, got in zip(feats, frozen, sigma_in, batched, strict=True):
-        alone = point_terms(f, z, tau, s, opts)
+        alone = pair_terms([f], [z], tau, [s], opts)[0]
         assert got.index.size > 100
         np.testing.assert_array_equal(got.index, alone.index)
         np.testing.assert_allclose(got.value, alone.value, rtol=1e-12, atol=0)

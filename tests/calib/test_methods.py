@@ -9,7 +9,7 @@ import pytest
 
 from calib.errors import CalibError
 from calib.gmm import SigmaModel
-from calib.methods import FIELD_METHODS, Method, SolveRequest, gmm_params, photo_params, solve
+from calib.methods import FIELD_METHODS, Method, SolveRequest, solve
 from calib.photometric import PhotoCost
 from calib.pipeline import CalibParams, PointEdgeMethod, paper_params
 from calib.prior import Prior
@@ -18,27 +18,27 @@ from tests.calib.test_photometric import TRUTH, ideal_pair
 
 def test_ablations_change_one_thing_each():
     rigd = CalibParams()
-    assert gmm_params(Method.GMM) == rigd
-    assert gmm_params(Method.GMM_W1) == replace(rigd, gmm=replace(rigd.gmm, weighted=False))
-    uniform = gmm_params(Method.GMM_UNIFORM)
+    assert Method.GMM.spec.gmm == rigd
+    assert Method.GMM_W1.spec.gmm == replace(rigd, gmm=replace(rigd.gmm, weighted=False))
+    uniform = Method.GMM_UNIFORM.spec.gmm
     assert uniform is not None and uniform.gmm.sigma_model is SigmaModel.UNIFORM
     assert np.allclose(uniform.optim.sigmas_deg, np.array(rigd.optim.sigmas_deg) / 2)
     assert uniform.head_sigmas_deg is None
-    assert gmm_params(Method.GMM_PAPER_EDGES) == replace(rigd, point_method=PointEdgeMethod.PAPER)
+    assert Method.GMM_PAPER_EDGES.spec.gmm == replace(rigd, point_method=PointEdgeMethod.PAPER)
     # the schedule ablation runs the paper's ladder on every camera, a head's too
-    assert gmm_params(Method.GMM_PAPER_SCHEDULE) == replace(rigd, optim=paper_params().optim, head_sigmas_deg=None)
-    assert gmm_params(Method.PAPER) == paper_params()
+    assert Method.GMM_PAPER_SCHEDULE.spec.gmm == replace(rigd, optim=paper_params().optim, head_sigmas_deg=None)
+    assert Method.PAPER.spec.gmm == paper_params()
     paper = paper_params().optim  # eq. 24: the paper steps along the plain negative gradient
     assert not paper.quasi_newton and not paper.precondition
 
 
 def test_photometric_methods_have_no_gmm_and_the_hybrid_has_both():
     for method, cost in ((Method.MI, PhotoCost.MI), (Method.NID, PhotoCost.NID), (Method.GOM, PhotoCost.GOM)):
-        opts = photo_params(method)
-        assert gmm_params(method) is None and opts is not None and opts.cost is cost
+        opts = method.spec.photo
+        assert method.spec.gmm is None and opts is not None and opts.cost is cost
         assert method.uses_photometric and not method.uses_gmm
-    assert gmm_params(Method.GMM_NID) == CalibParams() and photo_params(Method.GMM_NID) is not None
-    assert photo_params(Method.GMM_W1) is None
+    assert Method.GMM_NID.spec.gmm == CalibParams() and Method.GMM_NID.spec.photo is not None
+    assert Method.GMM_W1.spec.photo is None
 
 
 def test_a_request_a_method_cannot_honour_is_refused_by_name():

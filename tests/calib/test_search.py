@@ -78,7 +78,7 @@ def test_an_alternative_that_ends_lower_replaces_a_stuck_solution(pairs):
     stuck = optimise(pairs, stuck_start.tau, opts, FIELD)
     assert rotation_angle_deg(so3_exp(stuck.tau[:3]), TRUTH.rotation) > 10.0  # a far local minimum
     good = optimise(pairs, TRUTH.tau, opts, FIELD)
-    a = assess(pairs, stuck, opts, FIELD, None, TrustOptions(restarts=1), alternatives=(good,))
+    a = assess(pairs, stuck, opts, FIELD, prior=None, trust=TrustOptions(restarts=1), alternatives=(good,))
     assert rotation_angle_deg(so3_exp(a.tau[:3]), TRUTH.rotation) < 0.05
     assert [r.origin for r in a.restarts if r.origin.startswith("search")] == ["search start"]
     # The restarts probe the new solution's basin, not the stuck start's 60 deg away: they come back to it (a

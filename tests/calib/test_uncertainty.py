@@ -8,7 +8,7 @@ import pytest
 from calib.camera import Pinhole
 from calib.edges_points import EdgePoints
 from calib.geometry import Transform, so3_exp
-from calib.gmm import GmmOptions, PairFeatures, point_terms
+from calib.gmm import GmmOptions, PairFeatures, pair_terms
 from calib.optimize import OptimOptions, hessian_steps, level_model
 from calib.uncertainty import (
     LevelModel,
@@ -76,7 +76,7 @@ def test_cluster_gradients_sum_to_the_cost_gradient_and_hessian_matches_second_d
     grads = local_gradient(model, frozen, tau, np.zeros(6), clusters)
 
     def cost(xi):
-        return -sum(float(point_terms(f, z, tau_at(tau, xi), s, model.gmm).value.sum())
+        return -sum(float(pair_terms([f], [z], tau_at(tau, xi), [s], model.gmm)[0].value.sum())
                     for f, z, s in zip(model.feats, frozen, model.sigma_in_px, strict=True))
 
     steps = hessian_steps(pairs, model.gmm)

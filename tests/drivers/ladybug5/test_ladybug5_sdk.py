@@ -102,7 +102,6 @@ def test_cameras_are_enumerated_before_initialising_and_opened_by_serial(fake):
     with pytest.raises(CameraNotFoundError, match="17000000 is not on the bus; the SDK sees 17092345, 17092346"):
         SdkCamera(fake.library, serial=17000000).open()
     with SdkCamera(fake.library, serial=17092346, data_format=DataFormat.RAW8) as camera:
-        assert camera.enumerate_serials() == [17092345, 17092346]
         assert camera.describe == "camera 17092346 (Ladybug5+ (fake 1))"
     assert fake.g("fake_initialized_serial").value == 17092346 and fake.g("fake_enumerated_before_init").value == 1
     assert fake.g("fake_destroyed").value == fake.g("fake_contexts").value

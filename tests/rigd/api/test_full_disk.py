@@ -17,7 +17,8 @@ import pytest
 from api_helpers import App
 
 from calib.geometry import Transform
-from rigd.api.job_runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.api.calibration_result import ActivationBounds
+from rigd.api.job_runner import CalibrationPlan, JobRunner
 from rigd.calibration import CalibrationRequest, Start, TransformIn
 from rigd.capture import DiskFullError
 from rigd.dataset import CameraConfig, CameraKind, Cloud, RigConfig, write_pair, write_rig
@@ -80,12 +81,11 @@ def test_an_end_the_database_cannot_take_is_shown_and_written_later(tmp_path):
     job = jobs.create(JobKind.CAPTURE, {}, running=True)
     full_at("jobs.finish:commit")
     ended = jobs.finish(job.id, JobStatus.FAILED, "failed", error="disk full")
-    assert ended.status is JobStatus.FAILED and jobs.unfinished() == [] and jobs.pending_ends() == 1
+    assert ended.status is JobStatus.FAILED and jobs.unfinished() == []
     with db.read() as conn:  # not written yet
         assert conn.execute("SELECT status FROM jobs").fetchone()[0] == "running"
     faults.install(None)  # room again: the next write of the store writes it first
     jobs.create(JobKind.CAPTURE, {})
-    assert jobs.pending_ends() == 0
     with db.read() as conn:
         assert conn.execute("SELECT status FROM jobs WHERE id = ?", (job.id,)).fetchone()[0] == "failed"
     db.close()
@@ -156,7 +156,7 @@ def test_a_result_that_cannot_be_stored_fails_its_job_and_stores_nothing(runner)
               "report": {"quality": {"converged": True}, "uncertainty": {}, "method": {"name": "rigd"},
                          "verdict": {"status": "trusted", "weak_axes": []}, "change_from_initial": {}}}
     full_at("versions.add:commit")
-    runner._store_result(runner.jobs.get(job.id), result)
+    runner.recorder.store(runner.jobs.get(job.id), result)
     failed = runner.jobs.get(job.id)
     assert failed.status is JobStatus.FAILED and "its result could not be stored" in failed.error
     assert runner.versions.count() == 0

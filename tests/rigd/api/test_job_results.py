@@ -15,7 +15,7 @@ from rigd.results import CheckStatus, VersionStatusName
 from rigd.store import VersionStatus
 
 RESULT_SHAPES = ["CalibrateJobResult", "CheckReport", "CaptureJobResult"]
-# A calibrate and a capture job's results as rigd.api.job_runner and POST /capture's work make them.
+# A calibrate and a capture job's results as rigd.api.calibration_result and POST /capture's work make them.
 CALIBRATE = {"version": 3, "status": "candidate", "change": {"against": 2, "rotation_deg": 0.41, "translation_cm": 1.5},
              "auto_activate": {"requested": True, "failed_checks": ["1 pairs, at least 6 needed"]}}
 FIRST_CALIBRATE = {"version": 1, "status": "active", "change": None, "auto_activate": {"requested": False}}

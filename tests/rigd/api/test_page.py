@@ -37,7 +37,7 @@ from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
-from rigd.capture.engine import CaptureState
+from rigd.capture import CaptureState
 from rigd.web.words import page_words
 
 # Debian's packages (.ci/run installs them): browser and driver come from one source package, so they match.

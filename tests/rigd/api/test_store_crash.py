@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from calib.geometry import Transform
-from rigd.api.job_runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.api.calibration_result import ActivationBounds
+from rigd.api.job_runner import CalibrationPlan, JobRunner
 from rigd.calibration import CalibrationRequest, Start, TransformIn
 from rigd.store import Database, JobKind, JobStatus, JobStore, NewVersion, VersionStatus, VersionStore, faults
 from rigd.store.datasets import DatasetCatalog
@@ -42,7 +43,7 @@ def calibrate(data_dir: Path) -> None:
     job, _ = runner.submit_calibration(PLAN)
     job = jobs.start(job.id, "starting the worker")
     jobs.progress(job.id, "optimising", 0.5)
-    runner._store_result(job, RESULT)
+    runner.recorder.store(job, RESULT)
     db.close()
 
 

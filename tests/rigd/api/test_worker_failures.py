@@ -14,7 +14,8 @@ import pytest
 from api_helpers import RIG_GUESS, process_group, simulated_dataset, worker_pid
 
 from calib.geometry import Transform
-from rigd.api.job_runner import ActivationBounds, CalibrationPlan, JobRunner
+from rigd.api.calibration_result import ActivationBounds
+from rigd.api.job_runner import CalibrationPlan, JobRunner
 from rigd.calibration import CalibrationRequest, Options, Start, TransformIn
 from rigd.calibration.request import ToleranceIn
 from rigd.store import Database, Job, JobStatus, JobStore, VersionStore

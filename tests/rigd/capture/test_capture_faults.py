@@ -29,8 +29,8 @@ from drivers.sim.stream import TURN_S, LidarEmitter, SimFrame
 from drivers.vlp16 import send_datagrams
 from drivers.vlp16.layout import BLOCKS_PER_PACKET
 from rigd.capture import CaptureRequest, CaptureStatus, SensorSilenceError, run_capture
-from rigd.capture import engine as capture_engine
 from rigd.capture import sources as capture_sources
+from rigd.capture import watchdog as capture_watchdog
 from rigd.cli import main
 from rigd.cli.exit_codes import ERROR, IO_ERROR
 
@@ -77,7 +77,7 @@ def test_a_second_capture_into_the_dataset_or_on_the_port_is_refused_at_once(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
         no_rig_file: dict[str, str]) -> None:
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(capture_engine, "STARTUP_S", 1.0)  # without the fixes, the second waits for data: fail fast
+    monkeypatch.setattr(capture_watchdog, "STARTUP_S", 1.0)  # without the fixes, the second waits for data: fail fast
     camera = future_camera(tmp_path / "camera")
     ports = free_udp_ports(4)
     out = tmp_path / "ds"
@@ -263,7 +263,7 @@ def run_udp_capture(tmp_path: Path, datagrams: Iterable[tuple[float, int, bytes]
 
 
 def test_a_head_that_stopped_turning_is_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(capture_engine, "STARTUP_S", 1.0)
+    monkeypatch.setattr(capture_watchdog, "STARTUP_S", 1.0)
     ports = free_udp_ports(2)
     # Sent until the error, due 1.5 s after the first packet: still arriving then (their rate is in it).
     datagrams = frozen(still_rig_datagrams(ports[0], ports[1], 4.0), ports[0])

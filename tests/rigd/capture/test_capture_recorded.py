@@ -19,9 +19,10 @@ from capture_helpers import START_S, free_udp_ports, read_meta, record_session, 
 from drivers.sim.motion import MotionRigSpec, save_spec
 from drivers.sim.stream import LidarEmitter
 from rigd.capture import CaptureRequest, DiskFullError, SensorSilenceError, SourceEndedError, run_capture
-from rigd.capture import engine as capture_engine
 from rigd.capture import sources as capture_sources
-from rigd.capture.engine import SYNC_BOUND_S
+from rigd.capture import watchdog as capture_watchdog
+from rigd.capture import writer as capture_writer
+from rigd.capture.sync import SYNC_BOUND_S
 from rigd.dataset import open_dataset
 from rigd.errors import DatasetError
 
@@ -122,7 +123,7 @@ def test_low_free_space_stops_before_writing(tmp_path: Path, session, monkeypatc
     class Usage:
         free = 1_000_000  # 1 MB: less than twice a pair
 
-    monkeypatch.setattr(capture_engine.shutil, "disk_usage", lambda path: Usage)
+    monkeypatch.setattr(capture_writer.shutil, "disk_usage", lambda path: Usage)
     with pytest.raises(DiskFullError, match="MB free"):
         run_capture(request(tmp_path / "ds", session, 2))
     assert not (tmp_path / "ds" / "pairs").exists() or not any((tmp_path / "ds" / "pairs").iterdir())
@@ -132,7 +133,7 @@ def test_disk_full_while_writing_is_a_named_error(tmp_path: Path, session, monke
     def full(root, index, image, cloud, meta, extras=None):
         raise DatasetError(f"{root}: could not write pair") from OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(capture_engine, "write_pair", full)
+    monkeypatch.setattr(capture_writer, "write_pair", full)
     with pytest.raises(DiskFullError, match="disk full while writing pair 0000"):
         run_capture(request(tmp_path / "ds", session, 1))
 
@@ -150,7 +151,7 @@ def test_bad_request_values_are_refused(tmp_path: Path, session, field: str, val
 
 
 def test_lidar_silence_is_a_named_error(tmp_path: Path, session, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(capture_engine, "STARTUP_S", 0.5)  # no sensor-start allowance for this test
+    monkeypatch.setattr(capture_watchdog, "STARTUP_S", 0.5)  # no sensor-start allowance for this test
     data, position = free_udp_ports(2)
     _, camera, _ = session
     source = f"udp:127.0.0.1:{data}:{position}"
@@ -162,7 +163,7 @@ def test_lidar_silence_is_a_named_error(tmp_path: Path, session, monkeypatch: py
 
 
 def test_camera_silence_is_a_named_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(capture_engine, "STARTUP_S", 1.0)
+    monkeypatch.setattr(capture_watchdog, "STARTUP_S", 1.0)
     monkeypatch.setattr(capture_sources, "SIM_FRAME_GAP_S", 0.0)  # no allowance for slow simulated renders
     data, position = free_udp_ports(2)
     silent = tmp_path / "camera-rig.yaml"

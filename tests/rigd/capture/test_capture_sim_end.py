@@ -13,7 +13,7 @@ from capture_helpers import complete_pairs
 
 from drivers.sim.motion import MotionRigSpec, save_spec
 from rigd.capture import CaptureError, CaptureRequest, CaptureStatus, SimRigEndedError, SourceEndedError, run_capture
-from rigd.capture import engine as capture_engine
+from rigd.capture import sim_end as capture_sim_end
 from rigd.dataset import open_dataset
 from rigd.errors import RigdError
 
@@ -86,7 +86,7 @@ def test_a_sim_camera_too_slow_for_the_stops_ends_the_capture_with_an_error(
     # A frame a minute at most: the camera gives one frame while the rig stops at both its places (as on a
     # machine so busy that a render takes longer than a leg), so 2 pairs cannot be had from its 2 places.
     # Before the fix: no camera frame for 20 s, then a "stopped or hung" camera error.
-    monkeypatch.setattr(capture_engine, "SIM_END_GRACE_S", 1.0)  # no pair can come at the last place: not 5 s
+    monkeypatch.setattr(capture_sim_end, "SIM_END_GRACE_S", 1.0)  # no pair can come at the last place: not 5 s
     rig = tmp_path / "sim-rig.yaml"
     save_spec(rig, MotionRigSpec(scene="indoor", seed=4, stops=2, still_s=0.6, move_s=0.4, width=64, height=32,
                                  frame_period_s=60.0))

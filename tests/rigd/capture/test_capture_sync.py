@@ -32,8 +32,9 @@ from drivers.sim.disturbance import Disturbance
 from drivers.sim.motion import MotionRigSpec, Trajectory, save_spec
 from drivers.sim.stream import TURN_S
 from rigd.capture import CaptureRequest, CaptureStatus, SensorSilenceError, run_capture
-from rigd.capture import engine as capture_engine
-from rigd.capture.engine import SYNC_BOUND_S
+from rigd.capture import status as capture_status
+from rigd.capture import watchdog as capture_watchdog
+from rigd.capture.sync import SYNC_BOUND_S
 
 MOVING = MotionRigSpec(scene="indoor", seed=1, stops=6, still_s=2.0, move_s=0.6, width=128, height=64,
                        frame_period_s=0.1)
@@ -169,7 +170,7 @@ STILL = MotionRigSpec(scene="indoor", seed=3, stops=1, still_s=30.0, move_s=1.0,
 ])
 def test_heavy_loss_or_a_blind_lidar_ends_the_capture_naming_it(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fault: Callable[[int, float], Fault], says: str) -> None:
-    monkeypatch.setattr(capture_engine, "STARTUP_S", 1.0)
+    monkeypatch.setattr(capture_watchdog, "STARTUP_S", 1.0)
     started = time.monotonic()
     # Its turns scanned before it starts (RelayedEmitter): a busy machine's late turns, dropped whole, would leave
     # gaps in the stream, which capture names instead. 3.5 s of them: the error is due 2 s after the first.
@@ -207,7 +208,7 @@ DISTURBED_TURNS = math.ceil(2 * STILL_SECONDS / TURN_S) + 2
 
 
 def stream_over() -> Callable[[CaptureStatus], bool]:
-    """True at the first status without packets for a second (engine.RATE_WINDOW_S) after some: the stream has
+    """True at the first status without packets for a second (lidar_link.RATE_WINDOW_S) after some: the stream has
     ended and the capture, which shows that only from its loop, has judged every sweep sent."""
     seen = False
 
@@ -228,7 +229,7 @@ def test_a_vibrating_or_creeping_rig_gives_no_pair_a_still_one_does(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, disturbance: Disturbance) -> None:
     # Every decision's status, not one each 0.5 s: which rule refused is asserted, and a vibrating rig's
     # refusals do not change the state, so only the periodic status would show them.
-    monkeypatch.setattr(capture_engine, "STATUS_PERIOD_S", 0.0)
+    monkeypatch.setattr(capture_status, "STATUS_PERIOD_S", 0.0)
     unfaulted: Callable[[int, float], Fault] = lambda data, start: (lambda t, port, payload: payload)  # noqa: E731
     relayed = Relayed(tmp_path, replace(STILL, disturbance=disturbance), unfaulted)
     if not disturbance.active:  # streamed the same way, for up to 5 s: its pair comes after about 1.2 s

@@ -10,7 +10,7 @@ import yaml
 from calib.assess import TrustOptions
 from calib.evaluate import random_starts, random_subsets, run_stats
 from calib.geometry import Transform
-from calib.methods import Method, SolveRequest, photo_params, solve
+from calib.methods import Method, SolveRequest, solve
 from rigd.calibration.features import dataset_photo_pairs
 from rigd.cli import main
 from rigd.cli.exit_codes import ERROR
@@ -136,7 +136,7 @@ def test_a_method_is_evaluated_as_calibrate_runs_it(small_dataset, tmp_path, cap
     assert "uncertainty_check" in report["summary"]  # the method is assessed: its sigmas are checked
     dataset = open_dataset(sparse, WORKING_WIDTH_PX)
     (start,) = random_starts(dataset.ground_truth, 1, 1.0, 0.02, seed=2)
-    photo = dataset_photo_pairs(dataset, photo_params(Method.NID_ASSESSED), None)
+    photo = dataset_photo_pairs(dataset, Method.NID_ASSESSED.spec.photo, None)
     direct = solve(SolveRequest(method=Method.NID_ASSESSED, initial=start, trust=TrustOptions()), photo=photo)
     (run,) = report["runs"]
     assert direct.assessment is not None and run["verdict"] == direct.assessment.verdict.status.value
