@@ -223,12 +223,13 @@ def test_the_queue_is_bounded_and_an_identical_request_gets_the_same_job(tmp_pat
             assert again.json()["id"] == first.json()["id"]
             assert again.headers["Location"] == first.headers["Location"]
 
-            # Different requests (other sigmas): two may wait behind the first, the rest are refused.
+            # Different requests (other sigmas): two may wait behind the first, the rest are refused. The first
+            # leaves the queue when it starts running, which on a loaded machine may fall within these requests.
             responses = [client.post("/calibrate", json={**body, "sigmas_deg": [float(s)]}) for s in range(1, 7)]
             codes = [r.status_code for r in responses]
             accepted = codes.count(202)
-            assert accepted in (1, 2) and codes == [202] * accepted + [429] * (6 - accepted), codes
-            refused = responses[-1]
+            assert codes[0] == 202 and 1 <= accepted <= 3 and codes.count(429) == 6 - accepted, codes
+            refused = next(r for r in reversed(responses) if r.status_code == 429)
             assert int(refused.headers["Retry-After"]) > 0
             assert "2 calibrations are queued already" in refused.json()["detail"]
 
