@@ -10,8 +10,10 @@ histogram the first-order part). The soft histogram is additive over samples, so
 is formed once per pose and "without the cluster" is a subtraction.
 
 1. **Restarts.** The schedule's last ``trust.restart_levels`` levels rerun from ``trust.restarts`` poses
-   around the solution (the GMM's draws: +-2 deg, +-5 cm, seeded), every one on the points in view at the
-   solution, and compared by the finest level's cost on those points. One that ends lower is the solution.
+   around the solution (the GMM's draws: +-2 deg, +-5 cm, seeded), every one on the points the solve minimised
+   (the random subset in view at its start), and compared by the finest level's cost on those points: scored on
+   points they alone were fitted to, restarts would end lower for that alone. One that ends lower by more than a
+   statistical tie, within their reach, is the solution.
 2. **Uncertainty** at the solution, on the finest level (no blur): ``H`` the cost's Hessian by central second
    differences in local coordinates (steps of ``step_px`` pixels at the image, translation at the points'
    typical range), ``B`` the scatter of the clusters' influences on the gradient (clusters: 5 deg image cells
@@ -416,26 +418,21 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
     and beyond ``trust.max_move_deg`` / ``max_move_m`` fail the result, as the GMM's). ``executor``: the
     application's pool, whose workers take restarts beside this process (calib.handed: the same result)."""
     anchor = np.asarray(result.tau, dtype=np.float64)
+    fitted = np.asarray(result.subset_tau, dtype=np.float64)  # the restarts minimise the solve's own points
     rng = np.random.default_rng(trust.seed)
     tail = _tail(params, trust.restart_levels)
     calls = []
     for _ in range(trust.restarts):
         offset = np.concatenate([np.radians(rng.uniform(-1, 1, 3) * trust.restart_rot_deg),
                                  np.zeros(3) if fixed_translation else rng.uniform(-1, 1, 3) * trust.restart_trans_m])
-        calls.append((pairs, tau_at(anchor, offset), tail, fixed_translation, anchor))
+        calls.append((pairs, tau_at(anchor, offset), tail, fixed_translation, fitted))
     if fixed_translation:  # the same levels with the translation free: do the values held fit the data?
-        calls.append((pairs, anchor, tail, False, anchor))
-    cost = _finest_cost(pairs, anchor, params)
+        calls.append((pairs, anchor, tail, False, fitted))
+    cost = _finest_cost(pairs, fitted, params)
     done = shared_calls(executor, _restart, calls)
     loose = done.pop() if fixed_translation else None
-    # NID's cost is not a likelihood, and its lowest minimum need not be the truth's: a restart that ends lower
-    # within the restarts' own reach of the solution is the same basin solved better, and taken; one that ends
-    # lower beyond it is another minimum, an ambiguity the verdict weighs, and the solve's own answer is kept.
     runs: list[tuple[PhotoResult, float]] = [(result, cost(anchor)), *((run, cost(run.tau)) for run in done)]
-    reach = np.array([trust.restart_rot_deg] * 3 + [trust.restart_trans_m * 100.0] * 3)
-    near = [r for r in runs if bool(np.all(np.abs(xi_of(anchor, r[0].tau) * TO_DISPLAY) <= reach))]
-    best, best_cost = min(near, key=lambda r: r[1])
-    unc = photo_uncertainty(pairs, best.tau, params, trust, fixed_translation, opts)
+    best, best_cost, unc = _taken(pairs, runs, params, trust, fixed_translation, opts)
     offsets = np.array([xi_of(best.tau, r.tau) * TO_DISPLAY for r, _ in runs])
     # Every run from around the solution (the solve's own included) lands where the simplex shrank: their spread
     # is how well the solve finds this cost's minimum, which its curvature alone does not say.
@@ -455,3 +452,22 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
     verdict = verdict_of(unc, list(restarts), trust, evidence=evidence)
     return Assessment(np.asarray(best.tau, dtype=np.float64), as_optim(best), unc, restarts, verdict, moved, moved_m,
                       evidence)
+
+
+def _taken(pairs: list[PhotoPair], runs: list[tuple[PhotoResult, float]], params: PhotoParams, trust: TrustOptions,
+           fixed_translation: bool, opts: PhotoTrustOptions | None) -> tuple[PhotoResult, float, Uncertainty]:
+    """The run the assessment answers with, its cost and the uncertainty there, of ``runs``: the solve's own
+    (first) and the restarts, each with its cost on the solve's points. NID's cost is not a likelihood, and its
+    lowest minimum need not be the truth's: a restart is taken only within the restarts' own reach of the
+    solution (the same basin solved better; one lower beyond it is another minimum, an ambiguity the verdict
+    weighs) and only when lower by more than a statistical tie (``trust.ambiguity_nll`` in the cost's NLL scale:
+    closer, the points cannot tell the two apart, and the solve's own answer is kept)."""
+    (own, own_cost), anchor = runs[0], runs[0][0].tau
+    unc = photo_uncertainty(pairs, anchor, params, trust, fixed_translation, opts)
+    reach = np.array([trust.restart_rot_deg] * 3 + [trust.restart_trans_m * 100.0] * 3)
+    near = [r for r in runs[1:] if bool(np.all(np.abs(xi_of(anchor, r[0].tau) * TO_DISPLAY) <= reach))]
+    if near:
+        run, run_cost = min(near, key=lambda r: r[1])
+        if (own_cost - run_cost) / unc.kappa >= trust.ambiguity_nll:
+            return run, run_cost, photo_uncertainty(pairs, run.tau, params, trust, fixed_translation, opts)
+    return own, own_cost, unc

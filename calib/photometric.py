@@ -137,9 +137,12 @@ class PhotoLevel:
 
 @dataclass(frozen=True)
 class PhotoResult:
+    """``subset_tau``: the pose whose view chose the points the solve minimised (:func:`point_subsets`)."""
+
     tau: F64
     levels: tuple[PhotoLevel, ...]
     final_cost: float
+    subset_tau: F64
 
 
 def average_ranks(values: F64) -> F64:
@@ -465,13 +468,15 @@ def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
     """Coarse to fine over ``params.blur_deg`` from ``tau0``; each level one
     Nelder-Mead, the last rerun from its result up to ``params.restarts`` times until it moves less than the
     restart tolerance. ``fixed_translation`` holds t (a zero simplex step). ``subset_tau``: the pose whose
-    view chooses the points (default ``tau0``; the trust assessment's restarts use the solution's, so their
-    costs compare with its). ``on_iter(level, step, cost)`` every EVALS_PER_STEP cost evaluations, as the GMM's
-    optimiser reports its iterations."""
+    view chooses the points (default ``tau0``; the result's ``subset_tau``: the trust assessment's restarts
+    minimise the solve's own points, so their costs compare with its on the objective it minimised).
+    ``on_iter(level, step, cost)`` every EVALS_PER_STEP cost evaluations, as the GMM's optimiser reports its
+    iterations."""
     if not pairs:
         raise CalibError("no pairs to calibrate")
     tau = np.asarray(tau0, dtype=np.float64).copy()
-    subsets = point_subsets(pairs, tau if subset_tau is None else np.asarray(subset_tau, dtype=np.float64), params)
+    chosen_at = tau.copy() if subset_tau is None else np.asarray(subset_tau, dtype=np.float64)
+    subsets = point_subsets(pairs, chosen_at, params)
     if sum(len(s[0]) for s in subsets) == 0:
         raise CalibError("no LiDAR point projects into any image under the initial guess")
     traces = []
@@ -504,4 +509,4 @@ def optimise_photometric(pairs: list[PhotoPair], tau0: F64, params: PhotoParams,
                         and np.linalg.norm(xi[3:]) < params.restart_tol_m):
                     break
         traces.append(PhotoLevel(params.blur_deg[level], evals, (start_cost, cost), tau.copy()))
-    return PhotoResult(tau, tuple(traces), traces[-1].costs[-1])
+    return PhotoResult(tau, tuple(traces), traces[-1].costs[-1], chosen_at)

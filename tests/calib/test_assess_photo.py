@@ -86,6 +86,9 @@ def test_an_ideal_pair_is_assessed():
     assert np.all(error <= [0.05] * 3 + [0.5] * 3)  # deg, cm
     assert np.all(np.isfinite(u.sigma)) and np.all(u.sigma > 0)
     assert np.all(u.sigma >= u.restart_spread)  # the restarts' landing spread is part of the sigma
+    # the restarts came back to the solution (a statistical tie): the answer is the solve's own, to the bit
+    assert all(abs(r.delta_nll) < trust.ambiguity_nll for r in a.restarts)
+    assert np.array_equal(a.tau, solved.tau)
 
 
 def test_only_nid_is_assessed():
@@ -147,3 +150,49 @@ def test_a_ring_that_disagrees_with_the_image_widens_the_ring_jackknife():
     assert shifted.jackknife_rings[0] > 2.0 * clean.jackknife_rings[0]
     assert shifted.jackknife_rings[0] > 2.0 * shifted.jackknife[0]
     assert shifted.sigma[0] >= shifted.jackknife_rings[0]
+
+
+def _edged_pair(seed: int) -> PhotoPair:
+    """The ideal pair and 40 points on the edge of the view's 10 % margin (calib.photometric.point_subsets): a
+    turn of a fraction of a degree changes which points are in view, and so the random subset a solve keeps."""
+    base = ideal_pair(seed)
+    rng = np.random.default_rng(seed)
+    rays = base.camera.back_project(np.stack([rng.uniform(-21, -19, 40), rng.uniform(5, 145, 40)], axis=1))
+    edge = (rays / rays[:, 2:] * 8.0 - TRUTH.translation_m) @ TRUTH.rotation
+    uv, _ = base.camera.project(transform_points(TRUTH.tau, base.points_lidar)[0])
+    refl = np.r_[sample(base.grey, base.camera, uv), rng.uniform(0, 1, 40)].astype(np.float32)
+    image = np.rint(base.grey * 255).astype(np.uint8)
+    return photo_pair(image, np.vstack([base.points_lidar, edge]), refl, None, base.camera,
+                      PhotoParams(per_ring=False))
+
+
+SUBSET = replace(SMALL, max_points=800, min_points_per_pair=100)  # a random fifth of the points in view
+
+
+def test_restarts_are_compared_on_the_points_the_solve_minimised():
+    """The solve keeps a random subset of the points in view at its start, and the solution's view keeps
+    another: restarts solved and scored on the solution's subset ended well over a tie 'below' the solution (a fit
+    of other points, not a better pose of these) and replaced it. On the solve's own points they
+    come back to it, and the assessment answers with the plain solve's pose."""
+    pair = _edged_pair(5)
+    start = tau_at(TRUTH.tau, np.array([np.radians(0.4), np.radians(-0.3), np.radians(0.2), 0.02, -0.01, 0.01]))
+    solved = optimise_photometric([pair], start, SUBSET)
+    trust = replace(TrustOptions(), restarts=2)
+    a = assess_photometric([pair], solved, SUBSET, trust, starts=(start,))
+    assert all(r.origin == "restart" and abs(r.delta_nll) < trust.ambiguity_nll for r in a.restarts)
+    assert np.array_equal(a.tau, solved.tau)
+
+
+def test_a_restart_clearly_lower_is_taken():
+    """A solve stopped short of its minimum: the restarts around it end lower by far more than a tie and
+    closer to the truth, and the assessment answers with the lowest."""
+    pair = _edged_pair(5)
+    start = tau_at(TRUTH.tau, np.array([np.radians(0.4), np.radians(-0.3), np.radians(0.2), 0.02, -0.01, 0.01]))
+    short = optimise_photometric([pair], start, replace(SUBSET, blur_deg=(0.0,), step_rot_deg=(0.2,),
+                                                        step_trans_m=(0.01,), max_evals=10, restarts=0))
+    trust = replace(TrustOptions(), restarts=2)
+    a = assess_photometric([pair], short, SUBSET, trust, starts=(start,))
+    solution = [r for r in a.restarts if r.origin == "solution"]
+    assert len(solution) == 1 and solution[0].delta_nll > trust.ambiguity_nll
+    error = np.linalg.norm(xi_of(TRUTH.tau, a.tau)[:3]), np.linalg.norm(xi_of(TRUTH.tau, short.tau)[:3])
+    assert error[0] < error[1]
