@@ -157,8 +157,8 @@ class Uncertainty:
     intrinsics: F64 | None = None
     # The LiDAR elevation offset's part of the sigma (6,) deg/cm (None: exact; :func:`with_elevation`).
     elevation: F64 | None = None
-    # A second method's disagreement's part of the sigma (6,) deg/cm (None: no second method;
-    # :func:`with_cross_check`).
+    # A second method's disagreement (6,) deg/cm, d / sqrt(2) (None: no second method; :func:`with_cross_check`):
+    # the verdict vouches for no axis it alone leaves unknown; not part of ``sigma``.
     cross_check: F64 | None = None
 
 
@@ -194,15 +194,30 @@ def with_elevation(unc: Uncertainty, trust: TrustOptions) -> Uncertainty:
 
 
 def with_cross_check(unc: Uncertainty, trust: TrustOptions) -> Uncertainty:
-    """``unc`` with a second method's disagreement (``trust.cross_check_pose``, d from the solution) added: two
-    answers from independent evidence (the image's edges, its intensities) that land d apart cannot both be
+    """``unc`` with a second method's disagreement (``trust.cross_check_pose``, d from the solution) as its part:
+    two answers from independent evidence (the image's edges, its intensities) that land d apart cannot both be
     right; were both unbiased with one sigma, d would have that sigma times sqrt(2), so d / sqrt(2) along d is
-    the bias neither can rule out. Independent of the data's jackknives, it adds in quadrature."""
+    the bias neither can rule out. The verdict vouches for no axis it disputes (:func:`verdict_of`); it is kept
+    out of the sigma, which says how well this method's own data hold it."""
     if not trust.cross_check_pose or not unc.is_minimum:
         return unc
     part = np.asarray(trust.cross_check_pose, dtype=np.float64) / np.sqrt(2.0)
-    extra = np.outer(part, part)
-    return replace(_with_part(unc, extra, trust), cross_check=sigmas_display(extra))
+    return replace(unc, cross_check=sigmas_display(np.outer(part, part)))
+
+
+def _disputed(unc: Uncertainty, trust: TrustOptions) -> list[tuple[tuple[str, ...], str]]:
+    """The axes a second method's disagreement alone leaves unknown (``sigma_factor`` times its part beyond the
+    tolerance), with why: not vouched for, but no reason to fail a result, as the second method (the GMM's edges
+    on one pinhole camera) may be the biased one."""
+    if unc.cross_check is None:
+        return []
+    tol = trust.tolerance_display
+    over = [k for k in range(6) if trust.sigma_factor * unc.cross_check[k] > tol[k]]
+    if not over:
+        return []
+    moves = ", ".join(f"{AXES[k]} {np.sqrt(2.0) * unc.cross_check[k]:.2g}{'°' if k < 3 else ' cm'}" for k in over)
+    return [(tuple(AXES[k] for k in over), f"the image's edges refined from this answer move {moves}: the two costs "
+                                           "disagree, so neither vouches for these axes")]
 
 
 UNHELD_SHARE = 0.999  # a left-out solve this close to the kernel's width ran to it (trust_region_step's bound)
@@ -514,7 +529,7 @@ def verdict_of(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, *
     them (``moved_deg``, ``moved_m`` and ``places`` fill it when it is not given)."""
     ev = evidence or Evidence(moved_deg, moved_m, places)
     verdict = _verdict(unc, restarts, trust, ev.moved_deg, ev.moved_m)
-    disagree = _disagreements(ev, trust)
+    disagree = _disagreements(ev, trust) + _disputed(unc, trust)
     if verdict.status is Status.FAILED:
         return Verdict(Status.FAILED, verdict.weak_axes, (*verdict.reasons, *(r for _, r in disagree)), ev.fixed)
     nothing = _vouches_for_nothing(ev, trust)

@@ -37,6 +37,7 @@ from calib.pipeline import (
     calibrate,
     paper_params,
     schedule,
+    solve_prior,
     with_sigmas,
 )
 from calib.prior import Prior
@@ -236,8 +237,7 @@ def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParam
             slope = photo_elevation_slope(photo, solved, opts, fixed, executor)
             trust = replace(trust, elevation_sigma_pose=tuple(float(v) for v in slope * trust.elevation_sigma_deg))
         if refined is not None:
-            cross_tau = collect([refined])[0]
-            trust = replace(trust, cross_check_pose=tuple(float(v) for v in xi_of(np.asarray(solved.tau), cross_tau)))
+            trust = _cross_check(solved, collect([refined])[0], trust)
         a = assess_photometric(photo, solved, opts, trust, fixed_translation=fixed, starts=(start.tau,),
                                executor=executor)
         return CalibResult(Transform.from_tau(a.tau), a.optim, stats, a)
@@ -246,11 +246,24 @@ def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParam
 
 def refine_edges(feats: list[PairFeatures], tau: F64, params: CalibParams, prior: Prior | None, levels: int) -> F64:
     """The GMM's edges refined from ``tau`` (6,) over the last ``levels`` levels of their schedule from there (one
-    more when folds are on every level, as the restarts of calib.assess): where the edges put the pose near it."""
+    more when folds are on every level, as the restarts of calib.assess), its lever arm a weak prior as a GMM solve's
+    guess is (calib.pipeline.solve_prior): where the edges put the pose near it."""
     optim = schedule(feats, params, tau)
     levels += 1 if optim.fold_levels >= len(optim.sigmas_deg) else 0
     tail = tail_options(optim, min(levels, len(optim.sigmas_deg)))
-    return np.asarray(optimise(feats, tau, tail, params.gmm, prior=prior).tau, dtype=np.float64)
+    anchored = solve_prior(prior, Transform.from_tau(tau), params.guess_sigma_m)
+    return np.asarray(optimise(feats, tau, tail, params.gmm, prior=anchored).tau, dtype=np.float64)
+
+
+def _cross_check(solved: PhotoResult, refined: F64, trust: TrustOptions) -> TrustOptions:
+    """``trust`` with the edges' offset from NID's answer, if they stayed within the restarts' reach of it (every
+    axis within +-2 deg / +-5 cm): farther, the edges have no minimum near it (a pinhole's edges often have none,
+    docs/baselines.md), which says nothing of NID's bias."""
+    offset = xi_of(np.asarray(solved.tau, dtype=np.float64), refined)
+    reach = np.array([np.radians(trust.restart_rot_deg)] * 3 + [trust.restart_trans_m] * 3)
+    if np.any(np.abs(offset) > reach):
+        return trust
+    return replace(trust, cross_check_pose=tuple(float(v) for v in offset))
 
 
 def _levels(solved: PhotoResult, gmm: CalibResult | None) -> OptimResult:

@@ -159,17 +159,22 @@ def _rings(axes: list[str], a: Assessment) -> Step | None:
                 "lever arm from the rig's drawing", (Action.CAPTURE, Action.LEVER_ARM), tuple(axes))
 
 
-def _set_by(axes: list[str], sigma: np.ndarray, part: np.ndarray | None) -> list[str]:
-    """The ``axes`` whose ``sigma`` (6,) ``part`` (6,) sets: it is larger than the rest in quadrature."""
-    if part is None:
-        return []
-    rest = np.sqrt(np.maximum(np.square(sigma) - np.square(part), 0.0))
-    return [ax for ax in axes if part[AXES.index(ax)] > rest[AXES.index(ax)]]
-
-
 def elevation_set(axes: list[str], a: Assessment) -> list[str]:
     """The ``axes`` whose sigma the LiDAR's elevation offset (fitted or declared) sets: its part is the larger."""
-    return _set_by(axes, a.uncertainty.sigma, a.uncertainty.elevation)
+    u = a.uncertainty
+    if u.elevation is None:
+        return []
+    data = np.sqrt(np.maximum(np.square(u.sigma) - np.square(u.elevation), 0.0))
+    return [ax for ax in axes if u.elevation[AXES.index(ax)] > data[AXES.index(ax)]]
+
+
+def disputed_set(axes: list[str], a: Assessment, trust: TrustOptions) -> list[str]:
+    """The ``axes`` a second method's disagreement alone leaves unknown (calib.assess.with_cross_check)."""
+    part = a.uncertainty.cross_check
+    if part is None:
+        return []
+    tol = trust.tolerance_display
+    return [ax for ax in axes if trust.sigma_factor * part[AXES.index(ax)] > tol[AXES.index(ax)]]
 
 
 def _cross_check(axes: list[str], a: Assessment) -> Step | None:
@@ -278,7 +283,7 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[S
     by_elevation = elevation_set(counted, a)
     steps.append(_elevation(by_elevation, a))
     counted = [ax for ax in counted if ax not in by_elevation]
-    by_cross_check = _set_by(counted, a.uncertainty.sigma, a.uncertainty.cross_check)
+    by_cross_check = disputed_set(counted, a, trust)
     steps.append(_cross_check(by_cross_check, a))
     counted = [ax for ax in counted if ax not in by_cross_check]
     by_rings = ring_set(counted, a)

@@ -7,12 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from calib.assess import TrustOptions
 from calib.errors import CalibError
 from calib.gmm import SigmaModel
-from calib.methods import FIELD_METHODS, Method, SolveRequest, solve
-from calib.photometric import PhotoCost
+from calib.methods import FIELD_METHODS, Method, SolveRequest, _cross_check, solve
+from calib.photometric import PhotoCost, PhotoResult
 from calib.pipeline import CalibParams, PointEdgeMethod, paper_params
 from calib.prior import Prior
+from calib.uncertainty import tau_at
 from tests.calib.test_photometric import TRUTH, ideal_pair
 
 
@@ -72,3 +74,14 @@ def test_a_given_ladder_replaces_both_the_default_and_the_heads():
 def test_a_ladder_that_is_not_positive_angles_is_refused_naming_it(bad):
     with pytest.raises(CalibError, match="sigmas must be positive angles in degrees"):
         SolveRequest(initial=TRUTH, sigmas_deg=bad).check()
+
+
+def test_the_edges_second_opinion_counts_only_near_nids_answer():
+    """Within the restarts' reach (2 deg / 5 cm) the edges' offset joins NID's sigma; farther, they found no minimum
+    near it (a pinhole's edges often have none) and say nothing of NID's bias."""
+    solved = PhotoResult(TRUTH.tau, (), 0.0, TRUTH.tau)
+    trust = TrustOptions()
+    near = np.array([0.0, np.radians(0.6), 0.0, 0.0, 0.04, 0.0])
+    assert _cross_check(solved, tau_at(TRUTH.tau, near), trust).cross_check_pose == pytest.approx(tuple(near))
+    far = np.array([0.0, np.radians(0.6), 0.0, 0.0, 0.07, 0.0])  # 7 cm along one axis: beyond the reach
+    assert _cross_check(solved, tau_at(TRUTH.tau, far), trust) is trust
