@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from calib import methods
 from calib.assess import Status, TrustOptions
 from calib.assess_photo import (
     _cluster_hists,
@@ -98,13 +99,21 @@ def test_only_nid_is_assessed():
                            replace(SMALL, cost=PhotoCost.MI), TrustOptions(restarts=0))
 
 
-def test_nid_assessed_method_has_a_verdict_and_the_baseline_none():
+def test_nid_assessed_method_has_a_verdict_the_edges_second_opinion_and_the_baseline_none(monkeypatch):
     pair = ideal_pair(4)
     start = Transform.from_tau(tau_at(TRUTH.tau, np.array([np.radians(0.2), 0, 0, 0.01, 0, 0])))
     trust = TrustOptions(restarts=1)
     assert solve(SolveRequest(method=Method.NID, initial=start, trust=trust), photo=[pair]).assessment is None
-    result = solve(SolveRequest(method=Method.NID_ASSESSED, initial=start, trust=trust), photo=[pair])
-    assert result.assessment is not None and result.assessment.verdict.status is not Status.NOT_ASSESSED
+    # The edges (stood in for: their solve is calib.pipeline's) land 0.5 deg of pitch from NID's answer.
+    offset = np.array([0.0, np.radians(0.5), 0.0, 0.0, 0.0, 0.0])
+    asked = []
+    monkeypatch.setattr(methods, "refine_edges", lambda feats, tau, *_: asked.append(feats) or tau_at(tau, offset))
+    edges = [object()]
+    result = solve(SolveRequest(method=Method.NID_ASSESSED, initial=start, trust=trust), photo=[pair], feats=edges)
+    a = result.assessment
+    assert a is not None and a.verdict.status is not Status.NOT_ASSESSED and asked == [edges]
+    assert a.uncertainty.cross_check is not None and a.uncertainty.cross_check[1] == pytest.approx(0.5 / np.sqrt(2))
+    assert "pitch" in a.verdict.weak_axes and any("edges refined from this answer" in r for r in a.verdict.reasons)
 
 
 def test_restarts_in_a_pool_give_the_same_assessment():
