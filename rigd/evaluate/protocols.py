@@ -235,6 +235,8 @@ def _runs_yaml(runs: Sequence[Run], stats: RunStats, protocol: Protocol) -> list
         entry.update(converged=bool(converged), final_cost=run.final_cost, iterations=run.iterations,
                      wall_time_s=round(run.wall_s, 3), verdict=run.verdict,
                      sigma=None if run.sigma is None else [v if np.isfinite(v) else None for v in run.sigma])
+        if run.cross_check is not None:
+            entry["cross_check"] = list(run.cross_check)
         if run.error is not None:
             entry["error"] = run.error
         out.append(entry)

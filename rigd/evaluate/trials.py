@@ -100,6 +100,8 @@ class Run:
     wall_s: float
     sigma: tuple[float, ...] | None = None  # per-axis sigma, deg x3 and cm x3 (calib.assess)
     verdict: str | None = None
+    # nid-assessed: the edges' disagreement d / sqrt(2), deg x3 and cm x3 (calib.assess.with_cross_check)
+    cross_check: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -154,7 +156,8 @@ def run_task(state: WorkerState, task: Task) -> Run:
     a = result.assessment
     return Run(task.index, task.pairs, task.start, result.T_camera_lidar, None, result.optim.final_cost, iterations,
                time.monotonic() - started, None if a is None else tuple(float(v) for v in a.uncertainty.sigma),
-               None if a is None else a.verdict.status.value)
+               None if a is None else a.verdict.status.value,
+               None if a is None or a.uncertainty.cross_check is None else tuple(map(float, a.uncertainty.cross_check)))
 
 
 Item = TypeVar("Item")
