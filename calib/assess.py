@@ -205,15 +205,20 @@ def with_cross_check(unc: Uncertainty, trust: TrustOptions) -> Uncertainty:
     return replace(unc, cross_check=sigmas_display(np.outer(part, part)))
 
 
-def _disputed(unc: Uncertainty, trust: TrustOptions) -> list[tuple[tuple[str, ...], str]]:
-    """The axes a second method's disagreement alone leaves unknown (``sigma_factor`` times its part beyond the
-    tolerance), with why: not vouched for, but no reason to fail a result, as the second method (the GMM's edges
-    on one pinhole camera) may be the biased one."""
+def disputed_axes(unc: Uncertainty, trust: TrustOptions) -> tuple[str, ...]:
+    """The axes a second method's disagreement alone leaves unknown: ``sigma_factor`` times its part beyond the
+    tolerance."""
     if unc.cross_check is None:
-        return []
-    tol = trust.tolerance_display
-    over = [k for k in range(6) if trust.sigma_factor * unc.cross_check[k] > tol[k]]
-    if not over:
+        return ()
+    over = trust.sigma_factor * unc.cross_check > trust.tolerance_display
+    return tuple(AXES[k] for k in np.flatnonzero(over))
+
+
+def _disputed(unc: Uncertainty, trust: TrustOptions) -> list[tuple[tuple[str, ...], str]]:
+    """:func:`disputed_axes` with why: not vouched for, but no reason to fail a result, as the second method (the
+    GMM's edges on one pinhole camera) may be the biased one."""
+    over = [AXES.index(ax) for ax in disputed_axes(unc, trust)]
+    if not over or unc.cross_check is None:
         return []
     moves = ", ".join(f"{AXES[k]} {np.sqrt(2.0) * unc.cross_check[k]:.2g}{'°' if k < 3 else ' cm'}" for k in over)
     return [(tuple(AXES[k] for k in over), f"the image's edges refined from this answer move {moves}: the two costs "

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from calib.assess import Assessment, Status, TrustOptions, restarts_elsewhere
+from calib.assess import Assessment, Status, TrustOptions, disputed_axes, restarts_elsewhere
 from calib.uncertainty import AXES
 
 TRANSLATION = ("x", "y", "z")
@@ -168,15 +168,6 @@ def elevation_set(axes: list[str], a: Assessment) -> list[str]:
     return [ax for ax in axes if u.elevation[AXES.index(ax)] > data[AXES.index(ax)]]
 
 
-def disputed_set(axes: list[str], a: Assessment, trust: TrustOptions) -> list[str]:
-    """The ``axes`` a second method's disagreement alone leaves unknown (calib.assess.with_cross_check)."""
-    part = a.uncertainty.cross_check
-    if part is None:
-        return []
-    tol = trust.tolerance_display
-    return [ax for ax in axes if trust.sigma_factor * part[AXES.index(ax)] > tol[AXES.index(ax)]]
-
-
 def _cross_check(axes: list[str], a: Assessment) -> Step | None:
     part = a.uncertainty.cross_check
     if not axes or part is None:
@@ -283,7 +274,7 @@ def next_steps(a: Assessment, facts: SceneFacts, trust: TrustOptions) -> tuple[S
     by_elevation = elevation_set(counted, a)
     steps.append(_elevation(by_elevation, a))
     counted = [ax for ax in counted if ax not in by_elevation]
-    by_cross_check = disputed_set(counted, a, trust)
+    by_cross_check = [ax for ax in counted if ax in disputed_axes(a.uncertainty, trust)]
     steps.append(_cross_check(by_cross_check, a))
     counted = [ax for ax in counted if ax not in by_cross_check]
     by_rings = ring_set(counted, a)
