@@ -20,6 +20,7 @@ keeps roll and pitch within ``tilt_deg`` of looking level along the LiDAR's hori
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, replace
@@ -79,11 +80,13 @@ class Candidate:
 @dataclass(frozen=True)
 class SearchResult:
     """``candidates`` distinct refined starts, best first (with two scores, each score's best before the
-    runners-up); ``evaluations`` the grid's mounts (each scored by every one of ``scores``)."""
+    runners-up); ``evaluations`` the grid's mounts (each scored by every one of ``scores``); ``wall_s`` the
+    search's own wall time in seconds (grid and polish, not the solves after it)."""
 
     candidates: tuple[Candidate, ...]
     evaluations: int
     scores: tuple[str, ...] = ("edges",)
+    wall_s: float = 0.0
 
     @property
     def best(self) -> Candidate:
@@ -320,6 +323,7 @@ def search_initial(
     ``executor`` (the application's process pool): the pairs' edge grids go there while this process scores
     mutual information, then takes back the pairs no worker has started; all edge candidates but the first are
     polished there. The same result (the per-pair grids are summed in the pairs' order either way)."""
+    started = time.monotonic()
     opts = opts or default_search(feats[0].camera)
     mounts = grid_mounts(opts)
     rotations = _rotations(base_rotation(feats[0].camera), mounts)
@@ -329,5 +333,6 @@ def search_initial(
     edges = _distinct(_edge_candidates(feats, grid, rotations, mounts, translation_m, opts, on_progress, executor),
                       opts.distinct_deg)
     if not photo:
-        return SearchResult(tuple(edges), len(mounts))
-    return SearchResult(tuple(_interleaved(edges, mi, opts.distinct_deg)), len(mounts), ("edges", "mutual information"))
+        return SearchResult(tuple(edges), len(mounts), wall_s=time.monotonic() - started)
+    return SearchResult(tuple(_interleaved(edges, mi, opts.distinct_deg)), len(mounts), ("edges", "mutual information"),
+                        wall_s=time.monotonic() - started)

@@ -100,22 +100,19 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
     with worker_pool(request.workers) as pool:
         try:
             features = features_for(dataset, solve_request, progress, request.workers)
-            searched_at = time.monotonic()
             if progress:
                 progress(Stage.OPTIMISING if solve_request.initial is not None else Stage.SEARCH, 0, 1)
             result = solve(solve_request, feats=features.gmm, photo=features.photo,
                            search_photo=features.search_photo, executor=pool, on_iter=on_iter, on_search=on_search)
         except CalibError as exc:
             raise RigdError(f"{dataset.root}: {exc}") from exc
-        search_wall_s = time.monotonic() - searched_at
         initial = solve_request.initial
         if initial is None:
             assert result.search is not None  # no start: the search gave it
             initial = Transform.from_tau(result.search.best.tau)
         report = build_report(result=result, resolved=resolved, initial=initial, dataset=dataset,
                               wall_s=time.monotonic() - started, places=features.places,
-                              steps=_steps(result, dataset, features, resolved),
-                              search_wall_s=search_wall_s)
+                              steps=_steps(result, dataset, features, resolved))
         if request.out_dir is not None:
             _write(request, dataset, features, initial, result, report, progress)
     return CalibrationOutcome(result.T_camera_lidar, initial, report, request.out_dir)

@@ -40,7 +40,7 @@ from rigd.report import (
 )
 
 
-def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> InitialSearch:
+def search_yaml(found: SearchResult, opts: SearchOptions) -> InitialSearch:
     """The ``initial_search`` section of a report: which grid mount won and where the runners-up ended."""
     best = Transform.from_tau(found.best.tau)
     return {
@@ -53,7 +53,7 @@ def search_yaml(found: SearchResult, opts: SearchOptions, wall_s: float) -> Init
                         "cost": c.cost, "grid_rank": c.grid_rank, "score": c.score,
                         "from_start_deg": rotation_angle_deg(best.rotation, Transform.from_tau(c.tau).rotation)}
                        for c in found.candidates],
-        "wall_time_s": round(wall_s, 3),
+        "wall_time_s": round(found.wall_s, 3),
     }
 
 
@@ -207,7 +207,7 @@ def _settings(resolved: Resolved, cameras: list[CameraModel]) -> _Settings:
 
 
 def build_report(*, result: CalibResult, resolved: Resolved, initial: Transform, dataset: Dataset, wall_s: float,
-                 places: tuple[int, ...], steps: tuple[Step, ...] = (), search_wall_s: float = 0.0
+                 places: tuple[int, ...], steps: tuple[Step, ...] = ()
                  ) -> CalibrationReport:
     """The whole report of ``result`` (solved as ``resolved`` says, from ``initial``), its sections in the order
     extrinsics.yaml lists them; ``steps``: what to do next (rigd.calibration.advice)."""
@@ -216,7 +216,7 @@ def build_report(*, result: CalibResult, resolved: Resolved, initial: Transform,
     assessed = (not_assessed_yaml(solve) if result.assessment is None
                 else assessment_yaml(result.assessment, steps))
     searched: _Searched = {} if result.search is None or solve.search is None else {
-        "initial_search": search_yaml(result.search, solve.search, search_wall_s)}
+        "initial_search": search_yaml(result.search, solve.search)}
     return {
         "T_camera_lidar": transform_to_yaml(T),
         "quality": _quality_yaml(result, dataset, wall_s),

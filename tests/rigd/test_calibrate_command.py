@@ -1,11 +1,14 @@
 import json
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
 import yaml
 
+import calib.pipeline
+from calib.search import search_initial
 from rigd.cli import main
 from rigd.cli.exit_codes import CANT_CREATE, ERROR, USAGE
 from rigd.dataset import open_dataset, write_pair
@@ -123,11 +126,20 @@ def test_a_lever_arm_no_rig_has_is_refused_naming_its_unit(small_dataset, tmp_pa
     assert "[0.0934, 0.0624, -0.1568] m" in err and not out.exists()
 
 
-def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path, capsys):
+def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path, capsys, monkeypatch):
     # Simulated datasets carry no initial_guess: the global search finds the start. In this process, serial
     # (--workers 1): the search's pool gives the serial numbers (tests/calib/test_assess.py), and the command as a
     # process with its pool is test_calibrate_json_prints_one_object_and_writes_outputs.
     out = tmp_path / "searched"
+    searches = []
+
+    def timed_search(*args, **kwargs):
+        started = time.monotonic()
+        found = search_initial(*args, **kwargs)
+        searches.append(time.monotonic() - started)
+        return found
+
+    monkeypatch.setattr(calib.pipeline, "search_initial", timed_search)
     code = main(["calibrate", str(small_dataset), "--out", str(out), "--json", "--no-visuals", "--workers", "1"])
     captured = capsys.readouterr()
     report = json.loads(captured.out)
@@ -135,6 +147,8 @@ def test_calibrate_without_a_guess_searches_globally(small_dataset, tmp_path, ca
     search = report["initial_search"]
     assert search["grid"]["mounts"] == 600 and search["candidates"][0]["from_start_deg"] == 0.0
     assert search["grid"]["scores"] == ["edges", "mutual information"]  # the simulated clouds carry intensity
+    # the search's own time, not the solves' after it (they were once timed together)
+    assert len(searches) == 1 and 0.0 < search["wall_time_s"] <= searches[0]
     # none given (with --search: chosen, not missing), said with the method chosen for it
     assert report["start"] == {"source": "search", "choice": "global search",
                                "why": "the rig file has no initial guess"}
