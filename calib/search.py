@@ -279,8 +279,8 @@ def _edge_candidates(feats: list[PairFeatures], grid: list[Handed[F64]], rotatio
 
 
 def _mi_candidates(photo: list[PhotoPair], rotations: F64, mounts: F64, translation_m: F64,
-                   opts: SearchOptions) -> list[Candidate]:
-    costs = _mi_grid(photo, rotations, translation_m, opts, None)
+                   opts: SearchOptions, on_progress: Callable[[int, int], None] | None) -> list[Candidate]:
+    costs = _mi_grid(photo, rotations, translation_m, opts, on_progress)
     if not np.any(costs < 0):
         return []
     minima = _grid_minima(rotations, costs, opts)
@@ -315,7 +315,8 @@ def search_initial(
     photo: list[PhotoPair] | None = None,
 ) -> SearchResult:
     """Distinct starts for the coarse-to-fine solve, best first; ``translation_m`` (3,) the lever arm
-    (the translation of T_camera_lidar) held during the search. ``on_progress(done, total)`` per pair.
+    (the translation of T_camera_lidar) held during the search. ``on_progress(done, total)`` per batch of the
+    MI grid, then per pair's edge grid.
     ``photo``: the pairs' images and LiDAR reflectivity; given, the mounts are scored by mutual information
     (:mod:`calib.search_mi`) too, and each score's best start comes before the runners-up: neither score finds
     every rig (the edges failed on a real head's street scenes, MI on a simulated set with sensor effects and
@@ -329,8 +330,21 @@ def search_initial(
     rotations = _rotations(base_rotation(feats[0].camera), mounts)
     # The pairs' edge grids go to the pool while this process scores mutual information.
     grid = [hand(executor, _pair_grid, feats, i, rotations, translation_m, opts) for i in range(len(feats))]
-    mi = _distinct(_mi_candidates(photo, rotations, mounts, translation_m, opts), opts.distinct_deg) if photo else []
-    edges = _distinct(_edge_candidates(feats, grid, rotations, mounts, translation_m, opts, on_progress, executor),
+    # Progress counts the MI grid's batches, then the pairs' edge grids (which the pool computes meanwhile).
+    mi_steps = -(-len(rotations) // opts.batch) if photo else 0
+    steps = mi_steps + len(feats)
+
+    def mi_progress(done: int, _total: int) -> None:
+        if on_progress is not None:
+            on_progress(done, steps)
+
+    def edge_progress(done: int, _total: int) -> None:
+        if on_progress is not None:
+            on_progress(mi_steps + done, steps)
+
+    mi = _distinct(_mi_candidates(photo, rotations, mounts, translation_m, opts, mi_progress),
+                   opts.distinct_deg) if photo else []
+    edges = _distinct(_edge_candidates(feats, grid, rotations, mounts, translation_m, opts, edge_progress, executor),
                       opts.distinct_deg)
     if not photo:
         return SearchResult(tuple(edges), len(mounts), wall_s=time.monotonic() - started)

@@ -109,3 +109,15 @@ def test_the_mi_polish_prepares_each_blur_once_and_holds_only_the_current_one(mo
     assert len(polished) == 3
     assert [width for width, _ in made] == [2.0, 1.0, 0.5]
     assert [ref() is not None for _, ref in made] == [False, False, True]
+
+
+def test_progress_counts_the_mi_batches_then_the_pairs_edge_grids(pairs, monkeypatch):
+    """With images the MI grid runs first in this process: the bar moves with its batches, not after them."""
+    monkeypatch.setattr(initial_module, "prepare", lambda photo, blur_deg, seed=0: [])
+    monkeypatch.setattr(initial_module, "mi_costs", lambda prepared, rotations, t: -np.ones(len(rotations)))
+    seen: list[tuple[int, int]] = []
+    coarse = SearchOptions(yaw_step_deg=30.0, tilt_step_deg=30.0)  # 108 mounts: 2 MI batches of 64
+    found = search_initial(pairs, np.zeros(3), coarse, on_progress=lambda done, total: seen.append((done, total)),
+                           photo=[object()])
+    assert found.scores == ("edges", "mutual information")
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
