@@ -68,20 +68,37 @@ class SweepItem:
     stats: StreamStats
 
 
-class LidarFeed:
+class _ThreadedFeed:
+    """A source read by its own thread (``_run``, named ``thread``); ``close`` stops it and calls ``on_close``."""
+
+    def __init__(self, describe: str, on_close: Callable[[], None] | None, thread: str) -> None:
+        self.describe = describe
+        self._on_close = on_close
+        self._closed = threading.Event()
+        self._ended = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name=thread, daemon=True)
+
+    def _run(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        self._closed.set()
+        if self._on_close is not None:
+            self._on_close()
+        if self._thread.is_alive():
+            self._thread.join(_JOIN_S)
+
+
+class LidarFeed(_ThreadedFeed):
     """Iterates ``sweeps()`` in a thread; :meth:`get` hands the sweeps over. ``describe`` names the source."""
 
     def __init__(self, describe: str, sweeps: Callable[[], Iterable[Sweep]], stats: Callable[[], StreamStats],
                  on_close: Callable[[], None] | None = None, queue_sweeps: int = 50) -> None:
-        self.describe = describe
+        super().__init__(describe, on_close, "capture-lidar")
         self._sweeps = sweeps
         self._stats = stats
-        self._on_close = on_close
         self._queue: queue.Queue[SweepItem] = queue.Queue(maxsize=queue_sweeps)
-        self._closed = threading.Event()
-        self._ended = threading.Event()
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name="capture-lidar", daemon=True)
 
     def start(self) -> LidarFeed:
         self._thread.start()
@@ -113,13 +130,6 @@ class LidarFeed:
                 raise SourceEndedError(f"LiDAR source {self.describe} ended") from None
             return None
 
-    def close(self) -> None:
-        self._closed.set()
-        if self._on_close is not None:
-            self._on_close()
-        if self._thread.is_alive():
-            self._thread.join(_JOIN_S)
-
 
 @dataclass(frozen=True)
 class CameraFrame:
@@ -147,23 +157,18 @@ class CameraFeed(Protocol):
     def close(self) -> None: ...
 
 
-class ThreadedCameraFeed:
+class ThreadedCameraFeed(_ThreadedFeed):
     """A live camera: ``frames()`` iterated in a thread; the newest frames are kept for :meth:`poll`."""
 
     def __init__(self, describe: str, frames: Callable[[], Iterator[CameraFrame]],
                  on_close: Callable[[], None] | None = None, frame_gap_s: float = 0.0) -> None:
-        self.describe = describe
+        super().__init__(describe, on_close, "capture-camera")
         self.frame_gap_s = frame_gap_s
         self._frames = frames
-        self._on_close = on_close
         self._buffer: deque[CameraFrame] = deque(maxlen=_CAMERA_BUFFER)
         self._lock = threading.Lock()
-        self._closed = threading.Event()
-        self._ended = threading.Event()
-        self._error: BaseException | None = None
         self._last = time.monotonic()
         self._frames_seen = False
-        self._thread = threading.Thread(target=self._run, name="capture-camera", daemon=True)
 
     def start(self) -> ThreadedCameraFeed:
         self._last = time.monotonic()
@@ -183,9 +188,7 @@ class ThreadedCameraFeed:
         except DriverError as exc:
             self._error = exc
         finally:
-            close = getattr(stream, "close", None)
-            if close is not None:
-                close()  # a generator holding the SDK camera releases it here, in its own thread
+            _close(stream)  # a generator holding the SDK camera releases it here, in its own thread
             self._ended.set()
 
     def poll(self, until_host_s: float) -> list[CameraFrame]:
@@ -202,13 +205,6 @@ class ThreadedCameraFeed:
     def seconds_since_frame(self) -> tuple[float, bool] | None:
         with self._lock:
             return time.monotonic() - self._last, self._frames_seen
-
-    def close(self) -> None:
-        self._closed.set()
-        if self._on_close is not None:
-            self._on_close()
-        if self._thread.is_alive():
-            self._thread.join(_JOIN_S)
 
 
 class PulledCameraFeed:
@@ -240,9 +236,14 @@ class PulledCameraFeed:
         return None
 
     def close(self) -> None:
-        close = getattr(self._frames, "close", None)
-        if close is not None:
-            close()
+        _close(self._frames)
+
+
+def _close(stream: object) -> None:
+    """Close ``stream`` if it can be closed (a generator holding a camera releases it)."""
+    close = getattr(stream, "close", None)
+    if close is not None:
+        close()
 
 
 def frame_time(frame: PanoramaFrame, describe: str) -> float:
@@ -330,12 +331,8 @@ def _sim_rig(stack: contextlib.ExitStack, spec: MotionRigSpec) -> Sources:
     receiver on loopback, the camera renders frames at the rig's pose of the moment."""
     started = spec.started(time.time() + START_LEAD_S)
     receiver = UdpReceiver(Vlp16Config(), host="127.0.0.1", ports=Ports(0, 0)).start()
-    stack.callback(receiver.close)
+    lidar = _receiver_feed(stack, f"sim (udp 127.0.0.1:{receiver.ports.data})", receiver)
     stack.enter_context(LidarProcess(started, "127.0.0.1", receiver.ports.data, receiver.ports.position))
-    describe = f"sim (udp 127.0.0.1:{receiver.ports.data})"
-    lidar = LidarFeed(describe, lambda: receiver.sweeps(timeout_s=float("inf")), lambda: receiver.stats,
-                      receiver.close).start()
-    stack.callback(lidar.close)
     return Sources(lidar, _sim_camera(stack, "sim", started), started)
 
 
@@ -357,22 +354,25 @@ def _converted(stream: Iterator[_Item], convert: Callable[[_Item], CameraFrame])
         for item in stream:
             yield convert(item)
     finally:
-        close = getattr(stream, "close", None)
-        if close is not None:
-            close()
+        _close(stream)
 
 
 def _lidar_feed(stack: contextlib.ExitStack, spec: LidarSpec) -> LidarFeed:
-    if spec.kind is LidarKind.PCAP:
-        assert spec.path is not None
-        replay = PcapReplay(spec.path, Vlp16Config())
-        feed = LidarFeed(str(spec), lambda: replay, lambda: replay.stats).start()
-    else:
-        receiver = UdpReceiver(Vlp16Config(), host=spec.host, ports=Ports(spec.data_port, spec.position_port))
-        receiver.start()
-        stack.callback(receiver.close)
-        feed = LidarFeed(str(spec), lambda: receiver.sweeps(timeout_s=float("inf")), lambda: receiver.stats,
-                         receiver.close).start()
+    if spec.kind is not LidarKind.PCAP:
+        receiver = UdpReceiver(Vlp16Config(), host=spec.host, ports=Ports(spec.data_port, spec.position_port)).start()
+        return _receiver_feed(stack, str(spec), receiver)
+    assert spec.path is not None
+    replay = PcapReplay(spec.path, Vlp16Config())
+    feed = LidarFeed(str(spec), lambda: replay, lambda: replay.stats).start()
+    stack.callback(feed.close)
+    return feed
+
+
+def _receiver_feed(stack: contextlib.ExitStack, describe: str, receiver: UdpReceiver) -> LidarFeed:
+    """The sweeps of the started ``receiver``; both are closed with ``stack``."""
+    stack.callback(receiver.close)
+    feed = LidarFeed(describe, lambda: receiver.sweeps(timeout_s=float("inf")), lambda: receiver.stats,
+                     receiver.close).start()
     stack.callback(feed.close)
     return feed
 
