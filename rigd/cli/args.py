@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 from tqdm import tqdm
 
-from calib.assess import TrustOptions
+from calib.drift import DriftOptions
 from calib.evaluate import OutlierRule, StartAxes
 from calib.methods import Method
 from rigd.calibration.progress import Stage
@@ -126,12 +126,15 @@ def expert(parser: argparse.ArgumentParser, *names: str, help: str, **kwargs: An
     action.expert_help = f"(expert) {help}"  # type: ignore[attr-defined]
 
 
-def parse_tolerance(text: str, option: str = "--tolerance") -> TrustOptions:
-    """'rotation_deg,translation_cm' -> the verdict's tolerance (positive numbers)."""
-    rot, trans = numbers(text, option, 2)
+def parse_threshold(text: str | None) -> DriftOptions:
+    """``--threshold`` 'rotation_deg,translation_cm' (positive numbers) -> rigd check's options (None: its
+    defaults)."""
+    if text is None:
+        return DriftOptions()
+    rot, trans = numbers(text, "--threshold", 2)
     if rot <= 0 or trans <= 0:
-        raise RigdError(f"{option} must be positive 'rotation_deg,translation_cm', got {text!r}")
-    return TrustOptions(tolerance_rot_deg=rot, tolerance_trans_cm=trans)
+        raise RigdError(f"--threshold must be positive 'rotation_deg,translation_cm', got {text!r}")
+    return DriftOptions(threshold_rot_deg=rot, threshold_trans_cm=trans)
 
 
 # The options of rigd evaluate convergence, precision, drift and initial (compare has its own).

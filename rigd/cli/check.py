@@ -10,7 +10,7 @@ from typing import Any
 from calib.drift import DriftOptions, DriftStatus
 from calib.geometry import Transform
 from rigd.calibration.check_job import extrinsics_from_file, extrinsics_from_store, group_lines, run_check
-from rigd.cli.args import parse_tolerance, print_progress
+from rigd.cli.args import parse_threshold, print_progress
 from rigd.cli.bag_input import DatasetInput, add_bag_options, dataset_input
 from rigd.cli.exit_codes import Check
 from rigd.dataset import open_dataset
@@ -60,15 +60,8 @@ def _checked(args: argparse.Namespace, dataset: DatasetInput) -> Transform:
     return guess
 
 
-def _options(text: str | None) -> DriftOptions:
-    if text is None:
-        return DriftOptions()
-    tol = parse_tolerance(text, "--threshold")
-    return DriftOptions(threshold_rot_deg=tol.tolerance_rot_deg, threshold_trans_cm=tol.tolerance_trans_cm)
-
-
 def run(args: argparse.Namespace) -> int:
-    opts = _options(args.threshold)
+    opts = parse_threshold(args.threshold)
     with dataset_input(args) as dataset, reading(dataset.path):  # no capture into it meanwhile
         outcome = run_check(dataset.path, _checked(args, dataset), opts, print_progress)
     rep = outcome.report

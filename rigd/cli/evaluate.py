@@ -15,7 +15,7 @@ from rigd.cli.args import (
     evaluation_settings,
     non_negative_float,
     numbers,
-    parse_tolerance,
+    parse_threshold,
     positive_int,
 )
 from rigd.cli.evaluate_compare import register_compare
@@ -160,10 +160,7 @@ def run_drift_command(args: argparse.Namespace) -> int:
     settings = evaluation_settings(args)
     if args.tolerance is not None:
         raise RigdError("rigd evaluate drift: give rigd check's thresholds with --threshold (no verdicts here)")
-    opts = DriftOptions()
-    if args.threshold is not None:
-        tol = parse_tolerance(args.threshold, "--threshold")
-        opts = DriftOptions(threshold_rot_deg=tol.tolerance_rot_deg, threshold_trans_cm=tol.tolerance_trans_cm)
+    opts = parse_threshold(args.threshold)
     rot = numbers(args.rot_deg, "--rot-deg", len(args.rot_deg.split(",")))
     trans = numbers(args.trans_cm, "--trans-cm", len(args.trans_cm.split(",")))
     request = DriftRequest(settings, args.trials, tuple(rot), tuple(trans), opts, args.size)
