@@ -11,11 +11,10 @@ from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.job_runner import CalibrationPlan
 from rigd.api.models import CalibrateIn, ErrorOut, InitMode, JobOut, RigOut
 from rigd.api.rigs import fits_rig_file, other_rig, rig_record
-from rigd.api.routes.jobs import queued_out
+from rigd.api.routes.jobs import idle_dataset, queued_out
 from rigd.api.service import Service
 from rigd.calibration.request import CalibrationRequest, Start, TransformIn, resolve
 from rigd.dataset import Dataset
-from rigd.errors import RigdError
 from rigd.store import ConflictError
 
 router = APIRouter(tags=["calibrate"])
@@ -53,11 +52,7 @@ def rig_file_guess(service: Service, dataset: Dataset) -> Transform | None:
 def plan(service: Service, body: CalibrateIn) -> CalibrationPlan:
     """The body as the calibration request the worker runs, read against the dataset now, so that a request it
     cannot honour fails before it is queued."""
-    if body.dataset in service.runner.capturing():
-        raise ConflictError(f"dataset {body.dataset} is being captured; calibrate it when the capture ends")
-    dataset = service.datasets.open(body.dataset)
-    if len(dataset) == 0:
-        raise RigdError(f"dataset {body.dataset} has no pairs yet")
+    dataset = idle_dataset(service, body.dataset, "calibrate")
     request = CalibrationRequest(dataset=dataset.root, options=body.options(), **_start(service, body, dataset))
     resolved = resolve(request, dataset)
     method = {"name": resolved.method_why.choice, "why": resolved.method_why.why}

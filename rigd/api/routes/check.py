@@ -8,9 +8,8 @@ from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.job_runner import CheckPlan
 from rigd.api.models import CheckIn, ErrorOut, JobOut, ThresholdIn
 from rigd.api.rigs import other_rig
-from rigd.api.routes.jobs import queued_out
+from rigd.api.routes.jobs import idle_dataset, queued_out
 from rigd.api.service import Service
-from rigd.errors import RigdError
 from rigd.store import ConflictError
 
 router = APIRouter(tags=["check"])
@@ -18,11 +17,7 @@ router = APIRouter(tags=["check"])
 
 def plan(service: Service, body: CheckIn) -> CheckPlan:
     """Check the dataset and resolve the extrinsics now, so a bad request fails before it is queued."""
-    if body.dataset in service.runner.capturing():
-        raise ConflictError(f"dataset {body.dataset} is being captured; check it when the capture ends")
-    dataset = service.datasets.open(body.dataset)
-    if len(dataset) == 0:
-        raise RigdError(f"dataset {body.dataset} has no pairs yet")
+    dataset = idle_dataset(service, body.dataset, "check")
     if body.against == "active":
         active = service.versions.active()
         if active is None:

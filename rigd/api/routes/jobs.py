@@ -10,8 +10,10 @@ from rigd.api.deps import Authorized, ServiceDep
 from rigd.api.models import ErrorOut, JobOut
 from rigd.api.service import Service
 from rigd.api.wording import public_text
+from rigd.dataset import Dataset
+from rigd.errors import RigdError
 from rigd.results import is_calibration
-from rigd.store import Job, JobKind, JobStatus
+from rigd.store import ConflictError, Job, JobKind, JobStatus
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 JobId = Annotated[int, Path(ge=1, le=2**31 - 1)]
@@ -53,6 +55,16 @@ def get_job(service: ServiceDep, job_id: JobId) -> JobOut:
                responses={404: {"model": ErrorOut}, 409: {"model": ErrorOut, "description": "already finished"}})
 def cancel_job(service: ServiceDep, job_id: JobId) -> JobOut:
     return job_out(service, service.runner.cancel(job_id))
+
+
+def idle_dataset(service: Service, name: str, verb: str) -> Dataset:
+    """Dataset ``name`` for a job to ``verb``: one with pairs that no capture is writing into."""
+    if name in service.runner.capturing():
+        raise ConflictError(f"dataset {name} is being captured; {verb} it when the capture ends")
+    dataset = service.datasets.open(name)
+    if len(dataset) == 0:
+        raise RigdError(f"dataset {name} has no pairs yet")
+    return dataset
 
 
 def queued_out(service: Service, job: Job, new: bool, response: Response) -> JobOut:
