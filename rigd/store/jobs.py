@@ -38,23 +38,15 @@ def _stored(params: dict[str, Any]) -> str:
     return json.dumps(json_safe(params))
 
 
+_JOB_COLUMNS = ("id", "stage", "fraction", "created_at", "started_at", "finished_at", "error")  # stored as they are
+
+
 def _row_to_job(row: sqlite3.Row) -> Job:
     # Unchecked: the result reads back as JobStore.finish wrote it (a JobResult of the job's kind, through JSON);
     # the API's JobOut validates it.
     result = cast(JobResult, json.loads(row["result"])) if row["result"] else None
-    return Job(
-        id=row["id"],
-        kind=JobKind(row["kind"]),
-        status=JobStatus(row["status"]),
-        params=json.loads(row["params"]),
-        stage=row["stage"],
-        fraction=row["fraction"],
-        created_at=row["created_at"],
-        started_at=row["started_at"],
-        finished_at=row["finished_at"],
-        result=result,
-        error=row["error"],
-    )
+    return Job(kind=JobKind(row["kind"]), status=JobStatus(row["status"]), params=json.loads(row["params"]),
+               result=result, **{column: row[column] for column in _JOB_COLUMNS})
 
 
 @dataclass(frozen=True)

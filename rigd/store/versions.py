@@ -39,24 +39,17 @@ def change_between(active: ExtrinsicsVersion, T: Transform) -> Change:
     )
 
 
+_VERSION_COLUMNS = ("number", "created_at", "method", "code_version", "dataset_id", "dataset_hash", "job_id",
+                    "supersedes", "activated_at")  # stored as they are
+
+
 def _row_to_version(row: sqlite3.Row) -> ExtrinsicsVersion:
     change = json.loads(row["change"]) if row["change"] else None
     return ExtrinsicsVersion(
-        number=row["number"],
-        created_at=row["created_at"],
         T_camera_lidar=Transform.from_matrix(np.asarray(json.loads(row["transform"])["matrix"])),
-        quality=json.loads(row["quality"]),
-        method=row["method"],
-        parameters=json.loads(row["parameters"]),
-        code_version=row["code_version"],
-        dataset_id=row["dataset_id"],
-        dataset_hash=row["dataset_hash"],
-        job_id=row["job_id"],
-        supersedes=row["supersedes"],
-        change=Change(**change) if change else None,
-        status=VersionStatus(row["status"]),
-        activated_at=row["activated_at"],
-    )
+        quality=json.loads(row["quality"]), parameters=json.loads(row["parameters"]),
+        change=Change(**change) if change else None, status=VersionStatus(row["status"]),
+        **{column: row[column] for column in _VERSION_COLUMNS})
 
 
 class VersionStore:
