@@ -9,6 +9,7 @@ in the worker process (requests back to back until the job ends). Prints count, 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import socket
@@ -16,6 +17,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import httpx
@@ -28,23 +30,28 @@ from rigd.simulate import write_simulated_dataset
 def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
+        return int(sock.getsockname()[1])
 
 
-def start(data: Path, port: int) -> subprocess.Popen[bytes]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("RIGD_")}
-    env["RIGD_DATA_DIR"] = str(data)
-    proc = subprocess.Popen([sys.executable, "-m", "rigd", "serve", "--port", str(port), "--log-level", "warning"],
-                            env=env)
+def start(data: Path, port: int, *, env: dict[str, str] | None = None, log: Path | None = None,
+          preexec: Callable[[], None] | None = None) -> subprocess.Popen[bytes]:
+    """``rigd serve`` on ``port`` with the data directory ``data`` and ``env`` (the caller's RIGD_ variables
+    dropped), its output into ``log`` if given; returns once ``GET /status`` answers."""
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("RIGD_")}, "RIGD_DATA_DIR": str(data),
+           **(env or {})}
+    with log.open("wb") if log is not None else contextlib.nullcontext() as out:
+        proc = subprocess.Popen([sys.executable, "-m", "rigd", "serve", "--port", str(port), "--log-level",
+                                 "warning"], env=env, stdout=out, stderr=subprocess.STDOUT if out else None,
+                                preexec_fn=preexec)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         try:
-            if httpx.get(f"http://127.0.0.1:{port}/status", timeout=1).status_code == 200:
+            if httpx.get(f"http://127.0.0.1:{port}/status", timeout=2.0).status_code == 200:
                 return proc
         except httpx.TransportError:
             time.sleep(0.1)
     proc.kill()
-    raise SystemExit("rigd serve did not start")
+    raise SystemExit("rigd serve did not start" + (f":\n{log.read_text()}" if log is not None else ""))
 
 
 def bench_data_dir(tmp: Path, pairs: int, width: int) -> tuple[Path, dict[str, list[float]]]:

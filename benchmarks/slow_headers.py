@@ -13,46 +13,27 @@ files (1024: systemd's default without LimitNOFILE).
 from __future__ import annotations
 
 import argparse
-import os
 import resource
 import signal
 import socket
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import httpx
 import numpy as np
+from api_status_latency import free_port, start
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
-def start(data: Path, port: int, log: Path, nofile: int | None) -> subprocess.Popen[bytes]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("RIGD_")}
-    env.update({"RIGD_DATA_DIR": str(data), "RIGD_HEADER_TIMEOUT_S": "60"})
+def start_limited(data: Path, port: int, log: Path, nofile: int | None) -> subprocess.Popen[bytes]:
+    """``rigd serve`` with slow connections kept open (RIGD_HEADER_TIMEOUT_S=60), at most ``nofile`` open files."""
 
     def limit() -> None:
         if nofile is not None:
             resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, nofile))
 
-    with log.open("wb") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "rigd", "serve", "--port", str(port), "--log-level",
-                                 "warning"], env=env, stdout=out, stderr=subprocess.STDOUT, preexec_fn=limit)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        try:
-            if httpx.get(f"http://127.0.0.1:{port}/status", timeout=2.0).status_code == 200:
-                return proc
-        except httpx.TransportError:
-            time.sleep(0.1)
-    proc.kill()
-    raise SystemExit(f"rigd serve did not start:\n{log.read_text()}")
+    return start(data, port, env={"RIGD_HEADER_TIMEOUT_S": "60"}, log=log, preexec=limit)
 
 
 def still_open(sock: socket.socket) -> bool:
@@ -76,7 +57,7 @@ def main() -> None:
 
     tmp = Path(tempfile.mkdtemp(prefix="rigd-slow-headers-"))
     port, log = free_port(), tmp / "serve.log"
-    proc = start(tmp / "data", port, log, args.nofile)
+    proc = start_limited(tmp / "data", port, log, args.nofile)
     slow = []
     try:
         for _ in range(args.slow):
