@@ -163,9 +163,8 @@ def _integer(section: dict[str, Any], key: str, default: int, where: str) -> int
 
 
 def _capture(section: dict[str, Any], where: str) -> CaptureDefaults:
-    base = CaptureDefaults()
-    _unknown(section, set(CaptureDefaults.__dataclass_fields__), f"{where}: capture")
-    here = f"{where}: capture"
+    base, here = CaptureDefaults(), f"{where}: capture"
+    _unknown(section, set(CaptureDefaults.__dataclass_fields__), here)
     out = section.get("out")
     return CaptureDefaults(
         n=_integer(section, "n", base.n, here),
@@ -186,17 +185,17 @@ def _fraction(section: dict[str, Any], key: str, default: float, where: str) -> 
 
 
 def _sdk(section: dict[str, Any], where: str) -> SdkSettings:
-    base = SdkSettings()
-    _unknown(section, set(SdkSettings.__dataclass_fields__), f"{where}: camera.sdk")
+    base, here = SdkSettings(), f"{where}: camera.sdk"
+    _unknown(section, set(SdkSettings.__dataclass_fields__), here)
     rig_file = section.get("rig_file")
     return SdkSettings(
         layout=Path(str(section.get("layout", base.layout))),
         library=str(section.get("library", base.library)),
         rig_file=Path(str(rig_file)) if rig_file is not None else None,
-        radius_m=_number(section, "radius_m", base.radius_m, f"{where}: camera.sdk", 0.0, strict=True, infinite=True),
-        serial=_serial(section.get("serial"), f"{where}: camera.sdk"),
-        grab_timeout_ms=_integer(section, "grab_timeout_ms", base.grab_timeout_ms, f"{where}: camera.sdk"),
-        panorama=_panorama_backend(section.get("panorama", base.panorama.value), f"{where}: camera.sdk"),
+        radius_m=_number(section, "radius_m", base.radius_m, here, 0.0, strict=True, infinite=True),
+        serial=_serial(section.get("serial"), here),
+        grab_timeout_ms=_integer(section, "grab_timeout_ms", base.grab_timeout_ms, here),
+        panorama=_panorama_backend(section.get("panorama", base.panorama.value), here),
     )
 
 
