@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import threading
 from dataclasses import dataclass, field
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from rigd.api.calibration_result import ActivationBounds
@@ -17,13 +16,7 @@ from rigd.capture.config import RigSettings, load_settings
 from rigd.store import Database, DataDirLock, JobStore, VersionStore
 from rigd.store.datasets import DatasetCatalog
 from rigd.store.db import utc_now
-
-
-def software_version() -> str:
-    try:
-        return version("rigd")
-    except PackageNotFoundError:  # running from a source tree that was never installed
-        return "unknown"
+from rigd.version import software_version
 
 
 @dataclass

@@ -28,6 +28,9 @@ from rigd.dataset.lasers import VLP16
 from rigd.dataset.pcd import read_pcd
 from rigd.dataset.records import (
     MODEL_ELEVATION_SIGMA_DEG,
+    TOLERANCE_ROT_DEG,
+    TOLERANCE_TRANS_CM,
+    TOLERANCE_WHY,
     CameraConfig,
     CameraKind,
     lever_arm_problem,
@@ -59,12 +62,11 @@ def _range(low: float, high: float) -> Any:
     return Field(json_schema_extra={"minimum": low, "maximum": high})
 
 
-# A tolerance or threshold per axis is the error that matters to the application. Below these lower bounds no
-# sensor of the rig resolves a difference (a working pixel is 0.18 deg, a VLP-16 step 0.1-0.4 deg, its range
-# accurate to 3 cm), and the verdict's arithmetic, which divides by them, breaks down (1e-300 killed the worker).
-_TOLERANCE_WHY = "finer than the rig's sensors resolve, or so coarse that any result would pass"
-ToleranceDeg = Annotated[float, _range(0.001, 10.0), AfterValidator(_within(0.001, 10.0, "deg", _TOLERANCE_WHY))]
-ToleranceCm = Annotated[float, _range(0.01, 100.0), AfterValidator(_within(0.01, 100.0, "cm", _TOLERANCE_WHY))]
+# A tolerance or threshold per axis, within rig.yaml's bounds (rigd.dataset.records says why these).
+ToleranceDeg = Annotated[float, _range(*TOLERANCE_ROT_DEG),
+                         AfterValidator(_within(*TOLERANCE_ROT_DEG, "deg", TOLERANCE_WHY))]
+ToleranceCm = Annotated[float, _range(*TOLERANCE_TRANS_CM),
+                        AfterValidator(_within(*TOLERANCE_TRANS_CM, "cm", TOLERANCE_WHY))]
 # A prior's sigma: how well the rig's drawing knows the lever arm or the mounting angles.
 PriorSigmaCm = Annotated[float, _range(0.01, 1000.0), AfterValidator(_within(
     0.01, 1000.0, "cm", "no drawing knows a lever arm better than 0.1 mm, and 10 m is no prior at all"))]
