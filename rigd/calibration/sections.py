@@ -34,6 +34,7 @@ from rigd.report import (
     Quality,
     ReferenceAgreement,
     Restart,
+    Sigmas,
     StartYaml,
     Tolerance,
     Uncertainty,
@@ -75,30 +76,29 @@ def _finite(values: NDArray[np.float64]) -> list[float | None]:
     return [float(v) if np.isfinite(v) else None for v in np.asarray(values, dtype=np.float64)]
 
 
+def _sigmas(values: NDArray[np.float64]) -> Sigmas:
+    """Six values per axis (roll, pitch, yaw deg; x, y, z cm) in the report's form."""
+    return {"rpy_deg": _finite(values[:3]), "xyz_cm": _finite(values[3:])}
+
+
 def _uncertainty_yaml(a: Assessment) -> Uncertainty:
     u = a.uncertainty
     restarts: list[Restart] = [{"offset_rpy_deg": _finite(r.offset[:3]), "offset_xyz_cm": _finite(r.offset[3:]),
                                 "delta_nll": r.delta_nll} for r in a.restarts]
     return {
-        "rpy_deg": _finite(u.sigma[:3]),
-        "xyz_cm": _finite(u.sigma[3:]),
+        **_sigmas(u.sigma),
         "covariance": [_finite(row) for row in u.covariance * np.outer(TO_DISPLAY, TO_DISPLAY)],
         "weakest": u.weakest,
-        "laplace": {"rpy_deg": _finite(u.laplace[:3]), "xyz_cm": _finite(u.laplace[3:]), "nll_scale": u.kappa},
+        "laplace": {**_sigmas(u.laplace), "nll_scale": u.kappa},
         "jackknife": None if u.jackknife is None else {
-            "rpy_deg": _finite(u.jackknife[:3]), "xyz_cm": _finite(u.jackknife[3:]), "groups": u.jackknife_groups,
-            "held_by_pairs": list(u.held_by)},
+            **_sigmas(u.jackknife), "groups": u.jackknife_groups, "held_by_pairs": list(u.held_by)},
         "jackknife_rings": None if u.jackknife_rings is None else {
             "rpy_deg": _finite(u.jackknife_rings[:3]), "xyz_cm": _finite(u.jackknife_rings[3:]),
             "groups": u.ring_groups},
-        "restart_spread": None if u.restart_spread is None else {
-            "rpy_deg": _finite(u.restart_spread[:3]), "xyz_cm": _finite(u.restart_spread[3:])},
-        "camera_model": None if u.intrinsics is None else {
-            "rpy_deg": _finite(u.intrinsics[:3]), "xyz_cm": _finite(u.intrinsics[3:])},
-        "lidar_elevation": None if u.elevation is None else {
-            "rpy_deg": _finite(u.elevation[:3]), "xyz_cm": _finite(u.elevation[3:])},
-        "cross_check": None if u.cross_check is None else {
-            "rpy_deg": _finite(u.cross_check[:3]), "xyz_cm": _finite(u.cross_check[3:])},
+        "restart_spread": None if u.restart_spread is None else _sigmas(u.restart_spread),
+        "camera_model": None if u.intrinsics is None else _sigmas(u.intrinsics),
+        "lidar_elevation": None if u.elevation is None else _sigmas(u.elevation),
+        "cross_check": None if u.cross_check is None else _sigmas(u.cross_check),
         "matched_share": u.matched_share,
         "restarts": restarts,
     }
