@@ -29,7 +29,7 @@ def test_a_searched_calibration_moves_forward_and_says_the_search_was_chosen(tmp
     fractions = [f for _, f in shown]
     assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] <= 1.0, shown
     stages = [s for s, _ in shown]
-    assert any(s.startswith("global search over the mounts (asked for (after a reassembly)), 1/2") for s in stages)
+    assert any(s.startswith("global search over the mounts (asked for (after a reassembly)), 1/") for s in stages)
     assert any(s.startswith("optimising level") for s in stages) and stages[-1] == "writing overlays", stages
     searched = [f for s, f in shown if "global search" in s]
     optimised = [f for s, f in shown if s.startswith("optimising")]
