@@ -34,3 +34,8 @@ class LockHeldError(RigdError):
 
 class DataDirLockedError(RigdError):
     """Another process (another ``rigd serve``) holds the data directory; the message names its pid."""
+
+
+class WorkerLostError(RigdError):
+    """A worker process of a calibration ended abruptly (killed, or by the kernel for want of memory) and took its
+    task with it; nothing of the calibration was written (the CLI exits 71)."""

@@ -20,9 +20,11 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import CancelledError, Executor, Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, NamedTuple
 
 from calib.gmm import PairFeatures
+from rigd.errors import WorkerLostError
 from rigd.lifetime import exit_with_parent
 
 EXIT_PARENT_GONE = 3  # a pool worker's exit code when its parent died
@@ -125,7 +127,13 @@ class FeaturePool(Executor):
                     continue  # cancelled while it waited
                 worker, sent = self._route(task.args, free)
                 self._busy[worker] = True
-            inner = self._workers[worker].submit(_call, task.fn, sent, task.kwargs)
+            try:
+                inner = self._workers[worker].submit(_call, task.fn, sent, task.kwargs)
+            except BrokenProcessPool:  # its process died after its last task: this one fails, the worker is free
+                with self._lock:
+                    self._busy[worker] = False
+                task.future.set_exception(_lost(worker))
+                continue
             inner.add_done_callback(functools.partial(self._done, worker, task.future))
 
     def _route(self, args: tuple[Any, ...], free: list[int]) -> tuple[int, tuple[Any, ...]]:
@@ -153,7 +161,9 @@ class FeaturePool(Executor):
             self._busy[worker] = False
         if inner.cancelled():  # the workers were shut down with cancel_futures: the caller's task is running
             outer.set_exception(CancelledError(f"worker {worker} was shut down before the task ran"))
-        elif (error := inner.exception()) is not None:
+        elif isinstance(error := inner.exception(), BrokenProcessPool):
+            outer.set_exception(_lost(worker))
+        elif error is not None:
             outer.set_exception(error)
         else:
             outer.set_result(inner.result())
@@ -169,3 +179,8 @@ class FeaturePool(Executor):
                 self._settled.wait()
         for w in self._workers:
             w.shutdown(wait=wait, cancel_futures=cancel_futures)
+
+
+def _lost(worker: int) -> WorkerLostError:
+    return WorkerLostError(f"worker process {worker + 1} of the calibration ended abruptly (killed, or by the kernel "
+                           "for want of memory: its log says which); nothing was written: run it again")

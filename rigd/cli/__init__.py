@@ -9,9 +9,9 @@ from collections.abc import Sequence
 
 from calib.errors import CalibError
 from drivers.errors import DriverError
-from rigd.cli.exit_codes import CANT_CREATE, ERROR, INTERRUPTED, IO_ERROR, SOFTWARE
+from rigd.cli.exit_codes import CANT_CREATE, ERROR, INTERRUPTED, IO_ERROR, OS_ERROR, SOFTWARE
 from rigd.cli.parser import RigdArgumentParser
-from rigd.errors import DiskError, OutputError, RigdError
+from rigd.errors import DiskError, OutputError, RigdError, WorkerLostError
 from rigd.space import is_storage_error, os_error_text
 from rigd.version import software_version
 
@@ -60,6 +60,8 @@ def exit_code(exc: Exception) -> int:
     """The exit code of a named error (rigd.cli.exit_codes)."""
     if isinstance(exc, DiskError) or is_storage_error(exc):
         return IO_ERROR
+    if isinstance(exc, WorkerLostError):
+        return OS_ERROR
     return CANT_CREATE if isinstance(exc, OutputError) else ERROR
 
 

@@ -22,6 +22,7 @@ NOT_STARTED = 3  # rigd serve could not start, as uvicorn.run exits (e.g. the po
 USAGE = 64  # EX_USAGE: the command line is wrong (an unknown option, a value its type refuses), argparse's error
 ERROR = 65  # EX_DATAERR: a RigdError, DriverError or CalibError, "rigd: error: ..." naming the thing refused
 SOFTWARE = 70  # EX_SOFTWARE: an error rigd did not foresee (a bug): "rigd: internal error: ..." and its traceback
+OS_ERROR = 71  # EX_OSERR: a worker process of the calibration ended abruptly (killed, out of memory)
 CANT_CREATE = 73  # EX_CANTCREAT: an output refused: it is an input, or holds what another run wrote (--overwrite)
 IO_ERROR = 74  # EX_IOERR: a write failed: the file system is full or read-only (the path and its free space named)
 SIGNALLED = 128  # plus the signal's number: rigd capture stopped by SIGTERM exits 143

@@ -1,7 +1,10 @@
 import json
+import os
+import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,7 +13,7 @@ import yaml
 import calib.pipeline
 from calib.search import search_initial
 from rigd.cli import main
-from rigd.cli.exit_codes import CANT_CREATE, ERROR, USAGE
+from rigd.cli.exit_codes import CANT_CREATE, ERROR, OS_ERROR, USAGE
 from rigd.dataset import open_dataset, write_pair
 from rigd.dataset.pcd import Cloud
 from rigd.dataset.records import RigConfig
@@ -204,3 +207,37 @@ def test_each_axis_can_have_its_own_tolerance(small_dataset, tmp_path, capsys):
                                "tolerance": {"rpy_deg": [1, 1, 0.1], "xyz_cm": [3, 3, 9]}}, "rig.yaml")
     assert rig.tolerance is not None and list(rig.tolerance.tolerance_display) == [1, 1, 0.1, 3, 3, 9]
     assert RigConfig.from_yaml(rig.to_yaml(), "rig.yaml").tolerance == rig.tolerance
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (Linux /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # the process ended while we looked
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def test_a_worker_killed_mid_calibration_ends_it_with_its_own_exit_code_and_writes_nothing(small_dataset, tmp_path):
+    """kill -9 of a pool worker (or the OOM killer): the command says so and exits 71, no bug's traceback, no
+    extrinsics; it once ended as an internal error (70), and a worker killed between tasks left it waiting."""
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "rigd", "calibrate", str(small_dataset), "--out", str(out),
+                             "--no-visuals", "--workers", "2"], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not (workers := [c for c in _children(proc.pid)
+                           if "spawn_main" in Path(f"/proc/{c}/cmdline").read_text(errors="replace")]):
+        assert time.monotonic() < deadline and proc.poll() is None, "the pool's worker never started"
+        time.sleep(0.05)
+    os.kill(workers[0], signal.SIGKILL)
+    try:
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()  # a wedged command does not outlive the test
+    assert proc.returncode == OS_ERROR, err
+    assert "rigd: error: worker process 1 of the calibration ended abruptly" in err and "Traceback" not in err
+    assert not (out / "extrinsics.yaml").exists()

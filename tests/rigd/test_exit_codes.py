@@ -17,7 +17,8 @@ def test_the_documented_codes():
     assert {s.value: int(Calibrate[s.name]) for s in Status} == {"trusted": 0, "weak": 3, "failed": 4,
                                                                  "not_assessed": 5}
     assert {s.value: int(Check[s.name]) for s in DriftStatus} == {"ok": 0, "drifted": 1, "unknown": 2}
-    errors = {exit_codes.USAGE, exit_codes.ERROR, exit_codes.SOFTWARE, exit_codes.CANT_CREATE, exit_codes.IO_ERROR}
-    assert errors == {64, 65, 70, 73, 74}
+    errors = {exit_codes.USAGE, exit_codes.ERROR, exit_codes.SOFTWARE, exit_codes.OS_ERROR, exit_codes.CANT_CREATE,
+              exit_codes.IO_ERROR}
+    assert errors == {64, 65, 70, 71, 73, 74}
     verdicts = {int(c) for c in (*Calibrate, *Check)} | {exit_codes.UNHEALTHY, exit_codes.NOT_STARTED}
     assert not errors & verdicts

@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from calib.geometry import Transform
 from calib.pipeline import CalibParams, calibrate, with_sigmas
 from calib.search import SearchOptions, search_initial
 from rigd.calibration.pool import FeaturePool
+from rigd.errors import WorkerLostError
 from tests.calib.synthetic import TRUTH, make_pair
 
 
@@ -156,3 +158,17 @@ def test_a_shutdown_runs_the_queued_tasks_first():
     futures = [pool.submit(_pid_after, 0.05) for _ in range(3)]
     pool.shutdown(wait=True)
     assert all(f.done() and not f.cancelled() for f in futures)
+
+
+def test_a_killed_worker_fails_its_tasks_by_name_and_the_pool_still_shuts_down():
+    """A worker killed (kill -9, the kernel's OOM killer): the task it ran, and any sent to it after, fail with
+    an error that says so instead of a bug's traceback, and the pool closes instead of waiting for it forever."""
+    pool = FeaturePool(1)
+    os.kill(pool.submit(os.getpid).result(), signal.SIGKILL)
+    for _ in range(2):  # the first may reach the worker before its death is noticed, the second cannot
+        with pytest.raises(WorkerLostError, match="ended abruptly"):
+            pool.submit(os.getpid).result(timeout=60)
+    closing = threading.Thread(target=pool.shutdown, daemon=True)
+    closing.start()
+    closing.join(60)
+    assert not closing.is_alive(), "the pool's shutdown waited for a dead worker"
