@@ -271,10 +271,9 @@ def _edge_candidates(feats: list[PairFeatures], grid: list[Handed[F64]], rotatio
     if not np.any(costs < 0):
         raise InitialGuessError("global search: no grid mount brings any LiDAR edge near an image edge")
     minima = _grid_minima(rotations, costs, opts)
-    pending = [executor.submit(_polish_edges, feats, rotations[k], translation_m, opts) for k in minima[1:]] \
-        if executor is not None else []
-    polished = [_polish_edges(feats, rotations[k], translation_m, opts) for k in minima[:1 if pending else None]]
-    polished += [f.result() for f in pending]
+    # The runners-up go to the pool; this process polishes the best, then takes back any no worker has started.
+    others = [hand(executor, _polish_edges, feats, rotations[k], translation_m, opts) for k in minima[1:]]
+    polished = [_polish_edges(feats, rotations[minima[0]], translation_m, opts), *collect(others)]
     return _candidates(minima, polished, mounts, translation_m, "edges")
 
 
@@ -323,7 +322,8 @@ def search_initial(
     on one real narrow camera), and the GMM solves from both (:func:`calib.pipeline.calibrate`) decide.
     ``executor`` (the application's process pool): the pairs' edge grids go there while this process scores
     mutual information, then takes back the pairs no worker has started; all edge candidates but the first are
-    polished there. The same result (the per-pair grids are summed in the pairs' order either way)."""
+    polished there (this process takes back those no worker has started). The same result (the per-pair grids are
+    summed in the pairs' order either way)."""
     started = time.monotonic()
     opts = opts or default_search(feats[0].camera)
     mounts = grid_mounts(opts)
