@@ -76,15 +76,21 @@ def worker_pool(workers: int) -> Iterator[Executor | None]:
     alternative schedules, half the restarts, the search's runners-up), or None (one worker, or inside a daemonic
     pool worker, which cannot have children). They start at once and import the solver while this process
     extracts the pairs' edges in threads (:func:`edge_threads`), and keep the features they are sent, with the
-    field bands their solves build (:class:`FeaturePool`).
+    field bands their solves build (:class:`FeaturePool`). An error or an interrupt in the caller kills them
+    mid-task: no result of theirs would be read.
 
     Spawn, not fork (as rigd.evaluate): a child forked while OpenCV's or BLAS's own threads hold a lock can
     deadlock, and those threads are invisible to the threading module. Costs ~1 s of imports per worker."""
     if workers <= 1 or multiprocessing.current_process().daemon:
         yield None
         return
-    with FeaturePool(workers - 1, initializer=preload, initargs=("calib.assess",)) as pool:
+    pool = FeaturePool(workers - 1, initializer=preload, initargs=("calib.assess",))
+    try:
         yield pool
+    except BaseException:  # an error or an interrupt here: no running task's result will be read
+        pool.abort()
+        raise
+    pool.shutdown()
 
 
 @contextmanager

@@ -12,15 +12,19 @@ gone: a worker whose parent was killed exits rather than finish a solve nobody w
 from __future__ import annotations
 
 import collections
+import contextlib
 import functools
 import importlib
 import itertools
 import multiprocessing
 import os
+import signal
+import sys
 import threading
 from collections.abc import Callable
 from concurrent.futures import CancelledError, Executor, Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Any, NamedTuple
 
 from calib.gmm import PairFeatures
@@ -28,6 +32,7 @@ from rigd.errors import WorkerLostError
 from rigd.lifetime import exit_with_parent
 
 EXIT_PARENT_GONE = 3  # a pool worker's exit code when its parent died
+_START_S = 30.0  # abort() waits this long for a worker still starting to say its pid
 
 _HELD: dict[int, list[PairFeatures]] = {}  # in a worker: the features lists it was sent, by token
 
@@ -90,8 +95,8 @@ class FeaturePool(Executor):
         start = (os.getpid(), initializer, initargs)
         self._workers = [ProcessPoolExecutor(1, mp_context=context, initializer=_start_worker, initargs=start)
                          for _ in range(workers)]
-        for w in self._workers:  # spawned now, not at the first task: their imports overlap the caller's work
-            w.submit(int)
+        # Spawned now, not at the first task: their imports overlap the caller's work. Their pids, for abort().
+        self._pids = [w.submit(os.getpid) for w in self._workers]
         self._busy = [False] * workers
         self._queue: collections.deque[_Task] = collections.deque()
         self._held: dict[int, tuple[list[PairFeatures], dict[int, int]]] = {}  # id -> (list, worker -> token)
@@ -179,6 +184,25 @@ class FeaturePool(Executor):
                 self._settled.wait()
         for w in self._workers:
             w.shutdown(wait=wait, cancel_futures=cancel_futures)
+
+    def abort(self) -> None:
+        """Stop at once: queued tasks cancelled, the workers killed mid-task (the caller has failed or been
+        interrupted and will read no result; a shutdown would wait for each running task to end, 22 s on the
+        Ford head after a SIGINT to this process alone)."""
+        for started in self._pids:
+            with contextlib.suppress(TimeoutError, BrokenProcessPool, ProcessLookupError):  # never started, or gone
+                pid = started.result(timeout=_START_S)
+                if _is_child(pid):  # not a stranger that took a dead worker's pid
+                    os.kill(pid, signal.SIGKILL)
+        self.shutdown(wait=False, cancel_futures=True)
+
+
+def _is_child(pid: int) -> bool:
+    """Whether process ``pid`` is this process's child (Linux's /proc; elsewhere assumed)."""
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1]) == os.getpid()
+    except FileNotFoundError:  # gone, or no /proc
+        return sys.platform != "linux"
 
 
 def _lost(worker: int) -> WorkerLostError:

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+from concurrent.futures import CancelledError
 from pathlib import Path
 
 import numpy as np
@@ -172,3 +173,18 @@ def test_a_killed_worker_fails_its_tasks_by_name_and_the_pool_still_shuts_down()
     closing.start()
     closing.join(60)
     assert not closing.is_alive(), "the pool's shutdown waited for a dead worker"
+
+
+def test_an_abort_kills_a_busy_worker_instead_of_waiting_for_its_task(tmp_path):
+    """A calibration that failed or was interrupted reads no result: its pool stops at once (a shutdown waited
+    22 s for a worker's restart on the Ford head after a SIGINT to the command alone)."""
+    pool = FeaturePool(1)
+    pid = pool.submit(os.getpid).result()
+    busy = pool.submit(_pid_after, 0.0, tmp_path / "never")  # runs until its 60 s wait fails
+    started = time.monotonic()
+    pool.abort()
+    while _running(pid):
+        assert time.monotonic() - started < 30, "the aborted pool's worker is still running"
+        time.sleep(0.05)
+    with pytest.raises((WorkerLostError, CancelledError)):
+        busy.result(timeout=30)
