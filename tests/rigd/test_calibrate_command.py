@@ -209,15 +209,16 @@ def test_each_axis_can_have_its_own_tolerance(small_dataset, tmp_path, capsys):
     assert RigConfig.from_yaml(rig.to_yaml(), "rig.yaml").tolerance == rig.tolerance
 
 
-def _children(pid: int) -> list[int]:
-    """The processes whose parent is ``pid`` (Linux /proc)."""
+def _pool_workers(pid: int) -> list[int]:
+    """The spawned pool workers whose parent is ``pid`` (Linux /proc)."""
     found = []
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
+            parent = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+            spawned = parent == pid and "spawn_main" in (stat.parent / "cmdline").read_text(errors="replace")
         except OSError:  # the process ended while we looked
             continue
-        if int(fields[1]) == pid:
+        if spawned:
             found.append(int(stat.parent.name))
     return found
 
@@ -229,8 +230,7 @@ def test_a_worker_killed_mid_calibration_ends_it_with_its_own_exit_code_and_writ
     proc = subprocess.Popen([sys.executable, "-m", "rigd", "calibrate", str(small_dataset), "--out", str(out),
                              "--no-visuals", "--workers", "2"], stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
-    while not (workers := [c for c in _children(proc.pid)
-                           if "spawn_main" in Path(f"/proc/{c}/cmdline").read_text(errors="replace")]):
+    while not (workers := _pool_workers(proc.pid)):
         assert time.monotonic() < deadline and proc.poll() is None, "the pool's worker never started"
         time.sleep(0.05)
     os.kill(workers[0], signal.SIGKILL)
