@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from calib.edges_points import FOLD
 from calib.geometry import rotation_angle_deg, so3_exp
 from calib.gmm import GmmOptions, PairFeatures, in_image, transform_points
-from calib.handed import shared_calls
+from calib.handed import Progress, shared_calls
 from calib.optimize import (
     OptimOptions,
     OptimResult,
@@ -287,8 +287,8 @@ class Assessment:
 
 def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptions, gmm: GmmOptions,
                   prior: Prior | None, trust: TrustOptions,
-                  executor: Executor | None,
-                  while_waiting: Callable[[], None] | None = None) -> tuple[OptimResult, list[OptimResult]]:
+                  executor: Executor | None, while_waiting: Callable[[], None] | None = None,
+                  on_progress: Progress | None = None) -> tuple[OptimResult, list[OptimResult]]:
     """Rerun the last levels from ``trust.restarts`` poses around the solution; returns the best run (the
     solution itself unless a restart ended lower) and every restart (shared with the pool, calib.handed.share,
     with ``while_waiting``).
@@ -305,7 +305,7 @@ def _run_restarts(feats: list[PairFeatures], best: OptimResult, opts: OptimOptio
     # This process uses the field bands the main solve built here, a worker those its own solves built (the
     # application's pool hands a features list back to the worker that holds it). Same results as without a pool.
     runs = shared_calls(executor, _restart_solve, [(feats, s, tail, gmm, prior, kappas) for s in starts],
-                        while_waiting)
+                        while_waiting, on_progress)
     winner = min([best, *runs], key=lambda r: r.final_cost)
     return winner, runs
 
@@ -634,7 +634,7 @@ def _verdict(unc: Uncertainty, restarts: list[Restart], trust: TrustOptions, mov
 def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, gmm: GmmOptions, *,
            prior: Prior | None, trust: TrustOptions, alternatives: tuple[OptimResult, ...] = (),
            solving: Prior | None = None, executor: Executor | None = None,
-           starts: tuple[F64, ...] = ()) -> Assessment:
+           starts: tuple[F64, ...] = (), on_progress: Progress | None = None) -> Assessment:
     """Restarts, uncertainty and verdict of ``result`` (the coarse-to-fine solution on ``feats``).
     ``alternatives``: full solves from other starts (the global search's runners-up); they count as
     restarts, so one that ends lower becomes the solution and one that ends elsewhere as low is ambiguity.
@@ -644,7 +644,7 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
     this process works out the uncertainty while the worker ends its last one). ``starts``: the
     poses (6,) tau the solves started from (the initial guess, the search's runners-up); the solution's
     rotation from the nearest one is reported, and beyond ``trust.max_move_deg`` fails the result; so does a
-    translation beyond ``trust.max_move_m`` from the nearest start."""
+    translation beyond ``trust.max_move_m`` from the nearest start. ``on_progress(done, total)``: the restarts."""
     solving = prior if solving is None else solving
     # The restarts probe the basin of the lowest full solve: a search runner-up that ends lower than the
     # search's best start is the solution, and restarts around the start's would only find that start's basin.
@@ -654,7 +654,7 @@ def assess(feats: list[PairFeatures], result: OptimResult, opts: OptimOptions, g
     def uncertainty_early() -> None:
         early.append(_uncertainty(feats, first.tau, opts, gmm, prior, trust, solving))
 
-    best, runs = _run_restarts(feats, first, opts, gmm, solving, trust, executor, uncertainty_early)
+    best, runs = _run_restarts(feats, first, opts, gmm, solving, trust, executor, uncertainty_early, on_progress)
     unc = early[0] if early and best is first else _uncertainty(feats, best.tau, opts, gmm, prior, trust, solving)
     searched = [(r, "search start" if r is result else "search runner-up")
                 for r in [result, *alternatives] if r is not first]

@@ -56,7 +56,7 @@ from calib.assess import (
 from calib.elevation import SLOPE_STEP_DEG, raise_elevation
 from calib.errors import CalibError
 from calib.gmm import transform_points
-from calib.handed import collect, hand, shared_calls
+from calib.handed import Progress, collect, hand, shared_calls
 from calib.optimize import LevelTrace, OptimResult
 from calib.photometric import (
     LevelPair,
@@ -412,11 +412,13 @@ def photo_elevation_slope(pairs: list[PhotoPair], result: PhotoResult, params: P
 
 def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: PhotoParams, trust: TrustOptions, *,
                        fixed_translation: bool = False, starts: tuple[F64, ...] = (),
-                       opts: PhotoTrustOptions | None = None, executor: Executor | None = None) -> Assessment:
+                       opts: PhotoTrustOptions | None = None, executor: Executor | None = None,
+                       on_progress: Progress | None = None) -> Assessment:
     """Restarts, uncertainty and verdict of the NID solution ``result`` (module docstring). ``starts``: the
     poses (6,) tau the solve started from (the rotation and translation moved from the nearest are reported,
     and beyond ``trust.max_move_deg`` / ``max_move_m`` fail the result, as the GMM's). ``executor``: the
-    application's pool, whose workers take restarts beside this process (calib.handed: the same result)."""
+    application's pool, whose workers take restarts beside this process (calib.handed: the same result).
+    ``on_progress(done, total)``: the restarts."""
     anchor = np.asarray(result.tau, dtype=np.float64)
     fitted = np.asarray(result.subset_tau, dtype=np.float64)  # the restarts minimise the solve's own points
     rng = np.random.default_rng(trust.seed)
@@ -429,7 +431,7 @@ def assess_photometric(pairs: list[PhotoPair], result: PhotoResult, params: Phot
     if fixed_translation:  # the same levels with the translation free: do the values held fit the data?
         calls.append((pairs, anchor, tail, False, fitted))
     cost = _finest_cost(pairs, fitted, params)
-    done = shared_calls(executor, _restart, calls)
+    done = shared_calls(executor, _restart, calls, on_progress=on_progress)
     loose = done.pop() if fixed_translation else None
     runs: list[tuple[PhotoResult, float]] = [(result, cost(anchor)), *((run, cost(run.tau)) for run in done)]
     best, best_cost, unc = _taken(pairs, runs, params, trust, fixed_translation, opts)

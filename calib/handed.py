@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
 T = TypeVar("T")
+Progress = Callable[[int, int], None]  # (done, total) of a set of calls
 
 
 @dataclass(frozen=True)
@@ -61,24 +62,35 @@ def collect(handed: Sequence[Handed[T]], on_done: Callable[[int], None] | None =
 
 
 def share(executor: Executor | None, calls: Sequence[Callable[[], T]], remote: Sequence[Callable[[], Future[T]]],
-          while_waiting: Callable[[], None] | None = None) -> list[T]:
+          while_waiting: Callable[[], None] | None = None, on_done: Callable[[int], None] | None = None) -> list[T]:
     """The results of ``calls``, in their order. With ``executor``, this process and each of its workers
     (``executor.workers``, else one) take the next call not yet taken when they finish one, so none waits while
     calls remain (restarts differ in length: split in fixed halves, one side waited ~4 s of a 14 s phase on the
     Ford head); ``remote[i]()`` submits call ``i`` to the pool (and may route it to the worker that holds its
     features). The pool has one worker fewer than the cores, so a worker per core takes calls beside this
-    process. ``while_waiting`` runs here when no call is left to take but a worker's last one has not ended."""
+    process. ``while_waiting`` runs here when no call is left to take but a worker's last one has not ended.
+    ``on_done(count)`` after each result, in whichever thread it arrived (one at a time)."""
     results: list[T | None] = [None] * len(calls)
     order = iter(range(len(calls)))
     lock = threading.Lock()
+
+    finished = 0
 
     def take() -> int | None:
         with lock:
             return next(order, None)
 
+    def keep(i: int, value: T) -> None:
+        nonlocal finished
+        with lock:
+            results[i] = value
+            finished += 1
+            if on_done is not None:
+                on_done(finished)
+
     def feed() -> None:  # on a thread per worker: one call at a time, each when its previous ended
         while (i := take()) is not None:
-            results[i] = remote[i]().result()
+            keep(i, remote[i]().result())
 
     failed: list[BaseException] = []
     n_feeders = 0 if executor is None else max(1, int(getattr(executor, "workers", 1)))
@@ -87,7 +99,7 @@ def share(executor: Executor | None, calls: Sequence[Callable[[], T]], remote: S
         feeder.start()
     try:
         while (i := take()) is not None:
-            results[i] = calls[i]()
+            keep(i, calls[i]())
         if any(f.is_alive() for f in feeders) and while_waiting is not None:
             while_waiting()
     finally:
@@ -102,11 +114,16 @@ def share(executor: Executor | None, calls: Sequence[Callable[[], T]], remote: S
 
 
 def shared_calls(executor: Executor | None, fn: Callable[..., T], args: Sequence[tuple[object, ...]],
-                 while_waiting: Callable[[], None] | None = None) -> list[T]:
-    """:func:`share` of ``fn(*a)`` for each ``a`` of ``args``."""
+                 while_waiting: Callable[[], None] | None = None,
+                 on_progress: Progress | None = None) -> list[T]:
+    """:func:`share` of ``fn(*a)`` for each ``a`` of ``args``; ``on_progress(done, total)`` as they start (0)
+    and end."""
     calls = [functools.partial(fn, *a) for a in args]
     remote = [] if executor is None else [functools.partial(executor.submit, fn, *a) for a in args]
-    return share(executor, calls, remote, while_waiting)
+    if on_progress is None:
+        return share(executor, calls, remote, while_waiting)
+    on_progress(0, len(calls))
+    return share(executor, calls, remote, while_waiting, lambda done: on_progress(done, len(calls)))
 
 
 def _capturing(fn: Callable[[], None], failed: list[BaseException]) -> None:

@@ -26,7 +26,7 @@ from calib.assess_photo import as_optim, assess_photometric, photo_elevation_slo
 from calib.errors import CalibError, InitialGuessError
 from calib.geometry import Transform
 from calib.gmm import PairFeatures, SigmaModel
-from calib.handed import collect, hand
+from calib.handed import Progress, collect, hand
 from calib.optimize import OptimResult, optimise, tail_options
 from calib.photometric import PhotoCost, PhotoPair, PhotoParams, PhotoResult, optimise_photometric
 from calib.pipeline import (
@@ -189,12 +189,12 @@ class SolveRequest:
 def solve(request: SolveRequest, *, feats: list[PairFeatures] | None = None, photo: list[PhotoPair] | None = None,
           search_photo: list[PhotoPair] | None = None, executor: Executor | None = None,
           on_iter: Callable[[int, int, float], None] | None = None,
-          on_search: Callable[[int, int], None] | None = None) -> CalibResult:
+          on_search: Callable[[int, int], None] | None = None, on_assess: Progress | None = None) -> CalibResult:
     """Calibrate as ``request`` asks. ``feats``: the GMM features (GMM methods; for an assessed photometric one its
     cross-check's edges, or None to go without), ``photo``: the photometric pairs (photometric methods),
     ``search_photo``: the pairs' images and reflectivity for the global search's score (calib.search_mi).
     ``executor``: the application's pool for the independent solves. The result has an assessment when the
-    request is assessed (:attr:`SolveRequest.assessed`)."""
+    request is assessed (:attr:`SolveRequest.assessed`); ``on_assess(done, total)``: its restarts."""
     request.check()
     gmm, photo_opts = request.gmm, request.photo
     trust = request.trust if request.assessed else None
@@ -205,20 +205,20 @@ def solve(request: SolveRequest, *, feats: list[PairFeatures] | None = None, pho
         result = calibrate(feats, request.initial, gmm, on_iter=on_iter, prior=request.prior,
                            trust=None if photo_opts is not None else trust, search=request.search,
                            on_search=on_search, executor=executor, search_photo=search_photo,
-                           fit_elevation=request.fit_elevation)
+                           fit_elevation=request.fit_elevation, on_assess=on_assess)
     if photo_opts is None:
         assert result is not None
         return result
     if photo is None:
         raise CalibError(f"method {request.method.value} needs the photometric pairs (image and LiDAR reflectivity)")
     edges = feats if gmm is None else None
-    return _photometric(request, photo, photo_opts, result, trust, executor, on_iter, edges)
+    return _photometric(request, photo, photo_opts, result, trust, executor, on_iter, edges, on_assess)
 
 
 def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParams, gmm: CalibResult | None,
                  trust: TrustOptions | None, executor: Executor | None,
                  on_iter: Callable[[int, int, float], None] | None,
-                 edges: list[PairFeatures] | None = None) -> CalibResult:
+                 edges: list[PairFeatures] | None = None, on_assess: Progress | None = None) -> CalibResult:
     """The photometric solve from the request's start (or from the GMM's solution, ``gmm``), assessed with
     ``trust`` (nid-assessed; a declared elevation offset's sigma enters as in the GMM's: calib.assess_photo)."""
     prior = request.prior
@@ -239,7 +239,7 @@ def _photometric(request: SolveRequest, photo: list[PhotoPair], opts: PhotoParam
         if refined is not None:
             trust = _cross_check(solved, collect([refined])[0], trust)
         a = assess_photometric(photo, solved, opts, trust, fixed_translation=fixed, starts=(start.tau,),
-                               executor=executor)
+                               executor=executor, on_progress=on_assess)
         return CalibResult(Transform.from_tau(a.tau), a.optim, stats, a)
     return CalibResult(Transform.from_tau(np.asarray(solved.tau)), _levels(solved, gmm), stats, None)
 

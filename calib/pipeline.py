@@ -28,7 +28,7 @@ from calib.errors import FeaturelessError, InitialGuessError
 from calib.fields import EdgeFields
 from calib.geometry import Transform
 from calib.gmm import Evaluator, GmmOptions, KernelNorm, PairFeatures, in_image, transform_points
-from calib.handed import collect, hand
+from calib.handed import Progress, collect, hand
 from calib.optimize import OptimOptions, OptimResult, optimise
 from calib.photometric import PhotoPair
 from calib.pixel_grid import PixelGrid
@@ -293,6 +293,7 @@ def calibrate(
     executor: Executor | None = None,
     search_photo: list[PhotoPair] | None = None,
     fit_elevation: bool = False,
+    on_assess: Progress | None = None,
 ) -> CalibResult:
     """Algorithm 1 from ``initial`` (with the prior's MAP term if given), then, with ``trust``, the restarts,
     per-axis uncertainty and verdict of :mod:`calib.assess` (a restart that ends lower is the solution).
@@ -303,7 +304,8 @@ def calibrate(
     the start's lever arm enters the solve as a weak prior (:func:`solve_prior`). ``executor`` (the
     application's pool): the independent solves run there beside this process's, to the same result.
     ``fit_elevation``: the LiDAR's common elevation offset fitted around a first solve (:mod:`calib.elevation`),
-    the pose solved and assessed again with the edge points raised by it, the offset's sigma in the pose's."""
+    the pose solved and assessed again with the edge points raised by it, the offset's sigma in the pose's.
+    ``on_assess(done, total)``: the assessment's restarts."""
     found = None
     if initial is None:
         lever_arm = prior.xyz_m if prior is not None and prior.xyz_m is not None else np.zeros(3)
@@ -332,6 +334,6 @@ def calibrate(
         return CalibResult(Transform.from_tau(result.tau), result, stats, search=found, guess_sigma_m=guess_sigma,
                            elevation=elevation)
     assessment = assess(feats, result, optim, params.gmm, prior=prior, trust=trust, alternatives=tuple(others()),
-                        solving=solving, executor=executor, starts=(tau0, *runner_starts))
+                        solving=solving, executor=executor, starts=(tau0, *runner_starts), on_progress=on_assess)
     return CalibResult(Transform.from_tau(assessment.tau), assessment.optim, stats, assessment, found, guess_sigma,
                        elevation)

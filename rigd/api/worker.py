@@ -53,11 +53,13 @@ EXIT_PARENT_GONE = 3
 # reports how far it is (done of total); placed in its band, and never below what was shown, the bar only moves
 # forward.
 BANDS = {Stage.HASHING: (0.0, 0.02), Stage.EDGES: (0.02, 0.5), Stage.REFLECTIVITY: (0.5, 0.5),
-         Stage.SEARCH: (0.5, 0.5), Stage.OPTIMISING: (0.5, 0.95), Stage.OVERLAYS: (0.95, 1.0)}
+         Stage.SEARCH: (0.5, 0.5), Stage.OPTIMISING: (0.5, 0.85), Stage.ASSESSING: (0.85, 0.95),
+         Stage.OVERLAYS: (0.95, 1.0)}
 BANDS_SEARCHING = {**BANDS, Stage.EDGES: (0.02, 0.25), Stage.REFLECTIVITY: (0.25, 0.3), Stage.SEARCH: (0.3, 0.5)}
 CHECK_BANDS = {Stage.EDGES: (0.0, 0.6), Stage.AROUND: (0.6, 1.0)}
 
 
+_SILENT = (Stage.OPTIMISING, Stage.ASSESSING)  # stages that may say nothing for long: the heartbeat moves them
 HEARTBEAT_S = 1.0  # a stage that reports nothing for this long (a photometric solve, the assessment) still moves
 CREEP_S = 60.0  # ... its bar towards its band's end: 63 % of the way after this long, never reaching it
 
@@ -118,10 +120,10 @@ class Reporter:
         """When the optimisation has said nothing for HEARTBEAT_S: its words with the time it has run, and the bar
         a little further (1 - exp(-t / CREEP_S) of its band)."""
         now = time.monotonic()
-        if self.stage is not Stage.OPTIMISING or now - self.sent_at < HEARTBEAT_S:
+        if self.stage not in _SILENT or now - self.sent_at < HEARTBEAT_S:
             return
         elapsed = now - self.stage_since
-        fraction = self._forward(Stage.OPTIMISING, 1.0 - math.exp(-elapsed / CREEP_S))
+        fraction = self._forward(self.stage, 1.0 - math.exp(-elapsed / CREEP_S))
         self.send({"type": "progress", "stage": f"{self.words}, {elapsed:.0f} s", "fraction": fraction})
 
     def ended(self) -> None:

@@ -97,13 +97,18 @@ def run_calibration(request: CalibrationRequest, progress: Progress | None = Non
         if progress:
             progress(Stage.SEARCH, done, total)
 
+    def on_assess(done: int, total: int) -> None:
+        if progress:
+            progress(Stage.ASSESSING, done, total)
+
     with worker_pool(request.workers) as pool:
         try:
             features = features_for(dataset, solve_request, progress, request.workers)
             if progress:
                 progress(Stage.OPTIMISING if solve_request.initial is not None else Stage.SEARCH, 0, 1)
             result = solve(solve_request, feats=features.gmm, photo=features.photo,
-                           search_photo=features.search_photo, executor=pool, on_iter=on_iter, on_search=on_search)
+                           search_photo=features.search_photo, executor=pool, on_iter=on_iter, on_search=on_search,
+                           on_assess=on_assess)
         except CalibError as exc:
             raise RigdError(f"{dataset.root}: {exc}") from exc
         initial = solve_request.initial

@@ -12,7 +12,8 @@ class Stage(Enum):
     EDGES = "edges"  # the pairs' edges (the GMM's features), pair by pair
     REFLECTIVITY = "reflectivity"  # the pairs' images and LiDAR reflectivity (photometric costs, the search's MI)
     SEARCH = "search"  # the global search for a start, pair by pair
-    OPTIMISING = "optimising"  # the solve and its assessment
+    OPTIMISING = "optimising"  # the solve
+    ASSESSING = "assessing"  # the assessment (trust): its restarts, then the uncertainty
     OVERLAYS = "overlays"  # the pictures of the result
     AROUND = "around"  # a check: the search around the checked extrinsics
 
@@ -27,6 +28,7 @@ _WORDS = {
     Stage.REFLECTIVITY: "reflectivity and images of the pairs",
     Stage.SEARCH: "global search over the mounts",
     Stage.OPTIMISING: "optimising",
+    Stage.ASSESSING: "assessing the result: restarts",
     Stage.OVERLAYS: "writing overlays",
     Stage.AROUND: "searching around the checked extrinsics",
 }

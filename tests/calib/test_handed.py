@@ -108,3 +108,15 @@ def test_every_worker_of_the_pool_takes_calls_beside_this_process() -> None:
         runs = shared_calls(executor, solve, [([], s) for s in starts])
     assert [value for _, value in runs] == [0.0, 1.0, 2.0, 3.0]
     assert len({name for name, _ in runs}) == 4
+
+
+@pytest.mark.parametrize("pooled", [False, True])
+def test_progress_counts_each_call_as_it_ends_wherever_it_ran(pooled) -> None:
+    solve = _timed_call(0.01, worker_s=0.05)
+    starts = [np.full(6, float(i)) for i in range(4)]
+    seen: list[tuple[int, int]] = []
+    with ThreadPoolExecutor(1) as executor:
+        runs = shared_calls(executor if pooled else None, solve, [([], s) for s in starts],
+                            on_progress=lambda done, total: seen.append((done, total)))
+    assert len(runs) == 4
+    assert seen == [(0, 4), (1, 4), (2, 4), (3, 4), (4, 4)]

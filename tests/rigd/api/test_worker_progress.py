@@ -34,6 +34,10 @@ def test_a_searched_calibration_moves_forward_and_says_the_search_was_chosen(tmp
     searched = [f for s, f in shown if "global search" in s]
     optimised = [f for s, f in shown if s.startswith("optimising")]
     assert max(searched) <= min(optimised), shown  # the search's band ends where the optimisation's begins
+    # the assessment's restarts, counted after the solve (it once sat silent at the last level's iteration)
+    assessed = [(s, f) for s, f in shown if s.startswith("assessing the result: restarts")]
+    assert assessed[0][0] == "assessing the result: restarts, 0/4" and assessed[-1][0].endswith("4/4"), shown
+    assert max(optimised) <= min(f for _, f in assessed), shown
 
 
 def test_a_check_and_the_rig_files_missing_guess():
