@@ -69,18 +69,16 @@ class SweepItem:
 
 
 class _ThreadedFeed:
-    """A source read by its own thread (``_run``, named ``thread``); ``close`` stops it and calls ``on_close``."""
+    """A source read by its own thread (``run``, named ``thread``); ``close`` stops it and calls ``on_close``."""
 
-    def __init__(self, describe: str, on_close: Callable[[], None] | None, thread: str) -> None:
+    def __init__(self, describe: str, on_close: Callable[[], None] | None, thread: str,
+                 run: Callable[[], None]) -> None:
         self.describe = describe
         self._on_close = on_close
         self._closed = threading.Event()
         self._ended = threading.Event()
         self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name=thread, daemon=True)
-
-    def _run(self) -> None:
-        raise NotImplementedError
+        self._thread = threading.Thread(target=run, name=thread, daemon=True)
 
     def close(self) -> None:
         self._closed.set()
@@ -95,7 +93,7 @@ class LidarFeed(_ThreadedFeed):
 
     def __init__(self, describe: str, sweeps: Callable[[], Iterable[Sweep]], stats: Callable[[], StreamStats],
                  on_close: Callable[[], None] | None = None, queue_sweeps: int = 50) -> None:
-        super().__init__(describe, on_close, "capture-lidar")
+        super().__init__(describe, on_close, "capture-lidar", self._run)
         self._sweeps = sweeps
         self._stats = stats
         self._queue: queue.Queue[SweepItem] = queue.Queue(maxsize=queue_sweeps)
@@ -162,7 +160,7 @@ class ThreadedCameraFeed(_ThreadedFeed):
 
     def __init__(self, describe: str, frames: Callable[[], Iterator[CameraFrame]],
                  on_close: Callable[[], None] | None = None, frame_gap_s: float = 0.0) -> None:
-        super().__init__(describe, on_close, "capture-camera")
+        super().__init__(describe, on_close, "capture-camera", self._run)
         self.frame_gap_s = frame_gap_s
         self._frames = frames
         self._buffer: deque[CameraFrame] = deque(maxlen=_CAMERA_BUFFER)
