@@ -19,12 +19,10 @@ import itertools
 import multiprocessing
 import os
 import signal
-import sys
 import threading
 from collections.abc import Callable
 from concurrent.futures import CancelledError, Executor, Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from pathlib import Path
 from typing import Any, NamedTuple
 
 from calib.gmm import PairFeatures
@@ -198,11 +196,12 @@ class FeaturePool(Executor):
 
 
 def _is_child(pid: int) -> bool:
-    """Whether process ``pid`` is this process's child (Linux's /proc; elsewhere assumed)."""
+    """Whether ``pid`` is still this process's unreaped child (as rigd.api.worker_process asks it)."""
     try:
-        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1]) == os.getpid()
-    except FileNotFoundError:  # gone, or no /proc
-        return sys.platform != "linux"
+        os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+    except ChildProcessError:  # reaped: the pid may be a stranger's now
+        return False
+    return True
 
 
 def _lost(worker: int) -> WorkerLostError:
