@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -216,6 +215,8 @@ def scanline_edge_points(points_lidar: F64, ring: NDArray[np.integer] | None, pa
 
 def paper_edge_scores(points_lidar: F64, params: PaperEdgeParams) -> F64:
     """E_P = E1 * E2 (eqs. 5-7) per point, (N,) float64, neighbours = k-NN union radius."""
+    from scipy.spatial import cKDTree  # here: the default edges never need it, and it is 0.25 s of every start
+
     pts = np.asarray(points_lidar, dtype=np.float64)
     tree = cKDTree(pts)
     k = min(params.knn + 1, len(pts))

@@ -48,9 +48,7 @@ from enum import Enum
 import cv2
 import numpy as np
 import scipy.ndimage
-import scipy.optimize
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from calib.camera import CameraModel, Equirectangular
 from calib.edges_image import to_grey
@@ -351,6 +349,8 @@ def gradient_fit(uv: F64, neighbours: int) -> GradientFit | None:
     """The plane fit at each of the projected points ``uv`` (M,2) px through its ``neighbours`` nearest
     projected neighbours, ridge-regularised by 1 px^2 so points whose neighbours lie on one scan line get no
     gradient across it; None with too few points."""
+    from scipy.spatial import cKDTree  # here: only NID's gradients need it (calib.edges_points, the same)
+
     if len(uv) <= neighbours:
         return None
     _, nb = cKDTree(uv).query(uv, k=neighbours + 1)
@@ -431,6 +431,8 @@ def _nelder_mead(f: Callable[[F64], float], tau0: F64, step: F64, max_evals: int
     ``step`` per axis and x is bounded to +-``max_move`` (where a cost is flat, as on a hazy frame, the simplex
     would otherwise wander off: measured 12 deg from a 2 deg start). Returns the pose, the evaluations and the
     final cost."""
+    import scipy.optimize  # here: with scipy.linalg, 35 MB of every calibration's memory that only NID uses
+
     simplex = np.vstack([np.zeros(6), np.eye(6)])
     res = scipy.optimize.minimize(lambda x: f(tau_at(tau0, x * step)), np.zeros(6), method="Nelder-Mead",
                                   bounds=[(-max_move, max_move)] * 6,
