@@ -11,12 +11,11 @@ corner on a row its block has not built yet stops the loop and returns False: th
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from calib.compiled import Kernel
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -69,4 +68,4 @@ def _gather_py(uv: F64, pos: F64, factor: I64, hf: I64, wf: I64, cb: I64, bw: I6
     return True
 
 
-gather: Callable[..., Any] = numba.njit(cache=True, nogil=True)(_gather_py)
+gather = Kernel(_gather_py, nogil=True)

@@ -10,12 +10,10 @@ same float32 arithmetic and the same order as the numpy steps they replace, so t
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from calib.compiled import Kernel
 
 F32 = NDArray[np.float32]
 C64 = NDArray[np.complex64]
@@ -64,5 +62,5 @@ def _spectral_update_py(f_image: C64, f_adjoint: C64, beta: np.float32, denom_gr
             f_adjoint[i, j] = complex(re * scale, im * scale)
 
 
-flattened_adjoint: Callable[..., Any] = numba.njit(cache=True, nogil=True)(_flattened_adjoint_py)
-spectral_update: Callable[..., Any] = numba.njit(cache=True, nogil=True)(_spectral_update_py)
+flattened_adjoint = Kernel(_flattened_adjoint_py, nogil=True)
+spectral_update = Kernel(_spectral_update_py, nogil=True)

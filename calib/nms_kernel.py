@@ -11,12 +11,11 @@ borders: rows repeat their edge, columns wrap round a panorama and repeat their 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
+
+from calib.compiled import Kernel
 
 F64 = NDArray[np.float64]
 
@@ -47,4 +46,4 @@ def _non_max_py(magnitude: F64, gx: F64, gy: F64, wrap_u: bool, out: F64) -> Non
             out[i, j] = m if (m >= magnitude[fi, fj] and m > magnitude[bi, bj]) else 0.0
 
 
-non_max: Callable[..., Any] = numba.njit(cache=True, nogil=True)(_non_max_py)
+non_max = Kernel(_non_max_py, nogil=True)

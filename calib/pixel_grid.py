@@ -16,14 +16,12 @@ of :meth:`calib.camera.Equirectangular.displacement`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from calib.compiled import Kernel
 from calib.fields import SOFT_REACH, SOFT_WIDTH, TRUNCATION
 
 F64 = NDArray[np.float64]
@@ -158,6 +156,5 @@ def _sums_py(centres: F64, sigma: F64, q: F64, score: F64, starts: I64, rows: in
                     _accumulate(out, i, du, dv, score[j], s)
 
 
-_route: Callable[..., Any] = numba.njit(cache=True, inline="always")(_route_py)
-_accumulate: Callable[..., Any] = numba.njit(cache=True, inline="always")(_accumulate_py)
-_sums_kernel: Callable[..., Any] = numba.njit(cache=True, nogil=True)(_sums_py)
+_route, _accumulate = _route_py, _accumulate_py  # compiled in place with the kernel (calib.compiled)
+_sums_kernel = Kernel(_sums_py, helpers=("_route", "_accumulate"), nogil=True)

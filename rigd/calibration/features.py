@@ -84,7 +84,8 @@ def worker_pool(workers: int) -> Iterator[Executor | None]:
     if workers <= 1 or multiprocessing.current_process().daemon:
         yield None
         return
-    pool = FeaturePool(workers - 1, initializer=preload, initargs=("calib.assess",))
+    # numba too: calib compiles its kernels at their first call (calib.compiled), here before the first task.
+    pool = FeaturePool(workers - 1, initializer=preload, initargs=("calib.assess", "numba"))
     try:
         yield pool
     except BaseException:  # an error or an interrupt here: no running task's result will be read

@@ -59,9 +59,10 @@ def _start_worker(parent_pid: int, initializer: Callable[..., None] | None, init
         initializer(*initargs)
 
 
-def preload(module: str) -> None:
-    """A worker initializer: import ``module`` (what the worker's tasks will need) before any task arrives."""
-    importlib.import_module(module)
+def preload(*modules: str) -> None:
+    """A worker initializer: import ``modules`` (what the worker's tasks will need) before any task arrives."""
+    for module in modules:
+        importlib.import_module(module)
 
 
 def _call(fn: Callable[..., Any], args: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
