@@ -3,7 +3,7 @@ README's command table, docs/trust.md and docs/check.md link to it).
 
 ``rigd calibrate`` and ``rigd check`` exit with their verdict, a member of calib.assess.Status or
 calib.drift.DriftStatus, looked up here by its name (``Calibrate[status.name]``): rigd.cli imports this module for
-every command, and importing those two calib modules costs about a second (numba, OpenCV, SciPy) that
+every command, and importing those two calib modules costs about a third of a second (OpenCV, SciPy) that
 ``rigd lidar`` has no use for. tests/rigd/test_exit_codes.py holds the names against the enums.
 
 Errors exit with codes of their own, BSD's sysexits.h (64 and up), which no verdict uses: a script reading
