@@ -348,5 +348,5 @@ def search_initial(
                       opts.distinct_deg)
     if not photo:
         return SearchResult(tuple(edges), len(mounts), wall_s=time.monotonic() - started)
-    return SearchResult(tuple(_interleaved(edges, mi, opts.distinct_deg)), len(mounts), ("edges", "mutual information"),
-                        wall_s=time.monotonic() - started)
+    found = tuple(_interleaved(edges, mi, opts.distinct_deg))
+    return SearchResult(found, len(mounts), ("edges", "mutual information"), wall_s=time.monotonic() - started)
